@@ -1,0 +1,14 @@
+#pragma once
+/** @file Constants and small numeric helpers. */
+#include <cmath>
+
+namespace earshot {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kDefaultSpeedOfSound = 343.0;  ///< m/s (DESIGN.md)
+
+inline double dbToGain(double db) { return std::pow(10.0, db / 20.0); }
+inline double gainToDb(double g) { return 20.0 * std::log10(g); }
+inline double energyToDb(double e) { return 10.0 * std::log10(e); }
+
+}  // namespace earshot

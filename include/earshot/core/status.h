@@ -1,0 +1,78 @@
+#pragma once
+/** @file Status and Result<T>: how earshot reports recoverable failures.
+ *  Library code never throws across a module boundary on bad input and never
+ *  aborts; it returns a Status whose message names what is wrong (file, field,
+ *  value), ready to print as one line. */
+#include <optional>
+#include <string>
+#include <utility>
+
+namespace earshot {
+
+enum class StatusCode {
+  kOk = 0,
+  kInvalidArgument,  ///< a value out of range, NaN, wrong type
+  kNotFound,         ///< a missing file or name
+  kIoError,          ///< read/write failure
+  kParseError,       ///< malformed file content
+  kUnsupported,      ///< valid but not handled (format, mode)
+  kOutOfRange,       ///< a size beyond the limits we accept
+  kInternal,
+};
+
+/** Name of a status code, e.g. "invalid argument". */
+const char* statusCodeName(StatusCode code);
+
+class [[nodiscard]] Status {
+ public:
+  Status() = default;
+  Status(StatusCode code, std::string message) : mCode(code), mMessage(std::move(message)) {}
+  static Status ok() { return {}; }
+
+  bool isOk() const { return mCode == StatusCode::kOk; }
+  explicit operator bool() const { return isOk(); }
+  StatusCode code() const { return mCode; }
+  const std::string& message() const { return mMessage; }
+
+ private:
+  StatusCode mCode = StatusCode::kOk;
+  std::string mMessage;
+};
+
+inline Status invalidArgument(std::string m) { return {StatusCode::kInvalidArgument, std::move(m)}; }
+inline Status notFound(std::string m) { return {StatusCode::kNotFound, std::move(m)}; }
+inline Status ioError(std::string m) { return {StatusCode::kIoError, std::move(m)}; }
+inline Status parseError(std::string m) { return {StatusCode::kParseError, std::move(m)}; }
+inline Status unsupported(std::string m) { return {StatusCode::kUnsupported, std::move(m)}; }
+inline Status outOfRange(std::string m) { return {StatusCode::kOutOfRange, std::move(m)}; }
+
+/** A value or the Status that explains why there is none. */
+template <class T>
+class [[nodiscard]] Result {
+ public:
+  Result(T value) : mValue(std::move(value)) {}  // NOLINT: implicit on purpose
+  Result(Status status) : mStatus(std::move(status)) {}  // NOLINT
+  bool isOk() const { return mValue.has_value(); }
+  explicit operator bool() const { return isOk(); }
+  const Status& status() const { return mStatus; }
+  T& value() & { return *mValue; }
+  const T& value() const& { return *mValue; }
+  T&& value() && { return std::move(*mValue); }
+  T* operator->() { return &*mValue; }
+  const T* operator->() const { return &*mValue; }
+  T& operator*() & { return *mValue; }
+  const T& operator*() const& { return *mValue; }
+
+ private:
+  std::optional<T> mValue;
+  Status mStatus;
+};
+
+}  // namespace earshot
+
+/** Return early from a function returning Status or Result<T>. */
+#define EARSHOT_RETURN_IF_ERROR(expr)            \
+  do {                                           \
+    ::earshot::Status _es_status = (expr);       \
+    if (!_es_status.isOk()) return _es_status;   \
+  } while (0)

@@ -1,0 +1,47 @@
+#pragma once
+/** @file A persistent worker pool (spawning a thread costs ~26 us; DESIGN.md).
+ *  parallelFor hands out task indices dynamically; callers that need
+ *  bit-identical results for any thread count make each task's output depend
+ *  only on its index and combine outputs in index order afterwards. */
+#include <condition_variable>
+#include <cstddef>
+#include <functional>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+namespace earshot {
+
+class ThreadPool {
+ public:
+  /** @param threads total threads that work in parallelFor, including the
+   *  caller; 0 = hardware concurrency. */
+  explicit ThreadPool(unsigned threads = 0);
+  ~ThreadPool();
+  ThreadPool(const ThreadPool&) = delete;
+  ThreadPool& operator=(const ThreadPool&) = delete;
+
+  unsigned threadCount() const { return unsigned(mWorkers.size()) + 1; }
+
+  /** Calls fn(taskIndex, workerIndex) for every taskIndex in [0, taskCount),
+   *  on the pool's threads and the caller's; returns when all are done.
+   *  workerIndex is in [0, threadCount()). Every worker runs with denormals
+   *  flushed. fn must not throw. Not reentrant. */
+  void parallelFor(size_t taskCount, const std::function<void(size_t, unsigned)>& fn);
+
+ private:
+  void workerLoop(unsigned workerIndex);
+  void runTasks(unsigned workerIndex);
+
+  std::vector<std::thread> mWorkers;
+  std::mutex mMutex;
+  std::condition_variable mWake, mDone;
+  const std::function<void(size_t, unsigned)>* mFn = nullptr;
+  size_t mTaskCount = 0;
+  size_t mNextTask = 0;
+  unsigned mBusy = 0;
+  uint64_t mGeneration = 0;
+  bool mStop = false;
+};
+
+}  // namespace earshot

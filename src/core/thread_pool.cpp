@@ -1,0 +1,72 @@
+#include "earshot/core/thread_pool.h"
+
+#include <algorithm>
+
+#include "earshot/core/denormals.h"
+
+namespace earshot {
+
+ThreadPool::ThreadPool(unsigned threads) {
+  if (threads == 0) threads = std::max(1u, std::thread::hardware_concurrency());
+  for (unsigned i = 1; i < threads; ++i) mWorkers.emplace_back([this, i] { workerLoop(i); });
+}
+
+ThreadPool::~ThreadPool() {
+  {
+    std::lock_guard<std::mutex> lock(mMutex);
+    mStop = true;
+  }
+  mWake.notify_all();
+  for (auto& t : mWorkers) t.join();
+}
+
+void ThreadPool::runTasks(unsigned workerIndex) {
+  ScopedFlushDenormals ftz;
+  for (;;) {
+    size_t task;
+    {
+      std::lock_guard<std::mutex> lock(mMutex);
+      if (mNextTask >= mTaskCount) return;
+      task = mNextTask++;
+    }
+    (*mFn)(task, workerIndex);
+  }
+}
+
+void ThreadPool::workerLoop(unsigned workerIndex) {
+  uint64_t seen = 0;
+  for (;;) {
+    {
+      std::unique_lock<std::mutex> lock(mMutex);
+      mWake.wait(lock, [&] { return mStop || mGeneration != seen; });
+      if (mStop) return;
+      seen = mGeneration;
+      ++mBusy;
+    }
+    runTasks(workerIndex);
+    {
+      std::lock_guard<std::mutex> lock(mMutex);
+      --mBusy;
+    }
+    mDone.notify_all();
+  }
+}
+
+void ThreadPool::parallelFor(size_t taskCount, const std::function<void(size_t, unsigned)>& fn) {
+  if (taskCount == 0) return;
+  {
+    std::lock_guard<std::mutex> lock(mMutex);
+    mFn = &fn;
+    mTaskCount = taskCount;
+    mNextTask = 0;
+    ++mGeneration;
+  }
+  mWake.notify_all();
+  runTasks(0);
+  std::unique_lock<std::mutex> lock(mMutex);
+  // All tasks handed out; wait until every worker that joined has finished.
+  mDone.wait(lock, [&] { return mBusy == 0 && mNextTask >= mTaskCount; });
+  mFn = nullptr;
+}
+
+}  // namespace earshot

@@ -1,0 +1,77 @@
+#include "earshot/io/wav.h"
+
+#include <sndfile.h>
+
+#include <cmath>
+#include <memory>
+
+#include "earshot/io/atomic_file.h"
+
+namespace earshot {
+
+namespace {
+struct SndCloser {
+  void operator()(SNDFILE* f) const { sf_close(f); }
+};
+using SndPtr = std::unique_ptr<SNDFILE, SndCloser>;
+}  // namespace
+
+Result<AudioBuffer> readAudioFile(const std::string& path, size_t maxSamples) {
+  SF_INFO info{};
+  SndPtr f(sf_open(path.c_str(), SFM_READ, &info));
+  if (!f) return ioError(path + ": cannot read audio (" + sf_strerror(nullptr) + ")");
+  if (info.channels <= 0 || info.samplerate <= 0)
+    return parseError(path + ": invalid header (channels " + std::to_string(info.channels) + ", rate " +
+                      std::to_string(info.samplerate) + ")");
+  if (info.frames < 0 || double(info.frames) * info.channels > double(maxSamples))
+    return outOfRange(path + ": header claims " + std::to_string(info.frames) + " frames x " +
+                      std::to_string(info.channels) + " channels, over the limit of " +
+                      std::to_string(maxSamples) + " samples");
+  const size_t frames = size_t(info.frames), ch = size_t(info.channels);
+  std::vector<float> interleaved(frames * ch);
+  sf_count_t got = sf_readf_float(f.get(), interleaved.data(), sf_count_t(frames));
+  if (got < 0) return ioError(path + ": read failed");
+  AudioBuffer out(ch, size_t(got), double(info.samplerate));
+  for (size_t i = 0; i < size_t(got); ++i)
+    for (size_t c = 0; c < ch; ++c) {
+      float v = interleaved[i * ch + c];
+      if (!std::isfinite(v))
+        return parseError(path + ": sample " + std::to_string(i) + " of channel " + std::to_string(c) + " is not finite");
+      out.channels[c][i] = v;
+    }
+  return out;
+}
+
+Status writeWavFloat(const std::string& path, const AudioBuffer& audio) {
+  const size_t ch = audio.channelCount(), frames = audio.frameCount();
+  if (ch == 0) return invalidArgument(path + ": no channels to write");
+  if (!(audio.sampleRateHz >= 1.0 && audio.sampleRateHz <= 1e6))
+    return invalidArgument(path + ": sample rate " + std::to_string(audio.sampleRateHz) + " is outside [1, 1e6] Hz");
+  for (size_t c = 0; c < ch; ++c) {
+    if (audio.channels[c].size() != frames) return invalidArgument(path + ": channels differ in length");
+    for (size_t i = 0; i < frames; ++i)
+      if (!std::isfinite(audio.channels[c][i]))
+        return invalidArgument(path + ": sample " + std::to_string(i) + " of channel " + std::to_string(c) +
+                               " is not finite; nothing written");
+  }
+  return writeFileAtomically(path, [&](const std::string& tmp) -> Status {
+    SF_INFO info{};
+    info.channels = int(ch);
+    info.samplerate = int(std::lround(audio.sampleRateHz));
+    info.format = SF_FORMAT_WAV | SF_FORMAT_FLOAT;
+    SndPtr f(sf_open(tmp.c_str(), SFM_WRITE, &info));
+    if (!f) return ioError(path + ": cannot open for writing (" + sf_strerror(nullptr) + ")");
+    std::vector<float> block(4096 * ch);
+    for (size_t start = 0; start < frames; start += 4096) {
+      size_t n = std::min<size_t>(4096, frames - start);
+      for (size_t i = 0; i < n; ++i)
+        for (size_t c = 0; c < ch; ++c) block[i * ch + c] = audio.channels[c][start + i];
+      if (sf_writef_float(f.get(), block.data(), sf_count_t(n)) != sf_count_t(n))
+        return ioError(path + ": write failed");
+    }
+    if (sf_close(f.release()) != 0) return ioError(path + ": close failed");
+    return Status::ok();
+  });
+}
+
+}  // namespace earshot

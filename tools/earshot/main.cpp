@@ -1,0 +1,93 @@
+// earshot: command-line front end. Subcommands register themselves; see command.h.
+#include <cmath>
+#include <iostream>
+#include <sstream>
+#include <vector>
+
+#include "command.h"
+
+namespace earshot::cli {
+namespace {
+std::vector<Setup>& registry() {
+  static std::vector<Setup> r;
+  return r;
+}
+int gExitCode = 0;
+}  // namespace
+
+Registrar::Registrar(Setup setup) { registry().push_back(std::move(setup)); }
+
+CLI::App& subcommandGroup(CLI::App& parent, const std::string& name, const std::string& description) {
+  for (CLI::App* existing : parent.get_subcommands([&](CLI::App* a) { return a->get_name() == name; }))
+    return *existing;
+  CLI::App* sub = parent.add_subcommand(name, description);
+  sub->require_subcommand(1);
+  return *sub;
+}
+
+void setExitCode(int code) { gExitCode = code; }
+
+void printError(const std::string& message) {
+  std::cerr << "earshot: error: " << message << "\n";
+  gExitCode = 2;
+}
+
+bool check(const Status& status) {
+  if (status.isOk()) return true;
+  printError(status.message());
+  return false;
+}
+
+CLI::Option* addVec3Option(CLI::App& app, const std::string& name, std::array<double, 3>& out,
+                           const std::string& description) {
+  auto* opt = app.add_option_function<std::string>(
+      name,
+      [&out, name](const std::string& text) {
+        std::stringstream ss(text);
+        std::string item;
+        std::vector<double> v;
+        while (std::getline(ss, item, ',')) {
+          size_t used = 0;
+          double d = 0;
+          try {
+            d = std::stod(item, &used);
+          } catch (...) {
+            throw CLI::ValidationError(name, "'" + text + "' is not X,Y,Z (three numbers)");
+          }
+          if (used != item.size()) throw CLI::ValidationError(name, "'" + text + "' is not X,Y,Z (three numbers)");
+          if (!std::isfinite(d)) throw CLI::ValidationError(name, "'" + item + "' in '" + text + "' is not a finite number");
+          v.push_back(d);
+        }
+        if (v.size() != 3) throw CLI::ValidationError(name, "'" + text + "' has " + std::to_string(v.size()) + " values, expected X,Y,Z");
+        out = {v[0], v[1], v[2]};
+      },
+      description);
+  opt->type_name("X,Y,Z");
+  return opt;
+}
+
+}  // namespace earshot::cli
+
+int main(int argc, char** argv) {
+  CLI::App app{"earshot: CPU audio propagation for VR spatial audio (impulse responses, rendering, analysis)"};
+  app.require_subcommand(1);
+  app.set_version_flag("--version", "earshot 0.1.0");
+  for (auto& setup : earshot::cli::registry()) setup(app);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForVersion& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    std::cerr << "earshot: error: " << e.what() << "\n";
+    std::cerr << "Run with --help for usage.\n";
+    return 2;
+  } catch (const std::exception& e) {
+    std::cerr << "earshot: error: " << e.what() << "\n";
+    return 2;
+  }
+  return earshot::cli::gExitCode;
+}
