@@ -1,0 +1,79 @@
+#pragma once
+/** @file Stochastic ray tracing of reflections into an EnergyHistogram.
+ *
+ *  Rays leave the source along a Fibonacci sphere (evenly spread; rotated at
+ *  random per seed), each carrying 4 pi / rays of energy per band (so that a
+ *  direct sound at r has energy 1/r^2). At every hit the ray loses the
+ *  absorbed fraction; it then continues specularly, diffusely (Lambert) or
+ *  through the surface, chosen at random and reweighted so every band's
+ *  expected energy is exact. Detection partitions all paths by their last
+ *  event, so nothing is counted twice:
+ *  - paths whose last reflection is diffuse: next-event estimation ("diffuse
+ *    rain", Schroeder 1970 / Heinz 1993): each hit sends the scattered part of
+ *    its reflected energy to the listener through a shadow ray, weighted by
+ *    the Lambert radiance cos(theta) / (pi d^2). Unbiased, no receiver size.
+ *  - paths whose last event is specular (or a transmission after a
+ *    reflection): the segment's chord through a receiver sphere of radius R,
+ *    energy x chord / (4/3 pi R^3) (unbiased for a field uniform over R).
+ *  The first segment (source to first hit) is the direct sound's business
+ *  and never detected here.
+ *
+ *  Determinism: each ray draws from its own PCG32 stream (seed, ray index)
+ *  and detections are summed in 2^-50 fixed point (integer addition is
+ *  associative), so the histogram is bit-identical for any thread count. */
+#include <cstdint>
+#include <vector>
+
+#include "earshot/core/bands.h"
+#include "earshot/core/status.h"
+#include "earshot/core/vec3.h"
+#include "earshot/materials/material.h"
+#include "earshot/propagation/air_absorption.h"
+#include "earshot/propagation/energy_histogram.h"
+
+namespace earshot {
+
+class RayTracer;
+class ThreadPool;
+
+struct ReflectionSettings {
+  uint32_t rays = 16384;              ///< [1, 1e8]
+  uint32_t bounces = 12;              ///< reflections per ray, [0, 100000]
+  uint64_t seed = 1;
+  double speedOfSound = 343.0;        ///< m/s
+  AirConditions air;
+  double binSeconds = 0.001;          ///< histogram resolution, [1e-5, 0.1] s
+  double maxTimeSeconds = 4.0;        ///< histogram length; later arrivals are counted in stats only
+  double receiverRadiusMeters = 0.0;  ///< sphere for specular detection; 0 = automatic
+  double minDistanceMeters = 0.1;     ///< clamp of 1/d^2 in next-event estimation
+};
+
+struct ReflectionStats {
+  uint64_t raysTraced = 0;
+  uint64_t raysEscaped = 0;           ///< rays that left the geometry
+  uint64_t segmentsTraced = 0;        ///< intersection queries
+  uint64_t shadowRays = 0;            ///< occlusion queries
+  BandArrayD energyEscaped{};         ///< fraction of emitted energy that escaped, per band
+  BandArrayD energyLate{};            ///< detected energy arriving after maxTimeSeconds
+  std::vector<BandArrayD> detectedPerOrder;  ///< detected energy by reflection order (index 0 unused)
+  double receiverRadiusMeters = 0.0;
+  double traceMs = 0.0;               ///< wall time of the tracing
+};
+
+struct ReflectionResult {
+  EnergyHistogram histogram;
+  ReflectionStats stats;
+};
+
+/** Validates settings (message names the field). */
+Status validate(const ReflectionSettings& settings);
+
+/** Traces reflections from `source` to `listener`. `pool` supplies the
+ *  threads (the result does not depend on how many). */
+Result<ReflectionResult> traceReflections(const RayTracer& tracer, const MaterialTable& materials, const Vec3d& source,
+                                          const Vec3d& listener, const ReflectionSettings& settings, ThreadPool& pool);
+
+/** Direction i of n on a Fibonacci sphere (unit vector). */
+Vec3d fibonacciDirection(uint32_t i, uint32_t n);
+
+}  // namespace earshot

@@ -1,0 +1,74 @@
+#pragma once
+/** @file Ray queries against scene geometry. Embree 3 is hidden behind this
+ *  interface: no Embree type appears in earshot's headers (STYLE.md), and
+ *  src/scene is the only module that includes Embree. */
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "earshot/core/status.h"
+#include "earshot/core/vec3.h"
+#include "earshot/scene/triangle_mesh.h"
+
+namespace earshot {
+
+/** A ray: points origin + t * direction for t in [tNear, tFar]. direction
+ *  need not be unit length, but earshot always passes unit vectors so t is in
+ *  metres. */
+struct Ray {
+  Vec3f origin;
+  float tNear = 0.0f;
+  Vec3f direction;
+  float tFar = 1e30f;
+};
+
+/** The nearest hit along a ray. */
+struct Hit {
+  float t = -1.0f;           ///< distance along the ray; < 0: no hit
+  uint32_t triangle = 0;     ///< index into the mesh's triangles
+  Vec3f normal;              ///< unit normal (v1-v0) x (v2-v0), not flipped toward the ray
+  bool valid() const { return t >= 0.0f; }
+};
+
+/** Immutable acceleration structure over one TriangleMesh. All queries are
+ *  const and thread-safe: call them from any number of threads at once. */
+class RayTracer {
+ public:
+  /** Builds the BVH. Degenerate (zero-area) triangles are dropped from the
+   *  BVH (they can never be hit). Fails on non-finite vertices or indices out
+   *  of range, naming the triangle. */
+  static Result<std::unique_ptr<RayTracer>> create(const TriangleMesh& mesh);
+  ~RayTracer();
+  RayTracer(const RayTracer&) = delete;
+  RayTracer& operator=(const RayTracer&) = delete;
+
+  /** Nearest hit in [tNear, tFar]; returns hit.valid(). */
+  bool intersect(const Ray& ray, Hit& hit) const;
+  /** True when anything lies on the ray within [tNear, tFar]. */
+  bool occluded(const Ray& ray) const;
+
+  const TriangleMesh& mesh() const { return mMesh; }
+  /** Material id of a triangle. */
+  uint32_t materialOf(uint32_t triangle) const { return mMesh.materialIds[triangle]; }
+  bool empty() const { return mMesh.triangles.empty(); }
+  /** Axis-aligned bounds of the mesh (empty mesh: both zero). */
+  Vec3f boundsMin() const { return mMin; }
+  Vec3f boundsMax() const { return mMax; }
+  /** Offset (metres) for leaving a surface without hitting it again, from the
+   *  scene's extent and float precision. */
+  float surfaceEpsilon() const { return mEpsilon; }
+
+ private:
+  RayTracer() = default;
+
+ public:
+  struct Impl;  // Embree state; defined in ray_tracer.cpp only
+
+ private:
+  std::unique_ptr<Impl> mImpl;
+  TriangleMesh mMesh;
+  Vec3f mMin, mMax;
+  float mEpsilon = 1e-4f;
+};
+
+}  // namespace earshot

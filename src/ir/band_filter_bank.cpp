@@ -1,0 +1,34 @@
+#include "earshot/ir/band_filter_bank.h"
+
+#include <cmath>
+
+#include "earshot/core/math.h"
+
+namespace earshot {
+
+namespace {
+// Raised-cosine step from 0 to 1 over one octave centred on crossover k.
+double step(int k, double log2f) {
+  if (k < 0) return 1.0;               // below band 0 there is no crossover: all "above"
+  if (k >= kNumBands - 1) return 0.0;  // above the top band likewise
+  const double x0 = 0.5 * (std::log2(kBandCentersHz[k]) + std::log2(kBandCentersHz[k + 1]));
+  const double u = log2f - x0;  // octaves from the crossover
+  if (u <= -0.5) return 0.0;
+  if (u >= 0.5) return 1.0;
+  return 0.5 * (1.0 + std::sin(kPi * u));
+}
+}  // namespace
+
+double bandWeight(int band, double hz) {
+  // step(k) = S_k of the header; the sum over bands telescopes to 1.
+  const double lf = hz > 0 ? std::log2(hz) : -1e9;
+  return step(band - 1, lf) - step(band, lf);
+}
+
+BandArrayD bandWeights(double hz) {
+  BandArrayD w{};
+  for (int b = 0; b < kNumBands; ++b) w[b] = bandWeight(b, hz);
+  return w;
+}
+
+}  // namespace earshot

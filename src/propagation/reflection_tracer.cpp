@@ -1,0 +1,338 @@
+// Stochastic ray tracing with next-event estimation and a receiver sphere.
+// Method: see reflection_tracer.h. References: M. R. Schroeder, "Digital
+// simulation of sound transmission in reverberant spaces", JASA 47 (1970);
+// R. Heinz, "Binaural room simulation based on an image source model with
+// addition of statistical methods...", Appl. Acoust. 38 (1993) ("diffuse
+// rain"); M. Vorlaender, Auralization (2008), ch. 11 (receiver volumes).
+#include "earshot/propagation/reflection_tracer.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <string>
+
+#include "earshot/core/math.h"
+#include "earshot/core/random.h"
+#include "earshot/core/thread_pool.h"
+#include "earshot/scene/ray_tracer.h"
+
+namespace earshot {
+
+namespace {
+
+// Fixed point for order-independent (hence thread-count-independent) sums:
+// 2^-50 ~ 8.9e-16 of the energy of a direct sound at 1 m; the largest bin
+// value is 2^13 = 8192 (a reflection 1 cm away is 1e4; saturates there).
+constexpr double kFixedScale = 1125899906842624.0;  // 2^50
+constexpr double kFixedMax = 9.2e18;
+
+inline int64_t toFixed(double v) {
+  double s = v * kFixedScale;
+  s = std::max(-kFixedMax, std::min(kFixedMax, s));
+  return int64_t(std::llround(s));
+}
+
+constexpr uint32_t kRaysPerTask = 256;
+
+// Branchless orthonormal basis around unit n (Duff et al., JCGT 2017).
+inline void basis(const Vec3f& n, Vec3f& t, Vec3f& b) {
+  float sign = std::copysign(1.0f, n.z);
+  const float a = -1.0f / (sign + n.z);
+  const float c = n.x * n.y * a;
+  t = {1.0f + sign * n.x * n.x * a, sign * c, -sign * n.x};
+  b = {c, sign + n.y * n.y * a, -n.y};
+}
+
+// Cosine-weighted direction around n: uniform point on the unit disk by
+// rejection (no sin/cos), lifted to the hemisphere (Malley's method).
+inline Vec3f cosineDirection(const Vec3f& n, Pcg32& rng) {
+  float u, v, r2;
+  do {
+    u = 2.0f * rng.uniform() - 1.0f;
+    v = 2.0f * rng.uniform() - 1.0f;
+    r2 = u * u + v * v;
+  } while (r2 >= 1.0f);
+  Vec3f t, b;
+  basis(n, t, b);
+  float w = std::sqrt(std::max(0.0f, 1.0f - r2));
+  return normalize(t * u + b * v + n * w);
+}
+
+struct Accumulator {
+  std::vector<int64_t> hist;                 // [bin][band][component]
+  std::vector<int64_t> perOrder;             // [order][band]
+  int64_t escaped[kNumBands] = {};
+  int64_t late[kNumBands] = {};
+  uint64_t raysEscaped = 0, segments = 0, shadows = 0;
+};
+
+// A rotation matrix from a random unit quaternion (Shoemake 1992).
+struct Rotation {
+  double m[3][3];
+  Vec3d apply(const Vec3d& v) const {
+    return {m[0][0] * v.x + m[0][1] * v.y + m[0][2] * v.z, m[1][0] * v.x + m[1][1] * v.y + m[1][2] * v.z,
+            m[2][0] * v.x + m[2][1] * v.y + m[2][2] * v.z};
+  }
+};
+
+Rotation randomRotation(uint64_t seed) {
+  Pcg32 rng(seed, 0xF1B0'5EEDULL);
+  double u1 = rng.uniformDouble(), u2 = rng.uniformDouble(), u3 = rng.uniformDouble();
+  double a = std::sqrt(1 - u1), b = std::sqrt(u1);
+  double w = a * std::sin(2 * kPi * u2), x = a * std::cos(2 * kPi * u2);
+  double y = b * std::sin(2 * kPi * u3), z = b * std::cos(2 * kPi * u3);
+  Rotation r;
+  r.m[0][0] = 1 - 2 * (y * y + z * z); r.m[0][1] = 2 * (x * y - w * z);     r.m[0][2] = 2 * (x * z + w * y);
+  r.m[1][0] = 2 * (x * y + w * z);     r.m[1][1] = 1 - 2 * (x * x + z * z); r.m[1][2] = 2 * (y * z - w * x);
+  r.m[2][0] = 2 * (x * z - w * y);     r.m[2][1] = 2 * (y * z + w * x);     r.m[2][2] = 1 - 2 * (x * x + y * y);
+  return r;
+}
+
+// Automatic receiver radius: 0.5 m, but at most 90 % of the distance to the
+// nearest surface seen from the listener (a sphere cut by a wall would
+// under-count), and at least 1 cm.
+double autoReceiverRadius(const RayTracer& tracer, const Vec3d& listener) {
+  double nearest = 1e30;
+  const uint32_t probes = 64;
+  for (uint32_t i = 0; i < probes; ++i) {
+    Ray ray{Vec3f(listener), 0.0f, Vec3f(fibonacciDirection(i, probes)), 1e30f};
+    Hit hit;
+    if (tracer.intersect(ray, hit)) nearest = std::min(nearest, double(hit.t));
+  }
+  return std::max(0.01, std::min(0.5, 0.9 * nearest));
+}
+
+}  // namespace
+
+Vec3d fibonacciDirection(uint32_t i, uint32_t n) {
+  const double golden = kPi * (3.0 - std::sqrt(5.0));
+  double z = 1.0 - (2.0 * i + 1.0) / n;
+  double r = std::sqrt(std::max(0.0, 1.0 - z * z));
+  double phi = golden * i;
+  return {r * std::cos(phi), r * std::sin(phi), z};
+}
+
+Status validate(const ReflectionSettings& s) {
+  if (s.rays < 1 || s.rays > 100000000u) return invalidArgument("rays " + std::to_string(s.rays) + " is outside [1, 1e8]");
+  if (s.bounces > 100000u) return invalidArgument("bounces " + std::to_string(s.bounces) + " is outside [0, 100000]");
+  if (!(s.speedOfSound >= 1.0 && s.speedOfSound <= 1e5))
+    return invalidArgument("speed of sound " + std::to_string(s.speedOfSound) + " m/s is outside [1, 1e5]");
+  if (!(s.binSeconds >= 1e-5 && s.binSeconds <= 0.1))
+    return invalidArgument("histogram bin " + std::to_string(s.binSeconds) + " s is outside [1e-5, 0.1]");
+  if (!(s.maxTimeSeconds > 0 && s.maxTimeSeconds <= 600.0))
+    return invalidArgument("histogram length " + std::to_string(s.maxTimeSeconds) + " s is outside (0, 600]");
+  if (s.maxTimeSeconds / s.binSeconds > 5e7) return invalidArgument("histogram of over 5e7 bins requested");
+  if (!(s.receiverRadiusMeters >= 0 && s.receiverRadiusMeters <= 1e3))
+    return invalidArgument("receiver radius " + std::to_string(s.receiverRadiusMeters) + " m is outside [0, 1000]");
+  if (!(s.minDistanceMeters > 0 && s.minDistanceMeters <= 10))
+    return invalidArgument("minimum distance " + std::to_string(s.minDistanceMeters) + " m is outside (0, 10]");
+  return validate(s.air);
+}
+
+Result<ReflectionResult> traceReflections(const RayTracer& tracer, const MaterialTable& materials, const Vec3d& source,
+                                          const Vec3d& listener, const ReflectionSettings& settings, ThreadPool& pool) {
+  EARSHOT_RETURN_IF_ERROR(validate(settings));
+  if (!isFinite(source) || !isFinite(listener)) return invalidArgument("source or listener position is not finite");
+  for (uint32_t id : tracer.mesh().materialIds)
+    if (id >= materials.size())
+      return invalidArgument("material id " + std::to_string(id) + " is beyond the " + std::to_string(materials.size()) +
+                             " materials");
+  const auto start = std::chrono::steady_clock::now();
+
+  const size_t bins = size_t(std::ceil(settings.maxTimeSeconds / settings.binSeconds));
+  const uint32_t maxOrder = settings.bounces;
+  ReflectionResult result;
+  result.histogram = EnergyHistogram(settings.binSeconds, bins);
+  ReflectionStats& stats = result.stats;
+  stats.detectedPerOrder.assign(maxOrder + 1, BandArrayD{});
+  stats.raysTraced = settings.rays;
+  if (tracer.empty() || settings.bounces == 0) return result;  // nothing to reflect from
+
+  const double R = settings.receiverRadiusMeters > 0 ? settings.receiverRadiusMeters : autoReceiverRadius(tracer, listener);
+  stats.receiverRadiusMeters = R;
+  const float sphereR2 = float(R * R);
+  const float invSphereVolume = float(1.0 / (4.0 / 3.0 * kPi * R * R * R));
+  const Vec3f L(listener);
+  const float invC = float(1.0 / settings.speedOfSound);
+  const float invBin = float(1.0 / settings.binSeconds);
+  const float minD2 = float(settings.minDistanceMeters * settings.minDistanceMeters);
+  const float eps = tracer.surfaceEpsilon();
+  const BandArrayD airD = airEnergyAttenuationPerMeter(settings.air);
+  float air[kNumBands];
+  for (int b = 0; b < kNumBands; ++b) air[b] = float(airD[b]);
+  const Rotation rot = randomRotation(mix64(settings.seed));
+  const float rayEnergy = float(4.0 * kPi / settings.rays);
+
+  // Per-material factors, precomputed.
+  struct MatFactors {
+    float reflect[kNumBands], transmit[kNumBands], scatter[kNumBands];
+    float meanReflect, meanTransmit;
+  };
+  std::vector<MatFactors> mats(materials.size());
+  for (size_t i = 0; i < materials.size(); ++i) {
+    const Material& m = materials[uint32_t(i)];
+    MatFactors& f = mats[i];
+    f.meanReflect = f.meanTransmit = 0;
+    for (int b = 0; b < kNumBands; ++b) {
+      f.reflect[b] = std::clamp(1.0f - m.absorption[b], 0.0f, 1.0f);
+      f.transmit[b] = std::clamp(std::min(m.transmission[b], m.absorption[b]), 0.0f, 1.0f);
+      f.scatter[b] = std::clamp(m.scattering[b], 0.0f, 1.0f);
+      f.meanReflect += f.reflect[b] / kNumBands;
+      f.meanTransmit += f.transmit[b] / kNumBands;
+    }
+  }
+
+  std::vector<Accumulator> acc(pool.threadCount());
+  for (auto& a : acc) {
+    a.hist.assign(bins * kNumBands * EnergyHistogram::kComponents, 0);
+    a.perOrder.assign(size_t(maxOrder + 1) * kNumBands, 0);
+  }
+
+  auto deposit = [&](Accumulator& a, float pathLength, const float* energy, float weight, const Vec3f& doa,
+                     uint32_t order) {
+    const float t = pathLength * invC;
+    const size_t bin = size_t(t * invBin);
+    for (int b = 0; b < kNumBands; ++b) {
+      double e = double(energy[b]) * weight * std::exp(-double(air[b]) * pathLength);
+      if (e <= 0) continue;
+      a.perOrder[size_t(order) * kNumBands + b] += toFixed(e);
+      if (bin >= bins) {
+        a.late[b] += toFixed(e);
+        continue;
+      }
+      int64_t* h = &a.hist[(bin * kNumBands + size_t(b)) * EnergyHistogram::kComponents];
+      h[0] += toFixed(e);
+      h[1] += toFixed(e * doa.x);
+      h[2] += toFixed(e * doa.y);
+      h[3] += toFixed(e * doa.z);
+    }
+  };
+
+  const uint32_t tasks = (settings.rays + kRaysPerTask - 1) / kRaysPerTask;
+  pool.parallelFor(tasks, [&](size_t task, unsigned worker) {
+    Accumulator& a = acc[worker];
+    const uint32_t first = uint32_t(task) * kRaysPerTask;
+    const uint32_t last = std::min(settings.rays, first + kRaysPerTask);
+    for (uint32_t rayIndex = first; rayIndex < last; ++rayIndex) {
+      Pcg32 rng(settings.seed, rayIndex);
+      float energy[kNumBands];
+      for (float& e : energy) e = rayEnergy;
+      Ray ray{Vec3f(source), 0.0f, Vec3f(rot.apply(fibonacciDirection(rayIndex, settings.rays))), 1e30f};
+      float pathLength = 0;
+      bool detectSegment = false;  // last event specular/transmission after a reflection
+      bool reflected = false;
+      for (uint32_t order = 0;; ++order) {
+        Hit hit;
+        ++a.segments;
+        const bool hasHit = tracer.intersect(ray, hit);
+        const float segment = hasHit ? hit.t : 1e30f;
+        if (detectSegment) {
+          // Chord of this segment through the receiver sphere.
+          const Vec3f oc = ray.origin - L;
+          const float bq = dot(oc, ray.direction);
+          const float disc = bq * bq - (dot(oc, oc) - sphereR2);
+          if (disc > 0) {
+            const float root = std::sqrt(disc);
+            const float t0 = std::max(0.0f, -bq - root), t1 = std::min(segment, -bq + root);
+            if (t1 > t0) {
+              const float tc = std::clamp(-bq, t0, t1);
+              deposit(a, pathLength + tc, energy, (t1 - t0) * invSphereVolume, -ray.direction, order);
+            }
+          }
+        }
+        if (!hasHit) {
+          ++a.raysEscaped;
+          for (int b = 0; b < kNumBands; ++b) a.escaped[b] += toFixed(energy[b] / (4.0 * kPi));
+          break;
+        }
+        if (order == maxOrder) break;  // the last segment was traced only for the sphere
+        pathLength += hit.t;
+        const Vec3f p = ray.origin + ray.direction * hit.t;
+        Vec3f n = hit.normal;
+        if (dot(n, ray.direction) > 0) n = -n;  // face the incoming ray
+        const MatFactors& m = mats[tracer.materialOf(hit.triangle)];
+
+        // Next-event estimation of the diffusely reflected part.
+        const Vec3f toL = L - p;
+        const float d2 = dot(toL, toL);
+        const float cosL = dot(n, toL);
+        if (cosL > 0) {
+          float scattered[kNumBands];
+          bool any = false;
+          for (int b = 0; b < kNumBands; ++b) {
+            scattered[b] = energy[b] * m.reflect[b] * m.scatter[b];
+            any |= scattered[b] > 0;
+          }
+          if (any) {
+            const float d = std::sqrt(d2);
+            Ray shadow{p + n * eps, 0.0f, toL / d, d - eps};
+            ++a.shadows;
+            if (shadow.tFar <= 0 || !tracer.occluded(shadow)) {
+              const float w = (cosL / d) / (float(kPi) * std::max(d2, minD2));
+              deposit(a, pathLength + d, scattered, w, (p - L) / d, order + 1);
+            }
+          }
+        }
+
+        // Continue: through the surface, specularly, or diffusely.
+        const float pT = m.meanTransmit > 0 ? m.meanTransmit / (m.meanTransmit + m.meanReflect) : 0.0f;
+        bool alive = false;
+        if (pT > 0 && rng.uniform() < pT) {
+          for (int b = 0; b < kNumBands; ++b) alive |= (energy[b] *= m.transmit[b] / pT) > 0;
+          ray.origin = p - n * eps;  // direction unchanged
+          detectSegment = reflected;
+        } else {
+          float specW = 0, total = 0;
+          for (int b = 0; b < kNumBands; ++b) {
+            energy[b] *= m.reflect[b] / (1.0f - pT);
+            specW += energy[b] * (1.0f - m.scatter[b]);
+            total += energy[b];
+          }
+          const float pSpec = total > 0 ? specW / total : 0.0f;
+          if (pSpec > 0 && rng.uniform() < pSpec) {
+            for (int b = 0; b < kNumBands; ++b) alive |= (energy[b] *= (1.0f - m.scatter[b]) / pSpec) > 0;
+            ray.direction = normalize(ray.direction - n * (2.0f * dot(ray.direction, n)));
+            detectSegment = true;
+          } else {
+            for (int b = 0; b < kNumBands; ++b) alive |= (energy[b] *= m.scatter[b] / (1.0f - pSpec)) > 0;
+            ray.direction = cosineDirection(n, rng);
+            detectSegment = false;
+          }
+          ray.origin = p + n * eps;
+          reflected = true;
+        }
+        if (!alive) break;
+      }
+    }
+  });
+
+  // Reduce in fixed point (exact, order-independent), then convert.
+  Accumulator& total = acc[0];
+  for (size_t w = 1; w < acc.size(); ++w) {
+    for (size_t i = 0; i < total.hist.size(); ++i) total.hist[i] += acc[w].hist[i];
+    for (size_t i = 0; i < total.perOrder.size(); ++i) total.perOrder[i] += acc[w].perOrder[i];
+    for (int b = 0; b < kNumBands; ++b) {
+      total.escaped[b] += acc[w].escaped[b];
+      total.late[b] += acc[w].late[b];
+    }
+    total.raysEscaped += acc[w].raysEscaped;
+    total.segments += acc[w].segments;
+    total.shadows += acc[w].shadows;
+  }
+  auto& data = result.histogram.data();
+  for (size_t i = 0; i < data.size(); ++i) data[i] = double(total.hist[i]) / kFixedScale;
+  for (uint32_t o = 0; o <= maxOrder; ++o)
+    for (int b = 0; b < kNumBands; ++b)
+      stats.detectedPerOrder[o][b] = double(total.perOrder[size_t(o) * kNumBands + b]) / kFixedScale;
+  for (int b = 0; b < kNumBands; ++b) {
+    stats.energyEscaped[b] = double(total.escaped[b]) / kFixedScale;
+    stats.energyLate[b] = double(total.late[b]) / kFixedScale;
+  }
+  stats.raysEscaped = total.raysEscaped;
+  stats.segmentsTraced = total.segments;
+  stats.shadowRays = total.shadows;
+  stats.traceMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  return result;
+}
+
+}  // namespace earshot
