@@ -1,0 +1,70 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "earshot/propagation/direct_path.h"
+#include "earshot/scene/ray_tracer.h"
+
+namespace earshot {
+
+TEST(DirectPath, FreeFieldDelayAndSpreading) {
+  MaterialTable materials;
+  DirectPathSettings s;
+  s.air.enabled = false;
+  DirectPath d = computeDirectPath(nullptr, materials, {3, 4, 0}, {0, 0, 0}, s);
+  EXPECT_DOUBLE_EQ(d.distanceMeters, 5.0);
+  EXPECT_DOUBLE_EQ(d.delaySeconds, 5.0 / 343.0);
+  EXPECT_DOUBLE_EQ(d.spreadingGain, 0.2);
+  for (double g : d.bandGain) EXPECT_DOUBLE_EQ(g, 1.0);
+  EXPECT_NEAR(d.directionFromListener.x, 0.6, 1e-12);
+  EXPECT_NEAR(d.directionFromListener.y, 0.8, 1e-12);
+}
+
+TEST(DirectPath, SpreadingIsClampedAtTheMinimumDistance) {
+  MaterialTable materials;
+  DirectPathSettings s;
+  DirectPath d = computeDirectPath(nullptr, materials, {0, 0, 0}, {0, 0, 0}, s);
+  EXPECT_DOUBLE_EQ(d.spreadingGain, 1.0 / s.minDistanceMeters);
+  EXPECT_TRUE(std::isfinite(d.directionFromListener.x));
+}
+
+TEST(DirectPath, EachWallCrossedMultipliesEnergyByItsTransmission) {
+  MaterialTable materials;
+  Material wall;
+  wall.name = "thin";
+  wall.absorption = filledBands(0.5f);
+  wall.transmission = {0.1f, 0.1f, 0.05f, 0.05f, 0.01f, 0.01f, 0.0f};
+  uint32_t id = materials.add(wall);
+  // Two parallel walls (each a box face would be two crossings; use quads).
+  TriangleMesh mesh;
+  for (float x : {1.0f, 2.0f}) {
+    uint32_t base = uint32_t(mesh.positions.size());
+    mesh.positions.push_back({x, -5, -5});
+    mesh.positions.push_back({x, 5, -5});
+    mesh.positions.push_back({x, 5, 5});
+    mesh.positions.push_back({x, -5, 5});
+    mesh.triangles.push_back({base, base + 1, base + 2});
+    mesh.triangles.push_back({base, base + 2, base + 3});
+    mesh.materialIds.push_back(id);
+    mesh.materialIds.push_back(id);
+  }
+  auto rt = RayTracer::create(mesh);
+  ASSERT_TRUE(rt.isOk()) << rt.status().message();
+  DirectPathSettings s;
+  s.air.enabled = false;
+  DirectPath d = computeDirectPath(rt->get(), materials, {3, 0.3, 0.2}, {0, 0.1, 0}, s);
+  EXPECT_EQ(d.surfacesCrossed, 2);
+  for (int b = 0; b < kNumBands; ++b)
+    EXPECT_NEAR(d.bandGain[b], std::sqrt(double(wall.transmission[b]) * wall.transmission[b]), 1e-6) << b;
+  EXPECT_TRUE(d.audible);
+  // Opaque wall: inaudible.
+  Material opaque = wall;
+  opaque.name = "opaque";
+  opaque.transmission = filledBands(0.0f);
+  for (auto& m : mesh.materialIds) m = materials.add(opaque);
+  auto rt2 = RayTracer::create(mesh);
+  ASSERT_TRUE(rt2.isOk());
+  EXPECT_FALSE(computeDirectPath(rt2->get(), materials, {3, 0.3, 0.2}, {0, 0.1, 0}, s).audible);
+}
+
+}  // namespace earshot

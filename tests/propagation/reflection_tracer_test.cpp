@@ -1,0 +1,248 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numeric>
+#include <vector>
+
+#include "earshot/core/math.h"
+#include "earshot/core/thread_pool.h"
+#include "earshot/propagation/reflection_tracer.h"
+#include "earshot/scene/ray_tracer.h"
+
+namespace earshot {
+namespace {
+
+// The 10 x 7 x 3 m shoebox of the reference data, one uniform material.
+struct Shoebox {
+  MaterialTable materials;
+  std::unique_ptr<RayTracer> tracer;
+  static constexpr double kVolume = 10.0 * 7.0 * 3.0;
+  static constexpr double kSurface = 2.0 * (10.0 * 7.0 + 10.0 * 3.0 + 7.0 * 3.0);
+  Shoebox(float absorption, float scattering) {
+    Material m;
+    m.name = "wall";
+    m.absorption = filledBands(absorption);
+    m.scattering = filledBands(scattering);
+    m.transmission = filledBands(0.0f);
+    uint32_t id = materials.add(m);
+    auto rt = RayTracer::create(makeBox({0, 0, 0}, {10, 7, 3}, id));
+    EXPECT_TRUE(rt.isOk());
+    tracer = std::move(rt.value());
+  }
+};
+
+const Vec3d kSource{2, 3.5, 1.5}, kListener{7, 3.5, 1.5};
+
+ReflectionSettings quietAir(uint32_t rays, uint32_t bounces, uint64_t seed) {
+  ReflectionSettings s;
+  s.rays = rays;
+  s.bounces = bounces;
+  s.seed = seed;
+  s.air.enabled = false;
+  s.maxTimeSeconds = 8.0;
+  return s;
+}
+
+// Mean detected energy per reflection order over orders [from, to], band 0.
+double meanPerOrder(const ReflectionStats& st, size_t from, size_t to) {
+  double sum = 0;
+  for (size_t o = from; o <= to; ++o) sum += st.detectedPerOrder[o][0];
+  return sum / double(to - from + 1);
+}
+
+struct MeanAndError {
+  double mean, standardError;
+};
+MeanAndError meanOverSeeds(const std::vector<double>& v) {
+  double m = std::accumulate(v.begin(), v.end(), 0.0) / double(v.size());
+  double var = 0;
+  for (double x : v) var += (x - m) * (x - m);
+  var /= double(v.size() - 1);
+  return {m, std::sqrt(var / double(v.size()))};
+}
+
+}  // namespace
+
+TEST(ReflectionTracer, ClosedBoxLeaksNoRays) {
+  Shoebox room(0.0f, 0.5f);
+  ThreadPool pool(2);
+  ReflectionSettings s = quietAir(100000, 200, 7);
+  s.maxTimeSeconds = 0.5;  // detections are irrelevant here; keep the histogram small
+  auto r = traceReflections(*room.tracer, room.materials, kSource, kListener, s, pool);
+  ASSERT_TRUE(r.isOk()) << r.status().message();
+  EXPECT_EQ(r->stats.raysTraced, 100000u);
+  EXPECT_EQ(r->stats.raysEscaped, 0u);
+  // Every ray ran all its bounces (+1 final segment) since nothing absorbs.
+  EXPECT_EQ(r->stats.segmentsTraced, 100000u * 201u);
+  for (double e : r->stats.energyEscaped) EXPECT_EQ(e, 0.0);
+}
+
+TEST(ReflectionTracer, OpenSceneLetsRaysEscapeAndCountsTheirEnergy) {
+  MaterialTable materials;
+  TriangleMesh floor;
+  floor.positions = {{-50, 0, -50}, {50, 0, -50}, {50, 0, 50}, {-50, 0, 50}};
+  floor.triangles = {{0, 1, 2}, {0, 2, 3}};
+  floor.materialIds = {0, 0};
+  auto rt = RayTracer::create(floor);
+  ASSERT_TRUE(rt.isOk());
+  ThreadPool pool(2);
+  auto r = traceReflections(**rt, materials, {0, 1.5, 0}, {3, 1.5, 0}, quietAir(4096, 12, 1), pool);
+  ASSERT_TRUE(r.isOk());
+  // Upward rays (about half) escape at once; downward ones after one bounce.
+  EXPECT_EQ(r->stats.raysEscaped, 4096u);
+  // Escaped energy = 1 - absorbed: half never hits, the other half loses alpha.
+  const double alpha = materials[0].absorption[0];
+  EXPECT_NEAR(r->stats.energyEscaped[0], 0.5 + 0.5 * (1.0 - alpha), 0.01);
+}
+
+// Energy conservation with zero absorption and no air. A lossless closed room
+// holds the emitted energy 4 pi forever; once it has spread out (uniform in
+// space, isotropic: a distribution that diffuse and specular reflection both
+// leave unchanged), the energy crossing the listener per unit time is the
+// energy density 4 pi / V times c. Both estimators target exactly this:
+// next-event estimation (diffuse paths) and the receiver sphere (specular
+// paths), so the late energy per second is 4 pi c / V whatever the scattering.
+// (Per reflection order it is not: in a specular box the mean segment length
+// depends on the ray's direction, so orders are not equally long.)
+// Window 0.1-0.3 s: late enough to be spread out, early enough that no ray has
+// used up its 60 bounces (at most ~40 by 0.3 s in this room).
+TEST(ReflectionTracer, LateEnergyRateMatchesTheoryWithoutAbsorptionAndDoesNotDependOnScattering) {
+  const double theory = 4.0 * kPi * 343.0 / Shoebox::kVolume;  // energy per second
+  ThreadPool pool(2);
+  std::vector<MeanAndError> results;
+  for (float scattering : {1.0f, 0.5f, 0.0f}) {
+    Shoebox room(0.0f, scattering);
+    std::vector<double> perSeed;
+    for (uint64_t seed = 1; seed <= 8; ++seed) {
+      ReflectionSettings s = quietAir(4096, 60, seed);
+      s.maxTimeSeconds = 0.4;
+      auto r = traceReflections(*room.tracer, room.materials, kSource, kListener, s, pool);
+      ASSERT_TRUE(r.isOk());
+      ASSERT_EQ(r->stats.raysEscaped, 0u);
+      const auto& h = r->histogram;
+      const size_t from = size_t(0.1 / h.binSeconds()), to = size_t(0.3 / h.binSeconds());
+      double e = 0;
+      for (size_t i = from; i < to; ++i) e += h.energy(i, 0);
+      perSeed.push_back(e / (double(to - from) * h.binSeconds()));
+    }
+    MeanAndError m = meanOverSeeds(perSeed);
+    // The test must be able to fail: the statistical error is small.
+    EXPECT_LT(m.standardError, 0.03 * theory) << "scattering " << scattering;
+    EXPECT_NEAR(m.mean, theory, 4.0 * m.standardError) << "scattering " << scattering;
+    results.push_back(m);
+  }
+  for (size_t i = 1; i < results.size(); ++i) {
+    const double sigma = std::hypot(results[0].standardError, results[i].standardError);
+    EXPECT_NEAR(results[i].mean, results[0].mean, 4.0 * sigma) << "scattering case " << i;
+  }
+}
+
+// Per reflection order, the diffuse (scattering 1) estimate tends to
+// (4 pi / N) * N * E[cos / (pi d^2)] = 4 pi * 4 pi / (pi S) = 16 pi / S:
+// hit points are uniform over the surface S and the integral of cos / d^2
+// over a closed surface seen from inside is 4 pi.
+TEST(ReflectionTracer, DiffuseEnergyPerOrderIsSixteenPiOverSurface) {
+  const double theory = 16.0 * kPi / Shoebox::kSurface;
+  ThreadPool pool(2);
+  Shoebox room(0.0f, 1.0f);
+  std::vector<double> perSeed;
+  for (uint64_t seed = 1; seed <= 8; ++seed) {
+    auto r = traceReflections(*room.tracer, room.materials, kSource, kListener, quietAir(4096, 60, seed), pool);
+    ASSERT_TRUE(r.isOk());
+    perSeed.push_back(meanPerOrder(r->stats, 15, 60));  // from order 15 on, hits are spread out
+  }
+  MeanAndError m = meanOverSeeds(perSeed);
+  EXPECT_LT(m.standardError, 0.02 * theory);
+  EXPECT_NEAR(m.mean, theory, 4.0 * m.standardError);
+}
+
+TEST(ReflectionTracer, HistogramIsBitIdenticalForAnyThreadCount) {
+  Shoebox room(0.2f, 0.3f);
+  ReflectionSettings s;
+  s.rays = 3000;  // not a multiple of the task size on purpose
+  s.bounces = 20;
+  s.seed = 99;
+  ThreadPool one(1), two(2), three(3);
+  auto a = traceReflections(*room.tracer, room.materials, kSource, kListener, s, one);
+  auto b = traceReflections(*room.tracer, room.materials, kSource, kListener, s, two);
+  auto c = traceReflections(*room.tracer, room.materials, kSource, kListener, s, three);
+  ASSERT_TRUE(a.isOk() && b.isOk() && c.isOk());
+  EXPECT_GT(a->histogram.totalEnergy()[0], 0.0);
+  EXPECT_TRUE(a->histogram.data() == b->histogram.data());
+  EXPECT_TRUE(a->histogram.data() == c->histogram.data());
+  // A different seed gives a different histogram.
+  s.seed = 100;
+  auto d = traceReflections(*room.tracer, room.materials, kSource, kListener, s, two);
+  EXPECT_FALSE(a->histogram.data() == d->histogram.data());
+}
+
+// T30 from an energy histogram: Schroeder backward integration, least-squares
+// line through the decay between -5 and -35 dB.
+double t30FromHistogram(const EnergyHistogram& h, int band) {
+  std::vector<double> edc(h.binCount() + 1, 0.0);
+  for (size_t i = h.binCount(); i-- > 0;) edc[i] = edc[i + 1] + h.energy(i, band);
+  std::vector<double> x, y;
+  for (size_t i = 0; i < h.binCount(); ++i) {
+    double db = 10 * std::log10(edc[i] / edc[0]);
+    if (db <= -5 && db >= -35) {
+      x.push_back(double(i) * h.binSeconds());
+      y.push_back(db);
+    }
+  }
+  double mx = std::accumulate(x.begin(), x.end(), 0.0) / double(x.size());
+  double my = std::accumulate(y.begin(), y.end(), 0.0) / double(y.size());
+  double sxy = 0, sxx = 0;
+  for (size_t i = 0; i < x.size(); ++i) {
+    sxy += (x[i] - mx) * (y[i] - my);
+    sxx += (x[i] - mx) * (x[i] - mx);
+  }
+  return -60.0 / (sxy / sxx);
+}
+
+// Fully diffusing shoebox, uniform absorption 0.2, with air: the decay follows
+// Eyring's formula T = 0.161 V / (-S ln(1 - alpha) + 4 m V) (Kuttruff, Room
+// Acoustics, eq. 5.24, with m the energy attenuation of air per metre).
+TEST(ReflectionTracer, FullyScatteringShoeboxDecaysAsEyringPredicts) {
+  Shoebox room(0.2f, 1.0f);
+  ThreadPool pool(2);
+  ReflectionSettings s;
+  s.rays = 16384;
+  s.bounces = 120;  // 0.8^120 = -116 dB: the whole decay, no tail completion needed
+  s.seed = 3;
+  s.maxTimeSeconds = 2.5;
+  auto r = traceReflections(*room.tracer, room.materials, kSource, kListener, s, pool);
+  ASSERT_TRUE(r.isOk());
+  const BandArrayD m = airEnergyAttenuationPerMeter(s.air);
+  for (int b = 0; b < kNumBands; ++b) {
+    const double eyring = 0.161 * Shoebox::kVolume /
+                          (-Shoebox::kSurface * std::log(1.0 - 0.2) + 4.0 * m[b] * Shoebox::kVolume);
+    const double t30 = t30FromHistogram(r->histogram, b);
+    EXPECT_NEAR(t30, eyring, 0.10 * eyring) << kBandCentersHz[b] << " Hz";
+  }
+}
+
+TEST(ReflectionTracer, NoGeometryOrNoBouncesTracesNothing) {
+  MaterialTable materials;
+  auto rt = RayTracer::create(TriangleMesh{});
+  ASSERT_TRUE(rt.isOk());
+  ThreadPool pool(1);
+  auto r = traceReflections(**rt, materials, kSource, kListener, ReflectionSettings{}, pool);
+  ASSERT_TRUE(r.isOk());
+  EXPECT_EQ(r->stats.segmentsTraced, 0u);
+  EXPECT_EQ(r->histogram.lastNonEmptyBin(), -1);
+}
+
+TEST(ReflectionTracer, BadSettingsAreErrorsNamingTheField) {
+  Shoebox room(0.2f, 0.5f);
+  ThreadPool pool(1);
+  ReflectionSettings s;
+  s.binSeconds = std::nan("");
+  auto r = traceReflections(*room.tracer, room.materials, kSource, kListener, s, pool);
+  ASSERT_FALSE(r.isOk());
+  EXPECT_NE(r.status().message().find("histogram bin"), std::string::npos);
+  auto q = traceReflections(*room.tracer, room.materials, {std::nan(""), 0, 0}, kListener, ReflectionSettings{}, pool);
+  ASSERT_FALSE(q.isOk());
+  EXPECT_NE(q.status().message().find("not finite"), std::string::npos);
+}
+
+}  // namespace earshot
