@@ -1,0 +1,79 @@
+#pragma once
+/** @file Many mono sources, each convolved with its own multichannel IR, summed
+ *  into one multichannel output: the frequency-domain products of all sources
+ *  are accumulated per partition level before one inverse FFT per output
+ *  channel and level, so adding a source costs its forward FFTs and
+ *  multiply-accumulates but no inverse FFT. A Convolver is a mixer of one
+ *  source.
+ *
+ *  Threading: one audio thread calls process(); any other threads (the
+ *  "control side") call setIr() and collectGarbage(). process() never
+ *  allocates, locks, or makes a system call, and it flushes denormals for its
+ *  duration. IRs reach the audio thread through a lock-free mailbox (one
+ *  atomic pointer exchange per source); IRs the audio thread no longer uses go
+ *  back through a lock-free queue and are released by the next setIr() or
+ *  collectGarbage() call, never on the audio thread. */
+#include <cstddef>
+#include <memory>
+
+#include "earshot/core/status.h"
+#include "earshot/dsp/partition_layout.h"
+#include "earshot/dsp/prepared_ir.h"
+
+namespace earshot {
+
+class ConvolutionMixer {
+ public:
+  /** Builds a mixer of `sourceCount` sources (in [1, 4096]) with the layout
+   *  PartitionLayout::create(settings). Every source starts with no IR
+   *  (silence). Thread: any but the audio thread; allocates everything
+   *  process() will ever use. */
+  static Result<std::unique_ptr<ConvolutionMixer>> create(const ConvolverSettings& settings, size_t sourceCount);
+  ~ConvolutionMixer();
+
+  /** Layout that every IR given to setIr() must be prepared for. */
+  const PartitionLayout& layout() const;
+  const ConvolverSettings& settings() const;
+  size_t sourceCount() const;
+  /** Output delay in frames: output frame t is the exact convolution at
+   *  t - latencyFrames(). Equal to settings().latencyFrames. */
+  size_t latencyFrames() const;
+
+  /** Replaces the IR of `source` (nullptr = silence). The audio thread picks
+   *  it up at its next latency block and crossfades each partition level from
+   *  the previous IR over settings().fadeFrames (equal-gain sin^2 ramp), level
+   *  by level as each level starts a new block; while a level is fading it
+   *  keeps the newest IR waiting. Posting faster than the audio thread
+   *  consumes simply replaces the waiting IR. Fails (and changes nothing) when
+   *  the IR's layout or channel count differ. Thread: control side (any
+   *  thread but the audio thread; may allocate and free). */
+  Status setIr(size_t source, std::shared_ptr<const PreparedIr> ir);
+
+  /** Releases IRs the audio thread has finished with. Thread: control side.
+   *  Call it now and then if setIr() is called rarely; otherwise optional. */
+  void collectGarbage();
+
+  /** Convolves `frames` frames (any count, may change every call, 0 allowed).
+   *  inputs[s] is source s's mono input (nullptr = silence for this call);
+   *  outputs[c] receives output channel c (settings().channels of them,
+   *  overwritten, not added). inputs and outputs must not alias.
+   *  Thread: the audio thread only. Real-time safe. */
+  void process(const float* const* inputs, float* const* outputs, size_t frames);
+
+  /** Diagnostic for tests: counts subnormal floats in the internal state
+   *  (input history, spectra, accumulators, output buffers). Thread: the
+   *  audio thread or while no one calls process(). Not real-time safe in
+   *  time (scans everything). */
+  size_t countSubnormalsInState() const;
+
+  ConvolutionMixer(const ConvolutionMixer&) = delete;
+  ConvolutionMixer& operator=(const ConvolutionMixer&) = delete;
+
+  struct Impl;
+
+ private:
+  explicit ConvolutionMixer(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> mImpl;
+};
+
+}  // namespace earshot

@@ -1,0 +1,56 @@
+#pragma once
+/** @file An impulse response cut into partitions and transformed to the
+ *  frequency domain for one PartitionLayout: what the audio thread convolves
+ *  with. Built off the audio thread (it allocates and runs FFTs), immutable
+ *  afterwards, shared with std::shared_ptr<const PreparedIr>. */
+#include <cstddef>
+#include <memory>
+#include <vector>
+
+#include "earshot/core/audio_buffer.h"
+#include "earshot/core/status.h"
+#include "earshot/dsp/partition_layout.h"
+
+namespace earshot {
+
+class PreparedIr {
+ public:
+  /** Partitions and transforms `channels` (channels[c][tap], all of equal
+   *  length in [0, layout.capacityFrames()], finite samples) for `layout`.
+   *  An empty IR (0 taps) is allowed and convolves to silence.
+   *  Thread: any thread except the audio thread (allocates, runs FFTs).
+   *  Fails with a message naming the channel/tap on bad input. */
+  static Result<std::shared_ptr<const PreparedIr>> create(const std::vector<std::vector<float>>& channels,
+                                                          const PartitionLayout& layout);
+  /** Same, from an AudioBuffer (its sample rate is not checked here). */
+  static Result<std::shared_ptr<const PreparedIr>> create(const AudioBuffer& ir, const PartitionLayout& layout);
+
+  const PartitionLayout& layout() const { return mLayout; }
+  size_t channelCount() const { return mChannels; }
+  /** Length of the IR it was built from (frames). */
+  size_t irFrames() const { return mIrFrames; }
+
+  /** NOTE: spectra are stored split (all real parts, then all imaginary
+   *  parts) per partition, padded to binStride() floats, already scaled by
+   *  1/FFT size. Internal to the convolver; read-only. */
+  size_t binStride(size_t level) const { return mStride[level]; }
+  /** Number of non-empty partitions of `level` (trailing empty ones skipped). */
+  size_t activePartitions(size_t level) const { return mActive[level]; }
+  /** Real parts of partition `k` of `level`, channel `channel`; the imaginary
+   *  parts follow at + binStride(level). */
+  const float* spectrum(size_t level, size_t channel, size_t k) const;
+
+  ~PreparedIr();
+  PreparedIr(const PreparedIr&) = delete;
+  PreparedIr& operator=(const PreparedIr&) = delete;
+
+ private:
+  PreparedIr() = default;
+  PartitionLayout mLayout;
+  size_t mChannels = 0;
+  size_t mIrFrames = 0;
+  std::vector<size_t> mStride, mActive, mLevelOffset;  // per level
+  float* mData = nullptr;                              // owned, 64-byte aligned
+};
+
+}  // namespace earshot

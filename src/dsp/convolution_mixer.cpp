@@ -1,0 +1,472 @@
+// Streaming non-uniformly partitioned overlap-save convolution, many sources
+// into one multichannel output.
+//
+// Method: uniformly partitioned overlap-save with a frequency-domain delay
+// line per level (Soo & Pang 1990; Wefers, "Partitioned convolution
+// algorithms for real-time auralization", 2015), levels of doubling partition
+// size combined as in Gardner 1995 / Garcia 2002 (see partition_layout.cpp).
+// Every latency step (N input frames) each level runs 1/M of its block's work:
+// the forward FFT at phase 0, partitions [p K / M, (p + 1) K / M) of the
+// multiply-accumulate at phase p, the inverse FFTs at phase M - 1. Products
+// of all sources sharing a level are summed before the inverse FFTs.
+//
+// IR changes: a level adopts a source's newest IR only when it starts a new
+// block and is not fading. For the block(s) covering the fade it accumulates
+// sum X * H_new into `main` and sum X * (H_old - H_new) of the fading sources
+// into `diff`; the output is main + (1 - g) * diff with g a sin^2 ramp, i.e.
+// g * y_new + (1 - g) * y_old per fading source (equal gain: g + (1-g) = 1).
+// All sources fading in a level share the ramp, which is why a level starts
+// fades only between fades.
+#include "earshot/dsp/convolution_mixer.h"
+
+#include <kiss_fftr.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstring>
+#include <mutex>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "aligned_floats.h"
+#include "earshot/core/denormals.h"
+#include "mac_kernels.h"
+
+namespace earshot {
+
+using dsp_detail::AlignedFloats;
+using dsp_detail::padBins;
+
+namespace {
+
+struct Holder {
+  std::shared_ptr<const PreparedIr> ir;  // null = silence
+  int refs = 0;                          // audio thread only
+};
+
+struct LevelState {
+  PartitionLevel desc;
+  size_t p = 0, k = 0, m = 0, stride = 0;
+  size_t phaseOffset = 0;
+  kiss_fftr_cfg fwd = nullptr, inv = nullptr;
+  AlignedFloats accMain, accDiff;  // [channel][2 * stride]
+  AlignedFloats out;               // [channel][p]
+  bool fading = false;
+  size_t fadePos = 0;
+  bool mainTouched = false, diffTouched = false, outZero = true;
+};
+
+struct SourceLevel {
+  AlignedFloats fdl;  // [slot][2 * stride], slot = block index mod K
+  size_t head = 0;    // slot of the newest spectrum
+  Holder* cur = nullptr;
+  Holder* prev = nullptr;
+  bool fading = false;
+};
+
+struct Source {
+  AlignedFloats history;  // ring of historyFrames, indexed by absolute frame
+  std::atomic<Holder*> pending{nullptr};
+  Holder* latest = nullptr;
+  std::vector<SourceLevel> levels;
+};
+
+}  // namespace
+
+struct ConvolutionMixer::Impl {
+  ConvolverSettings settings;
+  PartitionLayout layout;
+  size_t n = 0, channels = 0, fade = 0, histMask = 0;
+  std::vector<LevelState> levels;
+  std::vector<std::unique_ptr<Source>> sources;
+  AlignedFloats ramp;       // sin^2 fade-in gain, `fade` values
+  AlignedFloats outBlock;   // [channel][n]: output for the current N frames
+  AlignedFloats timeBuf;    // 2 * maxP
+  std::vector<kiss_fft_cpx> cpxBuf;
+  size_t fill = 0;          // frames of the current step already taken
+  uint64_t written = 0;     // input frames completed into steps
+  uint64_t step = 0;
+
+  // Retired holders (audio -> control), single producer single consumer.
+  std::vector<Holder*> retired;
+  size_t retiredMask = 0;
+  std::atomic<size_t> retiredHead{0}, retiredTail{0};
+  size_t heldCount = 0;  // holders with refs > 0 (audio thread)
+  std::mutex controlMutex;
+
+  ~Impl() {
+    std::set<Holder*> owned;
+    for (auto& s : sources) {
+      if (s->latest) owned.insert(s->latest);
+      for (auto& sl : s->levels) {
+        if (sl.cur) owned.insert(sl.cur);
+        if (sl.prev) owned.insert(sl.prev);
+      }
+      delete s->pending.exchange(nullptr);
+    }
+    for (Holder* h : owned) delete h;
+    collect();
+    for (auto& lv : levels) {
+      kiss_fftr_free(lv.fwd);
+      kiss_fftr_free(lv.inv);
+    }
+  }
+
+  void collect() {
+    size_t tail = retiredTail.load(std::memory_order_relaxed);
+    size_t head = retiredHead.load(std::memory_order_acquire);
+    while (tail != head) {
+      delete retired[tail & retiredMask];
+      ++tail;
+    }
+    retiredTail.store(tail, std::memory_order_release);
+  }
+
+  // --- audio thread ---
+  void acquire(Holder* h) {
+    if (h) ++h->refs;
+  }
+  void release(Holder* h) {
+    if (!h || --h->refs > 0) return;
+    size_t head = retiredHead.load(std::memory_order_relaxed);
+    retired[head & retiredMask] = h;
+    retiredHead.store(head + 1, std::memory_order_release);
+    --heldCount;
+  }
+  size_t retiredFree() const {
+    return retired.size() - (retiredHead.load(std::memory_order_relaxed) - retiredTail.load(std::memory_order_acquire));
+  }
+
+  void takePending() {
+    for (auto& sp : sources) {
+      Source& s = *sp;
+      if (s.pending.load(std::memory_order_relaxed) == nullptr) continue;
+      // Every holder we hold may retire; keep room for all of them so that
+      // release() never finds the queue full.
+      if (retiredFree() < heldCount + 1) return;
+      Holder* h = s.pending.exchange(nullptr, std::memory_order_acq_rel);
+      if (!h) continue;
+      ++heldCount;
+      acquire(h);
+      release(s.latest);
+      s.latest = h;
+    }
+  }
+
+  void blockStart(LevelState& lv) {
+    if (lv.fading) {
+      lv.fadePos += lv.p;
+      if (lv.fadePos >= fade) {
+        lv.fading = false;
+        for (auto& sp : sources) {
+          SourceLevel& sl = sp->levels[&lv - levels.data()];
+          if (sl.fading) {
+            release(sl.prev);
+            sl.prev = nullptr;
+            sl.fading = false;
+          }
+        }
+      }
+    }
+    const size_t li = &lv - levels.data();
+    if (!lv.fading) {
+      bool any = false;
+      for (auto& sp : sources) {
+        SourceLevel& sl = sp->levels[li];
+        if (sl.cur == sp->latest) continue;
+        if (sl.cur == nullptr && step < lv.m) {
+          // The level's first block: its output so far was silence from an
+          // all-zero history, so an IR posted before the first process()
+          // call starts exactly, without a fade-in.
+          sl.cur = sp->latest;
+          acquire(sl.cur);
+          continue;
+        }
+        {
+          sl.prev = sl.cur;
+          sl.cur = sp->latest;
+          acquire(sl.cur);
+          sl.fading = true;
+          any = true;
+        }
+      }
+      if (any) {
+        lv.fading = true;
+        lv.fadePos = 0;
+      }
+    }
+    lv.accMain.zero();
+    lv.mainTouched = false;
+    if (lv.fading) lv.accDiff.zero();
+    lv.diffTouched = false;
+    // Forward FFT of each source's newest 2P input frames (delayed by the
+    // level's input delay) into the next delay-line slot.
+    const size_t nfft = 2 * lv.p;
+    const int64_t end = static_cast<int64_t>(written) - static_cast<int64_t>(lv.desc.inputDelayFrames);
+    const int64_t start = end - static_cast<int64_t>(nfft);
+    for (auto& sp : sources) {
+      Source& s = *sp;
+      SourceLevel& sl = s.levels[li];
+      size_t first = static_cast<size_t>(start) & histMask;
+      size_t n1 = std::min(nfft, histMask + 1 - first);
+      std::memcpy(timeBuf.data(), s.history.data() + first, n1 * sizeof(float));
+      if (n1 < nfft) std::memcpy(timeBuf.data() + n1, s.history.data(), (nfft - n1) * sizeof(float));
+      kiss_fftr(lv.fwd, timeBuf.data(), cpxBuf.data());
+      sl.head = sl.head + 1 == lv.k ? 0 : sl.head + 1;
+      float* re = sl.fdl.data() + sl.head * 2 * lv.stride;
+      float* im = re + lv.stride;
+      for (size_t b = 0; b <= lv.p; ++b) {
+        re[b] = cpxBuf[b].r;
+        im[b] = cpxBuf[b].i;
+      }
+    }
+  }
+
+  void accumulate(LevelState& lv, size_t k0, size_t k1) {
+    const size_t li = &lv - levels.data();
+    const size_t st = lv.stride;
+    for (auto& sp : sources) {
+      SourceLevel& sl = sp->levels[li];
+      const PreparedIr* cur = sl.cur ? sl.cur->ir.get() : nullptr;
+      const PreparedIr* prev = sl.fading && sl.prev ? sl.prev->ir.get() : nullptr;
+      const size_t curActive = cur ? cur->activePartitions(li) : 0;
+      const size_t prevActive = prev ? prev->activePartitions(li) : 0;
+      for (size_t kk = k0; kk < k1; ++kk) {
+        const bool hasCur = kk < curActive;
+        const bool hasPrev = kk < prevActive;
+        if (!hasCur && !hasPrev) continue;
+        size_t slot = sl.head >= kk ? sl.head - kk : sl.head + lv.k - kk;
+        const float* xr = sl.fdl.data() + slot * 2 * st;
+        for (size_t c = 0; c < channels; ++c) {
+          float* mr = lv.accMain.data() + c * 2 * st;
+          float* dr = lv.accDiff.data() + c * 2 * st;
+          const float* hc = hasCur ? cur->spectrum(li, c, kk) : nullptr;
+          if (hasCur) {
+            dsp_detail::complexMac(mr, mr + st, xr, xr + st, hc, hc + st, st);
+            lv.mainTouched = true;
+          }
+          if (!sl.fading) continue;
+          const float* hp = hasPrev ? prev->spectrum(li, c, kk) : nullptr;
+          if (hasPrev && hasCur) {
+            dsp_detail::complexMacDiff(dr, dr + st, xr, xr + st, hp, hp + st, hc, hc + st, st);
+          } else if (hasPrev) {
+            dsp_detail::complexMac(dr, dr + st, xr, xr + st, hp, hp + st, st);
+          } else {
+            dsp_detail::complexMacNeg(dr, dr + st, xr, xr + st, hc, hc + st, st);
+          }
+          lv.diffTouched = true;
+        }
+      }
+    }
+  }
+
+  void inverse(const float* acc, size_t p, kiss_fftr_cfg cfg) {
+    const size_t st = padBins(p + 1);
+    for (size_t b = 0; b <= p; ++b) {
+      cpxBuf[b].r = acc[b];
+      cpxBuf[b].i = acc[st + b];
+    }
+    kiss_fftri(cfg, cpxBuf.data(), timeBuf.data());
+  }
+
+  void blockFinish(LevelState& lv) {
+    const size_t p = lv.p;
+    const size_t st = lv.stride;
+    if (lv.mainTouched) {
+      for (size_t c = 0; c < channels; ++c) {
+        inverse(lv.accMain.data() + c * 2 * st, p, lv.inv);
+        std::memcpy(lv.out.data() + c * p, timeBuf.data() + p, p * sizeof(float));
+      }
+      lv.outZero = false;
+    } else if (!lv.outZero) {
+      lv.out.zero();
+      lv.outZero = true;
+    }
+    if (lv.fading && lv.diffTouched) {
+      for (size_t c = 0; c < channels; ++c) {
+        inverse(lv.accDiff.data() + c * 2 * st, p, lv.inv);
+        float* o = lv.out.data() + c * p;
+        const float* d = timeBuf.data() + p;
+        size_t ramped = lv.fadePos < fade ? std::min(p, fade - lv.fadePos) : 0;
+        const float* g = ramp.data() + lv.fadePos;
+        for (size_t i = 0; i < ramped; ++i) o[i] += (1.0f - g[i]) * d[i];
+      }
+      lv.outZero = false;
+    }
+  }
+
+  void runStep() {
+    takePending();
+    outBlock.zero();
+    for (LevelState& lv : levels) {
+      const size_t phase = static_cast<size_t>((step + lv.phaseOffset) % lv.m);
+      if (phase == 0) blockStart(lv);
+      accumulate(lv, phase * lv.k / lv.m, (phase + 1) * lv.k / lv.m);
+      if (phase == lv.m - 1) blockFinish(lv);
+      if (lv.outZero) continue;
+      const size_t slice = (phase + 1 == lv.m ? 0 : phase + 1) * n;
+      for (size_t c = 0; c < channels; ++c) {
+        float* dst = outBlock.data() + c * n;
+        const float* src = lv.out.data() + c * lv.p + slice;
+        for (size_t i = 0; i < n; ++i) dst[i] += src[i];
+      }
+    }
+    ++step;
+  }
+
+  void process(const float* const* inputs, float* const* outputs, size_t frames) {
+    ScopedFlushDenormals ftz;
+    size_t done = 0;
+    while (done < frames) {
+      const size_t chunk = std::min(frames - done, n - fill);
+      const size_t pos = static_cast<size_t>(written + fill) & histMask;
+      for (size_t s = 0; s < sources.size(); ++s) {
+        float* h = sources[s]->history.data();
+        const float* in = inputs ? inputs[s] : nullptr;
+        size_t n1 = std::min(chunk, histMask + 1 - pos);
+        if (in) {
+          std::memcpy(h + pos, in + done, n1 * sizeof(float));
+          if (n1 < chunk) std::memcpy(h, in + done + n1, (chunk - n1) * sizeof(float));
+        } else {
+          std::memset(h + pos, 0, n1 * sizeof(float));
+          if (n1 < chunk) std::memset(h, 0, (chunk - n1) * sizeof(float));
+        }
+      }
+      for (size_t c = 0; c < channels; ++c)
+        std::memcpy(outputs[c] + done, outBlock.data() + c * n + fill, chunk * sizeof(float));
+      fill += chunk;
+      done += chunk;
+      if (fill == n) {
+        written += n;
+        fill = 0;
+        runStep();
+      }
+    }
+  }
+};
+
+ConvolutionMixer::ConvolutionMixer(std::unique_ptr<Impl> impl) : mImpl(std::move(impl)) {}
+ConvolutionMixer::~ConvolutionMixer() = default;
+
+Result<std::unique_ptr<ConvolutionMixer>> ConvolutionMixer::create(const ConvolverSettings& settings,
+                                                                   size_t sourceCount) {
+  auto layout = PartitionLayout::create(settings);
+  if (!layout) return layout.status();
+  if (sourceCount < 1 || sourceCount > 4096)
+    return invalidArgument("convolution mixer: sourceCount=" + std::to_string(sourceCount) + " must be in [1, 4096]");
+  if (settings.fadeFrames > (size_t{1} << 20))
+    return invalidArgument("convolver fadeFrames=" + std::to_string(settings.fadeFrames) + " must be <= 2^20");
+  try {
+    auto impl = std::make_unique<Impl>();
+    impl->settings = settings;
+    impl->layout = *layout;
+    impl->n = settings.latencyFrames;
+    impl->channels = settings.channels;
+    impl->fade = settings.fadeFrames ? settings.fadeFrames : settings.latencyFrames;
+    impl->histMask = layout->historyFrames() - 1;
+    impl->ramp.resize(impl->fade);
+    for (size_t i = 0; i < impl->fade; ++i) {
+      double s = std::sin(0.5 * M_PI * (static_cast<double>(i) + 0.5) / static_cast<double>(impl->fade));
+      impl->ramp[i] = static_cast<float>(s * s);
+    }
+    impl->outBlock.resize(settings.channels * impl->n);
+    size_t maxP = 0;
+    for (size_t li = 0; li < layout->levels().size(); ++li) {
+      const PartitionLevel& d = layout->levels()[li];
+      LevelState lv;
+      lv.desc = d;
+      lv.p = d.partitionFrames;
+      lv.k = d.partitionCount;
+      lv.m = d.stepsPerBlock;
+      lv.stride = padBins(lv.p + 1);
+      lv.phaseOffset = static_cast<size_t>(settings.phase) % lv.m;
+      lv.fwd = kiss_fftr_alloc(static_cast<int>(2 * lv.p), 0, nullptr, nullptr);
+      lv.inv = kiss_fftr_alloc(static_cast<int>(2 * lv.p), 1, nullptr, nullptr);
+      if (!lv.fwd || !lv.inv) {
+        kiss_fftr_free(lv.fwd);
+        kiss_fftr_free(lv.inv);
+        return invalidArgument("convolver: cannot create an FFT of size " + std::to_string(2 * lv.p));
+      }
+      lv.accMain.resize(settings.channels * 2 * lv.stride);
+      lv.accDiff.resize(settings.channels * 2 * lv.stride);
+      lv.out.resize(settings.channels * lv.p);
+      maxP = std::max(maxP, lv.p);
+      impl->levels.push_back(std::move(lv));
+    }
+    impl->timeBuf.resize(2 * maxP);
+    impl->cpxBuf.resize(maxP + 1);
+    for (size_t s = 0; s < sourceCount; ++s) {
+      auto src = std::make_unique<Source>();
+      src->history.resize(layout->historyFrames());
+      for (const LevelState& lv : impl->levels) {
+        SourceLevel sl;
+        sl.fdl.resize(lv.k * 2 * lv.stride);
+        sl.head = lv.k - 1;
+        src->levels.push_back(std::move(sl));
+      }
+      impl->sources.push_back(std::move(src));
+    }
+    size_t cap = 1;
+    while (cap < sourceCount * (2 * impl->levels.size() + 2) + 8) cap <<= 1;
+    impl->retired.assign(cap, nullptr);
+    impl->retiredMask = cap - 1;
+    return std::unique_ptr<ConvolutionMixer>(new ConvolutionMixer(std::move(impl)));
+  } catch (const std::bad_alloc&) {
+    return outOfRange("convolver: out of memory for maxIrFrames=" + std::to_string(settings.maxIrFrames) +
+                      " and " + std::to_string(sourceCount) + " sources");
+  }
+}
+
+const PartitionLayout& ConvolutionMixer::layout() const { return mImpl->layout; }
+const ConvolverSettings& ConvolutionMixer::settings() const { return mImpl->settings; }
+size_t ConvolutionMixer::sourceCount() const { return mImpl->sources.size(); }
+size_t ConvolutionMixer::latencyFrames() const { return mImpl->n; }
+
+Status ConvolutionMixer::setIr(size_t source, std::shared_ptr<const PreparedIr> ir) {
+  if (source >= mImpl->sources.size())
+    return invalidArgument("convolver setIr: source " + std::to_string(source) + " out of range (have " +
+                           std::to_string(mImpl->sources.size()) + ")");
+  if (ir && ir->layout() != mImpl->layout)
+    return invalidArgument("convolver setIr: the IR was prepared for a different partition layout");
+  if (ir && ir->channelCount() != mImpl->channels)
+    return invalidArgument("convolver setIr: IR has " + std::to_string(ir->channelCount()) +
+                           " channels, the convolver " + std::to_string(mImpl->channels));
+  auto* h = new Holder{std::move(ir), 0};
+  Holder* old = mImpl->sources[source]->pending.exchange(h, std::memory_order_acq_rel);
+  delete old;  // never seen by the audio thread
+  collectGarbage();
+  return Status::ok();
+}
+
+void ConvolutionMixer::collectGarbage() {
+  std::lock_guard<std::mutex> lock(mImpl->controlMutex);
+  mImpl->collect();
+}
+
+void ConvolutionMixer::process(const float* const* inputs, float* const* outputs, size_t frames) {
+  mImpl->process(inputs, outputs, frames);
+}
+
+size_t ConvolutionMixer::countSubnormalsInState() const {
+  size_t count = 0;
+  auto scan = [&](const AlignedFloats& a) {
+    for (size_t i = 0; i < a.size(); ++i)
+      if (std::fpclassify(a[i]) == FP_SUBNORMAL) ++count;
+  };
+  const Impl& m = *mImpl;
+  scan(m.outBlock);
+  for (const auto& lv : m.levels) {
+    scan(lv.accMain);
+    scan(lv.accDiff);
+    scan(lv.out);
+  }
+  for (const auto& s : m.sources) {
+    scan(s->history);
+    for (const auto& sl : s->levels) scan(sl.fdl);
+  }
+  return count;
+}
+
+}  // namespace earshot

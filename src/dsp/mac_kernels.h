@@ -1,0 +1,19 @@
+#pragma once
+// Complex multiply-accumulate kernels over split real/imaginary arrays, the
+// convolver's hot loop. `count` is a multiple of 16; arrays are 64-byte
+// aligned and do not alias. Internal to src/dsp.
+#include <cstddef>
+
+namespace earshot::dsp_detail {
+
+/** (ar, ai) += (xr, xi) * (hr, hi), element-wise complex. */
+void complexMac(float* ar, float* ai, const float* xr, const float* xi, const float* hr, const float* hi,
+                size_t count);
+/** (ar, ai) -= (xr, xi) * (hr, hi). */
+void complexMacNeg(float* ar, float* ai, const float* xr, const float* xi, const float* hr, const float* hi,
+                   size_t count);
+/** (ar, ai) += (xr, xi) * ((pr, pi) - (cr, ci)). */
+void complexMacDiff(float* ar, float* ai, const float* xr, const float* xi, const float* pr, const float* pi,
+                    const float* cr, const float* ci, size_t count);
+
+}  // namespace earshot::dsp_detail

@@ -1,0 +1,153 @@
+// Non-uniform partition layout for streaming FFT convolution.
+//
+// Method: W. G. Gardner, "Efficient convolution without input-output delay",
+// JAES 43(3), 1995, and G. Garcia, "Optimal filter partition for efficient
+// convolution with short input/output delay", AES 113th Convention, 2002.
+// Level l has partitions of P_l = N * 2^l frames. A level processes the input
+// in P_l-frame blocks with overlap-save FFTs of size 2 P_l; a block's
+// forward FFT, multiply-accumulate and inverse FFTs are spread over
+// M_l = P_l / N latency steps, so its output must start no earlier than
+// taps 2 P_l - 2 N (the "offset" constraint). Any level that starts later
+// than that reads the input delayed by the difference (inputDelayFrames),
+// which keeps every block's results arriving exactly at their deadline.
+// Among layouts with K partitions per level (the last level takes the rest),
+// we choose K minimising an operation count: per output frame a level costs
+// (1 + C) FFTs of size 2P (alpha * 2P log2(2P) / P) plus C * K complex
+// multiply-accumulates (beta each), where C is the channel count.
+#include "earshot/dsp/partition_layout.h"
+
+#include <cmath>
+#include <limits>
+#include <string>
+
+namespace earshot {
+namespace {
+
+constexpr size_t kMinLatency = 8;
+constexpr size_t kMaxLatency = 65536;
+// Default cap on partition size (frames): the largest FFT (2x this) stays
+// well under 2 % of a 256-frame block period at 48 kHz with KissFFT.
+constexpr size_t kAutoMaxPartition = 8192;
+// Cost model constants (relative): KissFFT real FFT cost per n*log2(n), and
+// one vectorised complex multiply-accumulate.
+constexpr double kFftCost = 1.0;
+constexpr double kMacCost = 0.6;
+
+bool isPow2(size_t v) { return v && !(v & (v - 1)); }
+
+size_t nextPow2(size_t v) {
+  size_t p = 1;
+  while (p < v) p <<= 1;
+  return p;
+}
+
+void build(size_t n, size_t maxIr, size_t maxPart, size_t k, size_t* historyOut,
+                      std::vector<PartitionLevel>* levelsOut, size_t* capacityOut) {
+  std::vector<PartitionLevel> levels;
+  size_t p = n;
+  size_t offset = 0;
+  size_t remaining = maxIr;
+  size_t history = 0;
+  while (remaining > 0) {
+    PartitionLevel lv;
+    lv.partitionFrames = p;
+    lv.offsetFrames = offset;
+    bool last = p >= maxPart || remaining <= k * p;
+    lv.partitionCount = last ? (remaining + p - 1) / p : k;
+    lv.stepsPerBlock = p / n;
+    lv.inputDelayFrames = levels.empty() ? 0 : offset - (2 * p - 2 * n);
+    history = std::max(history, 2 * p + lv.inputDelayFrames + n);
+    size_t covered = lv.partitionCount * p;
+    offset += covered;
+    remaining -= std::min(remaining, covered);
+    levels.push_back(lv);
+    p *= 2;
+  }
+  *historyOut = nextPow2(history);
+  *levelsOut = levels;
+  *capacityOut = offset;
+}
+
+double cost(const std::vector<PartitionLevel>& levels, size_t channels) {
+  double c = 0;
+  for (const auto& lv : levels) {
+    double nfft = 2.0 * lv.partitionFrames;
+    c += (1.0 + channels) * kFftCost * nfft * std::log2(nfft) / lv.partitionFrames;
+    c += channels * kMacCost * lv.partitionCount;
+  }
+  return c;
+}
+
+Status checkCommon(size_t latency, size_t maxIr, size_t maxPart) {
+  if (latency < kMinLatency || latency > kMaxLatency || latency % 2 != 0)
+    return invalidArgument("convolver latencyFrames=" + std::to_string(latency) + " must be even and in [8, 65536]");
+  // KissFFT allocates inside the transform for prime factors above 5, which
+  // the audio thread must not do: accept only 2^a 3^b 5^c sizes.
+  size_t rest = latency;
+  for (size_t f : {2, 3, 5})
+    while (rest % f == 0) rest /= f;
+  if (rest != 1)
+    return invalidArgument("convolver latencyFrames=" + std::to_string(latency) +
+                           " must have no prime factor above 5 (e.g. 64, 480, 1000)");
+  if (maxIr < 1 || maxIr > (size_t{1} << 28))
+    return invalidArgument("convolver maxIrFrames=" + std::to_string(maxIr) + " must be in [1, 2^28]");
+  if (maxPart != 0 && (maxPart < latency || maxPart % latency != 0 || !isPow2(maxPart / latency)))
+    return invalidArgument("convolver maxPartitionFrames=" + std::to_string(maxPart) +
+                           " must be latencyFrames times a power of two");
+  return Status::ok();
+}
+
+size_t effectiveMaxPart(size_t latency, size_t maxPart) {
+  if (maxPart != 0) return maxPart;
+  size_t p = latency;
+  while (p * 2 <= kAutoMaxPartition) p *= 2;
+  return p;
+}
+
+}  // namespace
+
+Result<PartitionLayout> PartitionLayout::createFixed(size_t latencyFrames, size_t maxIrFrames,
+                                                     size_t maxPartitionFrames, size_t countPerLevel) {
+  EARSHOT_RETURN_IF_ERROR(checkCommon(latencyFrames, maxIrFrames, maxPartitionFrames));
+  if (countPerLevel < 2 || countPerLevel > 4096)
+    return invalidArgument("partition countPerLevel=" + std::to_string(countPerLevel) + " must be in [2, 4096]");
+  PartitionLayout out;
+  out.mLatency = latencyFrames;
+  build(latencyFrames, maxIrFrames, effectiveMaxPart(latencyFrames, maxPartitionFrames), countPerLevel,
+        &out.mHistory, &out.mLevels, &out.mCapacity);
+  return out;
+}
+
+Result<PartitionLayout> PartitionLayout::create(const ConvolverSettings& s) {
+  EARSHOT_RETURN_IF_ERROR(checkCommon(s.latencyFrames, s.maxIrFrames, s.maxPartitionFrames));
+  if (s.channels < 1 || s.channels > 64)
+    return invalidArgument("convolver channels=" + std::to_string(s.channels) + " must be in [1, 64]");
+  size_t maxPart = effectiveMaxPart(s.latencyFrames, s.maxPartitionFrames);
+  PartitionLayout best;
+  double bestCost = std::numeric_limits<double>::infinity();
+  for (size_t k = 2; k <= 64; ++k) {
+    PartitionLayout cand;
+    cand.mLatency = s.latencyFrames;
+    build(s.latencyFrames, s.maxIrFrames, maxPart, k, &cand.mHistory, &cand.mLevels, &cand.mCapacity);
+    double c = cost(cand.mLevels, s.channels);
+    if (c < bestCost - 1e-9) {
+      bestCost = c;
+      best = cand;
+    }
+  }
+  return best;
+}
+
+bool PartitionLayout::operator==(const PartitionLayout& o) const {
+  if (mLatency != o.mLatency || mCapacity != o.mCapacity || mLevels.size() != o.mLevels.size()) return false;
+  for (size_t i = 0; i < mLevels.size(); ++i) {
+    const auto& a = mLevels[i];
+    const auto& b = o.mLevels[i];
+    if (a.partitionFrames != b.partitionFrames || a.partitionCount != b.partitionCount ||
+        a.offsetFrames != b.offsetFrames || a.inputDelayFrames != b.inputDelayFrames)
+      return false;
+  }
+  return true;
+}
+
+}  // namespace earshot
