@@ -82,6 +82,20 @@ def sparse():
     return g
 
 
+def normalized():
+    """Positions as normalized u16 (stride 8, as vertex attributes must be
+    4-byte aligned): 65535 -> 1.0; the node scales by 2."""
+    g = Gltf()
+    data = b"".join(struct.pack("<4H", *p, 0) for p in [(0, 0, 0), (65535, 0, 0), (0, 65535, 0)])
+    v = g.view(data, 34962)
+    g.doc["bufferViews"][v]["byteStride"] = 8
+    pos = g.accessor(bufferView=v, componentType=USHORT, normalized=True, count=3, type="VEC3",
+                     min=[0, 0, 0], max=[65535, 65535, 0])
+    prim = {"attributes": {"POSITION": pos}, "indices": g.indices([0, 1, 2], UBYTE), "material": g.material("concrete")}
+    g.scene([g.node(mesh=g.mesh("quantized", [prim]), scale=[2, 2, 2])])
+    return g
+
+
 def no_scene():
     """No scenes at all: every root node (0 with child 1, and 2) is loaded."""
     g = Gltf()
@@ -110,6 +124,7 @@ def main():
     mapping().write_gltf(p("mapping.gltf"))
     modes().write_gltf(p("modes.gltf"))
     sparse().write_gltf(p("sparse.gltf"))
+    normalized().write_gltf(p("normalized.gltf"))
     g = no_scene()
     g.doc["scenes"] = []
     g.doc.pop("scene", None)

@@ -132,6 +132,15 @@ TEST(GltfLoad, SparseAccessorOverridesAVertex) {
   expectVertex(r->mesh, 0, 2, {0, 5, 0});
 }
 
+TEST(GltfLoad, NormalizedIntegerPositionsAreScaledToUnitRange) {
+  auto r = loadGltf(data("normalized.gltf"), defaultMaterials());
+  ASSERT_TRUE(r.isOk()) << r.status().message();
+  ASSERT_EQ(r->mesh.triangleCount(), 1u);
+  // u16 65535 -> 1.0 (glTF normalized unsigned: c / 65535), then node scale 2.
+  expectVertex(r->mesh, 0, 1, {2, 0, 0});
+  expectVertex(r->mesh, 0, 2, {0, 2, 0});
+}
+
 TEST(GltfLoad, WithoutScenesAllRootNodesAndTheirChildrenLoad) {
   auto r = loadGltf(data("no_scene.gltf"), defaultMaterials());
   ASSERT_TRUE(r.isOk()) << r.status().message();
