@@ -138,6 +138,7 @@ def main():
         ("view_outside_buffer.gltf", lambda d: d["bufferViews"][0].update(byteOffset=1000)),
         ("accessor_outside_view.gltf", lambda d: d["accessors"][0].update(byteOffset=8)),
         ("node_cycle.gltf", lambda d: d["nodes"].append({"children": [0]}) or d["nodes"][0].update(children=[1])),
+        ("buffer_length_lie.gltf", lambda d: d["buffers"][0].update(byteLength=10 ** 12)),
         ("bad_material_index.gltf", lambda d: d["meshes"][0]["primitives"][0].update(material=7)),
     ]:
         d = json.loads(one_tri().gltf_text())

@@ -54,10 +54,14 @@ double det3(const Mat4& m) {
          m[8] * (m[1] * m[6] - m[5] * m[2]);
 }
 
+/** tinygltf's messages as one short line: newlines joined, and cut (they
+ *  may quote a whole base64 data URI). */
 std::string oneLine(std::string s) {
+  constexpr size_t kMaxChars = 240;
   for (char& c : s)
     if (c == '\n' || c == '\r') c = ' ';
   while (!s.empty() && s.back() == ' ') s.pop_back();
+  if (s.size() > kMaxChars) s = s.substr(0, kMaxChars) + "...";
   return s;
 }
 
