@@ -1,0 +1,116 @@
+// earshot bench convolve: speed of the streaming convolver (real-time factor
+// and per-block cost) for a synthetic decaying-noise IR.
+#include <time.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <vector>
+
+#include "command.h"
+#include "earshot/core/random.h"
+#include "earshot/dsp/convolver.h"
+
+namespace earshot::cli {
+namespace {
+
+struct BenchOptions {
+  double irSeconds = 2.0;
+  size_t block = 256;
+  size_t channels = 2;
+  double seconds = 20.0;
+  size_t sources = 1;
+  double rate = 48000.0;
+};
+
+double threadCpuSeconds() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
+}
+
+std::vector<float> decayingNoise(size_t frames, uint64_t seed, double rate) {
+  Pcg32 rng(seed, 3);
+  std::vector<float> v(frames);
+  const double t60 = std::max(0.05, static_cast<double>(frames) / rate);  // -60 dB at the end
+  for (size_t i = 0; i < frames; ++i)
+    v[i] = static_cast<float>((2.0 * rng.uniformDouble() - 1.0) * std::pow(10.0, -3.0 * i / (t60 * rate)) * 0.1);
+  return v;
+}
+
+int run(const BenchOptions& o) {
+  ConvolverSettings s;
+  s.latencyFrames = o.block;
+  s.maxIrFrames = std::max<size_t>(1, static_cast<size_t>(std::llround(o.irSeconds * o.rate)));
+  s.channels = o.channels;
+  auto mixer = ConvolutionMixer::create(s, o.sources);
+  if (!check(mixer.status())) return 2;
+  ConvolutionMixer& m = **mixer;
+  for (size_t src = 0; src < o.sources; ++src) {
+    std::vector<std::vector<float>> ir;
+    for (size_t c = 0; c < o.channels; ++c) ir.push_back(decayingNoise(s.maxIrFrames, 100 * src + c, o.rate));
+    auto p = PreparedIr::create(ir, m.layout());
+    if (!check(p.status())) return 2;
+    if (!check(m.setIr(src, *p))) return 2;
+  }
+  std::vector<std::vector<float>> in(o.sources);
+  for (size_t src = 0; src < o.sources; ++src) in[src] = decayingNoise(o.block * 64, 7 + src, 1e12);
+  std::vector<const float*> ins(o.sources);
+  std::vector<std::vector<float>> out(o.channels, std::vector<float>(o.block));
+  std::vector<float*> outs(o.channels);
+  for (size_t c = 0; c < o.channels; ++c) outs[c] = out[c].data();
+
+  const size_t warmBlocks = static_cast<size_t>(0.5 * o.rate / o.block) + 1;
+  const size_t blocks = std::max<size_t>(1, static_cast<size_t>(o.seconds * o.rate / o.block));
+  std::vector<double> blockSeconds;
+  blockSeconds.reserve(blocks);
+  double cpu0 = 0;
+  for (size_t b = 0; b < warmBlocks + blocks; ++b) {
+    for (size_t src = 0; src < o.sources; ++src) ins[src] = in[src].data() + (b % 64) * o.block;
+    if (b == warmBlocks) cpu0 = threadCpuSeconds();
+    auto t0 = std::chrono::steady_clock::now();
+    m.process(ins.data(), outs.data(), o.block);
+    auto t1 = std::chrono::steady_clock::now();
+    if (b >= warmBlocks) blockSeconds.push_back(std::chrono::duration<double>(t1 - t0).count());
+  }
+  const double cpu = threadCpuSeconds() - cpu0;
+  const double audio = static_cast<double>(blocks * o.block) / o.rate;
+  const double period = static_cast<double>(o.block) / o.rate;
+  std::sort(blockSeconds.begin(), blockSeconds.end());
+  const double p99 = blockSeconds[std::min(blockSeconds.size() - 1, blockSeconds.size() * 99 / 100)];
+  const double worst = blockSeconds.back();
+  std::printf("convolve L=%g B=%zu sources=%zu rt_factor=%.1f p99_block_pct=%.3f max_block_pct=%.3f\n", o.irSeconds,
+              o.block, o.sources, audio / std::max(cpu, 1e-9), 100.0 * p99 / period, 100.0 * worst / period);
+  return 0;
+}
+
+const Registrar registrar([](CLI::App& root) {
+  auto o = std::make_shared<BenchOptions>();
+  CLI::App& bench = subcommandGroup(root, "bench", "Benchmarks (tracing, synthesis, convolution speed)");
+  CLI::App* cmd = bench.add_subcommand(
+      "convolve",
+      "Streaming convolution speed on one thread: rt_factor = audio seconds per CPU second, "
+      "p99/max = per-block time as % of the block period");
+  cmd->add_option("--ir-seconds", o->irSeconds, "IR length in seconds")
+      ->check(CLI::Range(0.0001, 60.0))
+      ->capture_default_str();
+  cmd->add_option("--block", o->block, "Host block = latency in frames (even, prime factors 2, 3, 5)")
+      ->check(CLI::Range(8u, 65536u))
+      ->capture_default_str();
+  cmd->add_option("--channels", o->channels, "IR/output channels (2 = binaural)")
+      ->check(CLI::Range(1u, 64u))
+      ->capture_default_str();
+  cmd->add_option("--seconds", o->seconds, "Audio seconds to process (after 0.5 s warm-up)")
+      ->check(CLI::Range(0.01, 3600.0))
+      ->capture_default_str();
+  cmd->add_option("--sources", o->sources, "Sources mixed into one output, each with its own IR")
+      ->check(CLI::Range(1u, 4096u))
+      ->capture_default_str();
+  cmd->add_option("--rate", o->rate, "Sample rate in Hz")->check(CLI::Range(8000.0, 384000.0))->capture_default_str();
+  cmd->callback([o] { setExitCode(run(*o)); });
+});
+
+}  // namespace
+}  // namespace earshot::cli
