@@ -41,12 +41,16 @@ Biquad makeSection(double cutoffHz, double rateHz, double q, bool highPass) {
   return s;
 }
 
+// Cut-offs are set on the pre-warped axis (Omega = tan(pi f / fs)), where
+// the digital response equals the analog Butterworth's: so the nominal edges
+// get exactly the intended attenuation even close to Nyquist.
 std::array<Biquad, 4> designBand(double rateHz, double centerHz) {
+  auto warp = [&](double f) { return std::tan(kPi * f / rateHz); };
+  auto unwarp = [&](double w) { return std::atan(w) * rateHz / kPi; };
   const double lowEdge = centerHz / std::sqrt(2.0), highEdge = centerHz * std::sqrt(2.0);
-  return {makeSection(lowEdge * kEdgeFactor, rateHz, kButterworthQ[0], true),
-          makeSection(lowEdge * kEdgeFactor, rateHz, kButterworthQ[1], true),
-          makeSection(highEdge / kEdgeFactor, rateHz, kButterworthQ[0], false),
-          makeSection(highEdge / kEdgeFactor, rateHz, kButterworthQ[1], false)};
+  const double hp = unwarp(warp(lowEdge) * kEdgeFactor), lp = unwarp(warp(highEdge) / kEdgeFactor);
+  return {makeSection(hp, rateHz, kButterworthQ[0], true), makeSection(hp, rateHz, kButterworthQ[1], true),
+          makeSection(lp, rateHz, kButterworthQ[0], false), makeSection(lp, rateHz, kButterworthQ[1], false)};
 }
 
 // One pass of the cascade over y[0..n), in place, forward or backward. All
@@ -101,7 +105,9 @@ void octaveBandFilterPairInto(const float* signal, size_t count, double rateHz, 
 }
 
 bool octaveBandAvailable(double rateHz, double centerHz) {
-  return centerHz > 0.0 && rateHz > 0.0 && centerHz * std::sqrt(2.0) / kEdgeFactor < 0.45 * rateHz;
+  // The upper edge must lie below 0.45 fs so that its widened low-pass cut-off
+  // (pre-warped) is a valid frequency below Nyquist.
+  return centerHz > 0.0 && rateHz > 0.0 && centerHz * std::sqrt(2.0) < 0.45 * rateHz;
 }
 
 size_t octaveBandGuardSamples(double rateHz, double centerHz) {

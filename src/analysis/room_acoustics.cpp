@@ -242,7 +242,20 @@ BandMetrics analyzeEnergy(const double* e, size_t n, double fs, long long onsetI
   }
   const double lastEdc = e[decayEnd - 1] + compEnergy;
   const double floorDb = toDb(lastEdc / e0);
-  m.dynamicRangeDb = nr.found ? -nr.noiseRelDb : -floorDb;
+  // Data that simply ends (no noise found): the EDC plunges to -inf at the end
+  // whatever the decay, so "reaching" -35 dB proves nothing. Estimate where
+  // the EDC would stand at the end had the decay continued at the fitted rate
+  // (mean energy per sample over the last 5 % or 10 ms, times fs T / 13.8)
+  // and ask for the same 10 dB margin below the fit range as for noise: the
+  // truncation then bends the fitted part of the EDC by <= 0.46 dB.
+  const double endEnergy = [&] {
+    const size_t span = std::min(len, std::max(len / 20, size_t(std::lround(0.01 * fs))));
+    return meanOf(e, decayEnd - span, decayEnd);
+  }();
+  auto truncationFloorDb = [&](double slopeDbPerS) {
+    if (nr.found || !(slopeDbPerS < 0.0)) return kNaN;
+    return toDb(endEnergy * fs * (10.0 / std::log(10.0)) / -slopeDbPerS / e0);
+  };
 
   auto decayFit = [&](Metric metric, double hiDb, double loDb, double& out) {
     // ISO 3382-1: with a noise floor, it must lie >= 10 dB below the fit's end.
@@ -265,6 +278,13 @@ BandMetrics analyzeEnergy(const double* e, size_t n, double fs, long long onsetI
       m.naReason[size_t(metric)] = "no decay between " + fmt1(hiDb) + " and " + fmt1(loDb) + " dB";
       return;
     }
+    const double truncDb = truncationFloorDb(f.slope);
+    if (truncDb > loDb - 10.0) {
+      m.naReason[size_t(metric)] = "decay range too short: data ends at about " + fmt1(truncDb) +
+                                   " dB of decay, needs " + fmt1(loDb - 10.0) + " dB";
+      return;
+    }
+    if (metric == Metric::kEdt && !nr.found) m.dynamicRangeDb = -truncDb;
     out = -60.0 / f.slope;
   };
   decayFit(Metric::kEdt, 0.0, -10.0, m.edtS);

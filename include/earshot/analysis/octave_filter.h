@@ -6,7 +6,10 @@
  *  forward then backward over the signal (zero phase, magnitude squared:
  *  8th-order skirts). The cut-offs are widened so that the squared response is
  *  -3 dB at the nominal octave edges fc/sqrt(2) and fc*sqrt(2) (IEC 61260
- *  base-2 octaves), so adjacent bands cross at half power.
+ *  base-2 octaves), so adjacent bands cross at half power; the cut-offs are
+ *  placed on the pre-warped frequency axis so this holds up to Nyquist. The
+ *  centre gain is -0.44 dB (the skirts of the high- and low-pass overlap);
+ *  energy ratios and decay rates do not depend on it.
  *
  *  Why zero phase: the filter's ringing is then symmetric about every arrival
  *  instead of trailing it, so energy ratios (C50, D50, Ts) are not biased late
@@ -24,8 +27,8 @@ namespace earshot::analysis {
 /** Zero-phase octave-band filtering of `count` samples (not owned). Returns
  *  `preGuardSamples + count + postGuardSamples` samples: the output sample
  *  preGuardSamples + i is aligned with input sample i; the guards hold the
- *  filter's pre- and post-ringing. Requires 0 < centerHz * sqrt(2) * 1.12 <
- *  0.45 * rateHz (see octaveBandAvailable). */
+ *  filter's pre- and post-ringing. Requires octaveBandAvailable(rateHz,
+ *  centerHz). */
 std::vector<double> octaveBandFilter(const float* signal, size_t count, double rateHz, double centerHz,
                                      size_t* preGuardSamples);
 
@@ -39,7 +42,7 @@ void octaveBandFilterInto(const float* signal, size_t count, double rateHz, doub
 void octaveBandFilterPairInto(const float* signal, size_t count, double rateHz, double centerA, double centerB,
                               size_t guard, std::vector<double>& outA, std::vector<double>& outB);
 
-/** True when the octave band's upper cut-off lies safely below Nyquist. */
+/** True when the octave's upper edge centerHz * sqrt(2) lies below 0.45 rateHz. */
 bool octaveBandAvailable(double rateHz, double centerHz);
 
 /** Extent of the filter's ringing on each side of an impulse (samples), where

@@ -1,0 +1,125 @@
+// JND arithmetic, tolerance files and the verdicts of compareMetrics.
+#include "earshot/analysis/compare.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+namespace earshot::analysis {
+namespace {
+
+std::vector<BandMetrics> uniformMetrics(double t, double c50, double d50, double ts) {
+  std::vector<BandMetrics> v(kAnalysisBandCount);
+  for (auto& m : v) {
+    m.edtS = m.t20S = m.t30S = t;
+    m.c50Db = c50;
+    m.c80Db = c50 + 3.0;
+    m.d50 = d50;
+    m.tsS = ts;
+  }
+  return v;
+}
+
+TEST(Compare, DifferencesAreMeasuredInJnd) {
+  EXPECT_DOUBLE_EQ(differenceInJnd(Metric::kT30, 1.05, 1.0), 1.0);   // 5 % of the reference
+  EXPECT_DOUBLE_EQ(differenceInJnd(Metric::kEdt, 1.9, 2.0), -1.0);
+  EXPECT_DOUBLE_EQ(differenceInJnd(Metric::kC80, 3.5, 1.5), 2.0);    // 1 dB
+  EXPECT_DOUBLE_EQ(differenceInJnd(Metric::kD50, 0.6, 0.5), 2.0);    // 0.05
+  EXPECT_NEAR(differenceInJnd(Metric::kTs, 0.035, 0.040), -0.5, 1e-12);  // 10 ms
+  const double inf = std::numeric_limits<double>::infinity();
+  EXPECT_EQ(differenceInJnd(Metric::kC50, inf, inf), 0.0);
+  EXPECT_EQ(differenceInJnd(Metric::kC50, 20.0, inf), -inf);
+  EXPECT_TRUE(std::isnan(differenceInJnd(Metric::kT20, kNaN, 1.0)));
+}
+
+TEST(Compare, IdenticalMetricsPassAndAScaledDecayFailsNamingTheMetric) {
+  auto ref = uniformMetrics(1.0, 2.0, 0.6, 0.08);
+  auto same = compareMetrics(ref, ref);
+  ASSERT_TRUE(same.isOk());
+  EXPECT_TRUE(same->withinTolerance());
+  EXPECT_EQ(same->rows.size(), size_t(kAnalysisBandCount * kMetricCount));
+
+  auto test = ref;
+  test[3].t30S = 1.08;  // 1.6 JND at 1 kHz
+  auto diff = compareMetrics(test, ref);
+  ASSERT_TRUE(diff.isOk());
+  EXPECT_EQ(diff->failures, 1);
+  EXPECT_NEAR(diff->worstJnd, 1.6, 1e-9);
+  for (const auto& row : diff->rows)
+    if (row.verdict == Verdict::kFail) {
+      EXPECT_EQ(row.metric, Metric::kT30);
+      EXPECT_EQ(row.band, 3);
+    }
+}
+
+TEST(Compare, NotAvailableInTheTestFailsButInTheReferenceIsSkipped) {
+  auto ref = uniformMetrics(1.0, 2.0, 0.6, 0.08);
+  auto test = ref;
+  test[0].t30S = kNaN;
+  test[0].naReason[size_t(Metric::kT30)] = "decay range too short";
+  ref[1].t20S = kNaN;
+  auto r = compareMetrics(test, ref);
+  ASSERT_TRUE(r.isOk());
+  EXPECT_EQ(r->failures, 1);
+  int skipped = 0;
+  for (const auto& row : r->rows) {
+    if (row.verdict == Verdict::kFail) EXPECT_NE(row.note.find("decay range too short"), std::string::npos);
+    if (row.verdict == Verdict::kSkipped) ++skipped;
+  }
+  EXPECT_EQ(skipped, 1);
+}
+
+TEST(Compare, ToleranceFileSetsLimitsPerMetricAndBandAndDisablesMetrics) {
+  auto spec = parseTolerance(R"({"default_jnd": 2,
+      "metrics": {"T30": 3, "C50": false,
+                  "EDT": {"jnd": 1.5, "bands": {"125": 4, "8k": false, "broadband": 0.5}}}})",
+                             "tol.json");
+  ASSERT_TRUE(spec.isOk()) << spec.status().message();
+  EXPECT_EQ(spec->limit(Metric::kT20, 2), 2.0);
+  EXPECT_EQ(spec->limit(Metric::kT30, 2), 3.0);
+  EXPECT_FALSE(spec->isEnabled(Metric::kC50, 4));
+  EXPECT_EQ(spec->limit(Metric::kEdt, 0), 4.0);
+  EXPECT_EQ(spec->limit(Metric::kEdt, 3), 1.5);
+  EXPECT_FALSE(spec->isEnabled(Metric::kEdt, 6));
+  EXPECT_EQ(spec->limit(Metric::kEdt, kBroadbandIndex), 0.5);
+
+  auto ref = uniformMetrics(1.0, 2.0, 0.6, 0.08);
+  auto test = ref;
+  test[2].t30S = 1.12;   // 2.4 JND < 3: passes
+  test[2].c50Db = 10.0;  // disabled
+  CompareOptions o;
+  o.tolerance = *spec;
+  auto r = compareMetrics(test, ref, o);
+  ASSERT_TRUE(r.isOk());
+  EXPECT_TRUE(r->withinTolerance());
+}
+
+TEST(Compare, ToleranceFileErrorsNameTheField) {
+  auto bad = parseTolerance(R"({"metrics": {"T30": -1}})", "tol.json");
+  ASSERT_FALSE(bad.isOk());
+  EXPECT_NE(bad.status().message().find("tol.json: metrics.T30"), std::string::npos) << bad.status().message();
+  auto unknownMetric = parseTolerance(R"({"metrics": {"RT60": 1}})", "tol.json");
+  ASSERT_FALSE(unknownMetric.isOk());
+  EXPECT_NE(unknownMetric.status().message().find("RT60"), std::string::npos);
+  auto unknownKey = parseTolerance(R"({"default": 1})", "tol.json");
+  ASSERT_FALSE(unknownKey.isOk());
+  EXPECT_NE(unknownKey.status().message().find("\"default\""), std::string::npos);
+  auto badBand = parseTolerance(R"({"metrics": {"EDT": {"bands": {"300": 1}}}})", "tol.json");
+  ASSERT_FALSE(badBand.isOk());
+  EXPECT_NE(badBand.status().message().find("300"), std::string::npos);
+  EXPECT_FALSE(parseTolerance("{not json", "tol.json").isOk());
+  EXPECT_FALSE(loadToleranceFile("/nonexistent/tol.json").isOk());
+}
+
+TEST(Compare, BandNamesParse) {
+  EXPECT_EQ(*parseBandName("125"), 0);
+  EXPECT_EQ(*parseBandName("1k"), 3);
+  EXPECT_EQ(*parseBandName("8000Hz"), 6);
+  EXPECT_EQ(*parseBandName("broadband"), kBroadbandIndex);
+  EXPECT_FALSE(parseBandName("300").isOk());
+  EXPECT_EQ(bandLabel(3), "1 kHz");
+  EXPECT_EQ(bandLabel(0), "125 Hz");
+}
+
+}  // namespace
+}  // namespace earshot::analysis
