@@ -19,7 +19,26 @@ struct GltfLoadResult {
  *  applied) and maps each glTF material to an acoustic one, in order: the
  *  `materialMap` (glTF material name -> acoustic name), the glTF material's
  *  `extras.acoustic_material`, its own name; else the default (id 0) with a
- *  warning naming it. Errors name the file and what is wrong. */
+ *  warning naming it. Errors name the file and what is wrong.
+ *
+ *  Details: .gltf or .glb is told by the file's magic bytes, not its name;
+ *  external buffers are resolved relative to the file; images are not
+ *  decoded. Without a default scene, every root node (a node nobody lists as
+ *  a child) is loaded. Node matrix or T*R*S transforms compose down the
+ *  hierarchy; positions are taken as metres in the file's own axes (no axis
+ *  conversion). Under a mirroring transform (negative determinant) each
+ *  triangle's winding is reversed so its normal keeps its sense. Indices may
+ *  be u8/u16/u32 or absent; positions float or normalized integers, sparse
+ *  accessors applied. Other primitive modes are skipped with a warning
+ *  naming mesh, primitive and mode; a primitive without a material gets id 0
+ *  with a warning; a map entry naming an unknown acoustic material warns and
+ *  falls through to the next rule. Each distinct warning is given once.
+ *  Errors (one line, prefixed `path: `): missing file (kNotFound), malformed
+ *  JSON/GLB (kParseError), accessor or buffer-view ranges outside their
+ *  buffer (checked before any allocation), out-of-range indices, node
+ *  cycles, non-finite vertices (kInvalidArgument, naming mesh and vertex).
+ *  `materials` is only read (not owned, not kept). Thread-safe: no shared
+ *  state; call from any thread. */
 Result<GltfLoadResult> loadGltf(const std::string& path, const MaterialTable& materials,
                                 const std::map<std::string, std::string>& materialMap = {});
 
