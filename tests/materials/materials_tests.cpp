@@ -37,6 +37,14 @@ TEST(MaterialsParse, NegativeScatteringAndTransmissionAreRangeErrors) {
   EXPECT_EQ(sb.status().message(), "m.json: material \"w\": scattering[6] = 2 is outside [0, 1]");
 }
 
+TEST(MaterialsParse, OverflowingNumberIsRejected) {
+  // JSON has no NaN/Inf literals; 1e400 overflows a double. Either the JSON
+  // parser or the finiteness check must refuse it.
+  auto r = parseMaterials(sevenBand(R"("x": {"absorption": [0.1, 1e400, 0.1, 0.1, 0.1, 0.1, 0.1]})"), "f");
+  ASSERT_FALSE(r.isOk());
+  EXPECT_EQ(r.status().message().rfind("f: ", 0), 0u) << r.status().message();
+}
+
 TEST(MaterialsParse, TransmissionAboveAbsorptionIsAnError) {
   auto r = parseMaterials(
       sevenBand(R"("glass": {"absorption": [0.1,0.1,0.1,0.1,0.1,0.1,0.1], "transmission": [0,0,0.3,0,0,0,0]})"),
