@@ -11,7 +11,8 @@ namespace {
 double step(int k, double log2f) {
   if (k < 0) return 1.0;               // below band 0 there is no crossover: all "above"
   if (k >= kNumBands - 1) return 0.0;  // above the top band likewise
-  const double x0 = 0.5 * (std::log2(kBandCentersHz[k]) + std::log2(kBandCentersHz[k + 1]));
+  // Crossovers at the geometric means of neighbouring centres (octaves: 125 * 2^(k + 1/2)).
+  const double x0 = std::log2(kBandCentersHz[0]) + double(k) + 0.5;
   const double u = log2f - x0;  // octaves from the crossover
   if (u <= -0.5) return 0.0;
   if (u >= 0.5) return 1.0;
@@ -26,8 +27,14 @@ double bandWeight(int band, double hz) {
 }
 
 BandArrayD bandWeights(double hz) {
+  const double lf = hz > 0 ? std::log2(hz) : -1e9;
   BandArrayD w{};
-  for (int b = 0; b < kNumBands; ++b) w[b] = bandWeight(b, hz);
+  double below = 1.0;  // step(-1)
+  for (int b = 0; b < kNumBands; ++b) {
+    const double above = step(b, lf);
+    w[b] = below - above;
+    below = above;
+  }
   return w;
 }
 

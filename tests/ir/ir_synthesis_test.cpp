@@ -89,7 +89,7 @@ TEST(IrSynthesis, AirAbsorptionAtOneHundredMetresMatchesIso9613PerBand) {
 TEST(IrSynthesis, ReflectionEnergyEqualsHistogramEnergy) {
   EnergyHistogram h(0.001, 600);
   for (size_t bin = 100; bin < 600; ++bin)
-    for (int b = 0; b < kNumBands; ++b) h.add(bin, b, 1e-3 * std::exp(-double(bin) / 100.0), {1, 0, 0});
+    h.add(bin, filledBands(1e-3 * std::exp(-double(bin) / 100.0)), {1, 0, 0});
   IrSynthesisSettings s;
   s.lengthSeconds = 0.7;
   auto ir = synthesizeOmniIr(nullptr, &h, s);
@@ -104,7 +104,9 @@ TEST(IrSynthesis, ReflectionEnergyEqualsHistogramEnergy) {
 // concentrated in that band.
 TEST(IrSynthesis, OneBandHistogramGivesSpectrumInThatBand) {
   EnergyHistogram h(0.001, 300);
-  for (size_t bin = 10; bin < 300; ++bin) h.add(bin, 3, 1e-4, {0, 1, 0});
+  BandArrayD only1k{};
+  only1k[3] = 1e-4;
+  for (size_t bin = 10; bin < 300; ++bin) h.add(bin, only1k, {0, 1, 0});
   IrSynthesisSettings s;
   auto ir = synthesizeOmniIr(nullptr, &h, s);
   ASSERT_TRUE(ir.isOk());
@@ -116,7 +118,9 @@ TEST(IrSynthesis, OneBandHistogramGivesSpectrumInThatBand) {
 
 TEST(IrSynthesis, SameSeedSameIrDifferentSeedDifferentNoise) {
   EnergyHistogram h(0.001, 100);
-  for (size_t bin = 5; bin < 100; ++bin) h.add(bin, 2, 1e-3, {0, 0, 1});
+  BandArrayD only500{};
+  only500[2] = 1e-3;
+  for (size_t bin = 5; bin < 100; ++bin) h.add(bin, only500, {0, 0, 1});
   IrSynthesisSettings s;
   auto a = synthesizeOmniIr(nullptr, &h, s), b = synthesizeOmniIr(nullptr, &h, s);
   s.seed = 2;

@@ -1,0 +1,93 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "cli_test_util.h"
+#include "earshot/io/wav.h"
+
+namespace earshot {
+namespace {
+using testing::readFile;
+using testing::runEarshot;
+using testing::TempDir;
+namespace fs = std::filesystem;
+
+const std::string kShoebox = std::string(EARSHOT_SOURCE_DIR) + "/samples/shoebox/shoebox.gltf";
+const std::string kShoeboxMap = std::string(EARSHOT_SOURCE_DIR) + "/samples/shoebox/materials_map.json";
+
+int countFiles(const fs::path& dir) {
+  int n = 0;
+  for (auto& e : fs::directory_iterator(dir)) n += e.is_regular_file();
+  return n;
+}
+}  // namespace
+
+TEST(CliIr, FreeFieldDirectSoundIsOneOverRAtRoverC) {
+  TempDir dir("cli_free");
+  auto r = runEarshot("ir --source 0,0,-3.43 --listener 0,0,0 --receiver omni --air off -o " + dir / "ir.wav");
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  auto ir = readAudioFile(dir / "ir.wav");
+  ASSERT_TRUE(ir.isOk()) << ir.status().message();
+  ASSERT_EQ(ir->channelCount(), 1u);
+  const auto& x = ir->channels[0];
+  EXPECT_NEAR(x[480], 1.0 / 3.43, 1e-4);  // 3.43 m / 343 m/s * 48 kHz = 480 samples exactly
+}
+
+TEST(CliIr, SampleRoomGivesByteIdenticalIrsForOneAndTwoThreads) {
+  TempDir dir("cli_threads");
+  const std::string common = "ir " + kShoebox + " --material-map " + kShoeboxMap +
+                             " --source 2,3.5,1.5 --listener 7,3.5,1.5 --receiver omni --rays 4000 --seed 5";
+  auto a = runEarshot(common + " --threads 1 -o " + dir / "a.wav --json " + dir / "a.json");
+  auto b = runEarshot(common + " --threads 2 -o " + dir / "b.wav");
+  ASSERT_EQ(a.exitCode, 0) << a.output;
+  ASSERT_EQ(b.exitCode, 0) << b.output;
+  const std::string wa = readFile(dir / "a.wav"), wb = readFile(dir / "b.wav");
+  EXPECT_GT(wa.size(), 10000u);
+  EXPECT_TRUE(wa == wb) << "WAVs differ between 1 and 2 threads";
+  const std::string stats = readFile(dir / "a.json");
+  EXPECT_NE(stats.find("\"rays_traced\": 4000"), std::string::npos) << stats;
+  EXPECT_NE(stats.find("\"rays_escaped\": 0"), std::string::npos) << stats;
+  EXPECT_NE(stats.find("trace_ms"), std::string::npos);
+}
+
+struct BadInput {
+  std::string name, args, expectInMessage;
+  std::string fileName = {}, fileContent = {};  // an input file the case writes first
+};
+
+class CliIrBadInput : public ::testing::TestWithParam<BadInput> {};
+
+TEST_P(CliIrBadInput, OneLineErrorNonZeroExitNoOutputFile) {
+  TempDir dir("cli_bad_" + GetParam().name);
+  if (!GetParam().fileName.empty()) std::ofstream(dir / GetParam().fileName) << GetParam().fileContent;
+  std::string args = GetParam().args;
+  for (size_t p; (p = args.find("@DIR@")) != std::string::npos;) args.replace(p, 5, dir.path.string());
+  auto r = runEarshot("ir " + args + " -o " + dir / "out.wav");
+  EXPECT_NE(r.exitCode, 0) << r.output;
+  EXPECT_NE(r.exitCode, -1) << "crashed: " << r.output;
+  EXPECT_NE(r.output.find(GetParam().expectInMessage), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("error"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(dir / "out.wav"));
+  // Nothing but the inputs the test wrote.
+  int inputs = 0;
+  for (auto& e : fs::directory_iterator(dir.path)) inputs += e.path().filename() != "out.wav";
+  EXPECT_EQ(countFiles(dir.path), inputs);
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Errors, CliIrBadInput,
+    ::testing::Values(
+        BadInput{"nan", "--source nan,0,0 --listener 0,0,0", "not a finite number"},
+        BadInput{"inf", "--source 1,0,0 --listener 0,inf,0", "not a finite number"},
+        BadInput{"count", "--source 1,0 --listener 0,0,0", "expected X,Y,Z"},
+        BadInput{"missing", "/nonexistent/room.gltf --source 1,0,0 --listener 0,0,0", "/nonexistent/room.gltf"},
+        BadInput{"malformed", "@DIR@/bad.gltf --source 1,0,0 --listener 0,0,0", "bad.gltf", "bad.gltf",
+                 "{ \"asset\": { \"version\": \"2.0\" }, \"meshes\": [ {"},
+        BadInput{"materials", "--materials @DIR@/m.json --source 1,0,0 --listener 0,0,0",
+                 "absorption[0] = 1.5 is outside [0, 1]", "m.json",
+                 R"({"bands_hz": [125, 250, 500, 1000, 2000, 4000, 8000], "materials": {"x": )"
+                 R"({"absorption": [1.5, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1], "scattering": 0.1}}})"},
+        BadInput{"rays", "--rays 0 --source 1,0,0 --listener 0,0,0", "--rays"}),
+    [](const ::testing::TestParamInfo<BadInput>& i) { return i.param.name; });
+
+}  // namespace earshot

@@ -1,0 +1,105 @@
+// `earshot bench trace`: ray tracing speed (16k rays x 12 bounces by default)
+// on a scene, reported as the median of repeated runs.
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <fstream>
+#include <memory>
+
+#include <nlohmann/json.hpp>
+
+#include "command.h"
+#include "earshot/core/thread_pool.h"
+#include "earshot/ir/ir_synthesis.h"
+#include "earshot/materials/material.h"
+#include "earshot/propagation/reflection_tracer.h"
+#include "earshot/scene/gltf_loader.h"
+#include "earshot/scene/ray_tracer.h"
+
+namespace earshot::cli {
+namespace {
+
+struct BenchTraceOptions {
+  std::string geometry;
+  std::string materialMap;
+  std::array<double, 3> source{2, 3.5, 1.5}, listener{7, 3.5, 1.5};
+  uint32_t rays = 16384, bounces = 12;
+  unsigned threads = 2;
+  int runs = 15;
+};
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
+}
+
+int run(const BenchTraceOptions& o) {
+  std::map<std::string, std::string> map;
+  if (!o.materialMap.empty()) {
+    std::ifstream f(o.materialMap);
+    nlohmann::json j = nlohmann::json::parse(f, nullptr, false);
+    if (j.is_discarded() || !j.is_object()) {
+      printError(o.materialMap + ": not a JSON object of material names");
+      return 2;
+    }
+    for (auto& [k, v] : j.items())
+      if (v.is_string()) map[k] = v.get<std::string>();
+  }
+  const MaterialTable& materials = defaultMaterials();
+  auto g = loadGltf(o.geometry, materials, map);
+  if (!check(g.status())) return 2;
+  std::vector<double> buildMs;
+  std::unique_ptr<RayTracer> tracer;
+  for (int i = 0; i < 5; ++i) {
+    auto t0 = std::chrono::steady_clock::now();
+    auto rt = RayTracer::create(g->mesh);
+    buildMs.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+    if (!check(rt.status())) return 2;
+    tracer = std::move(rt.value());
+  }
+  ThreadPool pool(o.threads);
+  ReflectionSettings s;
+  s.rays = o.rays;
+  s.bounces = o.bounces;
+  const Vec3d src{o.source[0], o.source[1], o.source[2]}, lis{o.listener[0], o.listener[1], o.listener[2]};
+  std::vector<double> traceMs, synthMs;
+  uint64_t queries = 0;
+  for (int i = 0; i < o.runs + 1; ++i) {  // the first run warms up and is dropped
+    s.seed = uint64_t(i + 1);
+    auto r = traceReflections(*tracer, materials, src, lis, s, pool);
+    if (!check(r.status())) return 2;
+    auto t0 = std::chrono::steady_clock::now();
+    IrSynthesisSettings is;
+    auto ir = synthesizeOmniIr(nullptr, &r->histogram, is);
+    if (!check(ir.status())) return 2;
+    if (i == 0) continue;
+    synthMs.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+    traceMs.push_back(r->stats.traceMs);
+    queries = r->stats.segmentsTraced + r->stats.shadowRays;
+  }
+  const double t = median(traceMs);
+  std::printf("trace scene=%s triangles=%zu rays=%u bounces=%u threads=%u runs=%d trace_ms=%.2f min_ms=%.2f "
+              "queries=%llu mrays_per_s=%.1f bvh_build_ms=%.2f synthesis_ms=%.2f\n",
+              o.geometry.c_str(), g->mesh.triangleCount(), o.rays, o.bounces, pool.threadCount(), o.runs, t,
+              *std::min_element(traceMs.begin(), traceMs.end()), (unsigned long long)queries, double(queries) / t / 1e3,
+              median(buildMs), median(synthMs));
+  return 0;
+}
+
+const Registrar registrar([](CLI::App& root) {
+  auto o = std::make_shared<BenchTraceOptions>();
+  CLI::App& bench = subcommandGroup(root, "bench", "Measure the speed of earshot's stages");
+  CLI::App* cmd = bench.add_subcommand("trace", "Ray tracing speed: median time of repeated reflection traces");
+  cmd->add_option("geometry", o->geometry, "Scene geometry (glTF)")->required()->check(CLI::ExistingFile);
+  cmd->add_option("--material-map", o->materialMap, "JSON object mapping glTF material names to acoustic materials");
+  addVec3Option(*cmd, "--source", o->source, "Source position in metres (default 2,3.5,1.5)");
+  addVec3Option(*cmd, "--listener", o->listener, "Listener position in metres (default 7,3.5,1.5)");
+  cmd->add_option("--rays", o->rays, "Rays")->check(CLI::Range(1u, 100000000u))->capture_default_str();
+  cmd->add_option("--bounces", o->bounces, "Bounces")->check(CLI::Range(0u, 100000u))->capture_default_str();
+  cmd->add_option("--threads", o->threads, "Threads")->check(CLI::Range(1u, 256u))->capture_default_str();
+  cmd->add_option("--runs", o->runs, "Timed runs (median reported)")->check(CLI::Range(1, 10000))->capture_default_str();
+  cmd->callback([o] { setExitCode(run(*o)); });
+});
+
+}  // namespace
+}  // namespace earshot::cli
