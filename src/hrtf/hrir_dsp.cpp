@@ -1,0 +1,242 @@
+// HRIR preparation numerics.
+//
+// Resampling and fractional interpolation: band-limited (Whittaker-Shannon)
+// interpolation with a Kaiser-windowed sinc, tabulated and linearly
+// interpolated (J. O. Smith and P. Gossett, "A flexible sampling-rate
+// conversion method", ICASSP 1984; Kaiser & Schafer 1980 for the window). When
+// downsampling, the sinc is stretched to a cutoff of 0.95 * fsOut / 2.
+//
+// Onset (time-of-arrival) estimation: the lag that maximises the
+// cross-correlation between an HRIR and its minimum-phase version, i.e. the
+// linear part of its excess phase (J. Nam, M. A. Kolar and J. S. Abel, "On the
+// minimum-phase nature of head-related transfer functions", AES 125th
+// Convention, 2008; compared with threshold methods in B. F. G. Katz and
+// M. Noisternig, "A comparative study of interaural time delay estimation
+// methods", JASA 135(6), 2014). The minimum-phase version comes from the
+// folded real cepstrum (Oppenheim & Schafer, Discrete-Time Signal Processing,
+// ch. 13) on a 4x zero-padded FFT; the peak is refined to a fraction of a
+// sample by golden-section search on the sinc-interpolated correlation. A
+// unit pulse at sample k gives exactly k. The cross-spectrum is weighted by a
+// Gaussian low-pass (see kOnsetLowpassHz in hrtf_set.cpp) so the estimate is
+// the low-frequency excess-phase delay, the one that makes minimum phase plus
+// delay perceptually transparent (Kulkarni, Isabelle & Colburn, JASA 105(5),
+// 1999). The stored HRIRs are the minimum-phase versions (same cepstral
+// method, applied after resampling).
+#include "hrir_dsp.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "earshot/core/math.h"
+
+namespace earshot::hrtf::detail {
+
+namespace {
+
+double besselI0(double x) {
+  // Power series; converges quickly for the arguments used (<= 9).
+  double sum = 1.0, term = 1.0, q = x * x / 4.0;
+  for (int k = 1; k < 60; ++k) {
+    term *= q / (double(k) * double(k));
+    sum += term;
+    if (term < sum * 1e-17) break;
+  }
+  return sum;
+}
+
+std::size_t nextPow2(std::size_t n) {
+  std::size_t p = 1;
+  while (p < n) p <<= 1;
+  return p;
+}
+
+template <class T>
+double interpolateImpl(const T* x, std::size_t n, double t) {
+  const SincKernel& k = SincKernel::instance();
+  const double z = SincKernel::kZeroCrossings;
+  long lo = static_cast<long>(std::ceil(t - z));
+  long hi = static_cast<long>(std::floor(t + z));
+  lo = std::max(lo, 0L);
+  hi = std::min(hi, static_cast<long>(n) - 1);
+  double sum = 0.0;
+  for (long i = lo; i <= hi; ++i) sum += double(x[i]) * k.value(t - double(i));
+  return sum;
+}
+
+}  // namespace
+
+Fft::Fft(std::size_t n) : mN(n), mTwiddle(n / 2), mBitReverse(n) {
+  for (std::size_t k = 0; k < n / 2; ++k) mTwiddle[k] = std::polar(1.0, -2.0 * kPi * double(k) / double(n));
+  int bits = 0;
+  while ((std::size_t(1) << bits) < n) ++bits;
+  for (std::size_t i = 0; i < n; ++i) {
+    std::size_t r = 0;
+    for (int b = 0; b < bits; ++b)
+      if (i & (std::size_t(1) << b)) r |= std::size_t(1) << (bits - 1 - b);
+    mBitReverse[i] = r;
+  }
+}
+
+void Fft::run(std::vector<std::complex<double>>& x, bool inverse) const {
+  for (std::size_t i = 0; i < mN; ++i)
+    if (i < mBitReverse[i]) std::swap(x[i], x[mBitReverse[i]]);
+  for (std::size_t len = 2; len <= mN; len <<= 1) {
+    std::size_t half = len / 2, step = mN / len;
+    for (std::size_t s = 0; s < mN; s += len) {
+      for (std::size_t j = 0; j < half; ++j) {
+        std::complex<double> w = mTwiddle[j * step];
+        if (inverse) w = std::conj(w);
+        std::complex<double> a = x[s + j], b = x[s + j + half] * w;
+        x[s + j] = a + b;
+        x[s + j + half] = a - b;
+      }
+    }
+  }
+}
+
+void Fft::inverse(std::vector<std::complex<double>>& x) const {
+  run(x, true);
+  double s = 1.0 / double(mN);
+  for (auto& v : x) v *= s;
+}
+
+SincKernel::SincKernel() : mTable(std::size_t(kZeroCrossings) * kPhases + 2, 0.0) {
+  double i0b = besselI0(kBeta);
+  for (std::size_t i = 0; i <= std::size_t(kZeroCrossings) * kPhases; ++i) {
+    double x = double(i) / kPhases;
+    double u = x / kZeroCrossings;
+    double sinc = i == 0 ? 1.0 : std::sin(kPi * x) / (kPi * x);
+    if (i % kPhases == 0 && i != 0) sinc = 0.0;  // exact zeros at integers
+    double w = besselI0(kBeta * std::sqrt(std::max(0.0, 1.0 - u * u))) / i0b;
+    mTable[i] = sinc * w;
+  }
+}
+
+const SincKernel& SincKernel::instance() {
+  static const SincKernel kernel;
+  return kernel;
+}
+
+double interpolateAt(const float* x, std::size_t n, double t) { return interpolateImpl(x, n, t); }
+double interpolateAt(const double* x, std::size_t n, double t) { return interpolateImpl(x, n, t); }
+
+void resampleShifted(const float* x, std::size_t n, double fsIn, double fsOut, double startIn, float* out,
+                     std::size_t outLength) {
+  const SincKernel& k = SincKernel::instance();
+  const double ratio = fsIn / fsOut;  // input samples per output sample
+  const double kappa = fsOut < fsIn ? 0.95 * fsOut / fsIn : 1.0;
+  const double gain = kappa * ratio;
+  const double half = SincKernel::kZeroCrossings / kappa;
+  for (std::size_t m = 0; m < outLength; ++m) {
+    double t = double(m) * ratio + startIn;
+    long lo = std::max(0L, static_cast<long>(std::ceil(t - half)));
+    long hi = std::min(static_cast<long>(n) - 1, static_cast<long>(std::floor(t + half)));
+    double sum = 0.0;
+    for (long i = lo; i <= hi; ++i) sum += double(x[i]) * k.value(kappa * (t - double(i)));
+    out[m] = static_cast<float>(gain * sum);
+  }
+}
+
+MinimumPhase::MinimumPhase(std::size_t irLength)
+    : mLength(irLength), mFft(std::max<std::size_t>(256, 4 * nextPow2(irLength))), mWork(mFft.size()) {}
+
+void MinimumPhase::compute(const float* x, float* out, std::size_t outLength) {
+  const std::size_t n = mFft.size();
+  std::fill(mWork.begin(), mWork.end(), std::complex<double>(0.0));
+  for (std::size_t i = 0; i < mLength; ++i) mWork[i] = x[i];
+  mFft.forward(mWork);
+  double peak = 0.0;
+  for (const auto& v : mWork) peak = std::max(peak, std::abs(v));
+  if (!(peak > 0.0)) {
+    std::fill(out, out + outLength, 0.0f);
+    return;
+  }
+  const double floorMag = peak * 1e-5;  // -100 dB: keeps log finite at spectral zeros
+  for (auto& v : mWork) v = std::log(std::max(std::abs(v), floorMag));
+  mFft.inverse(mWork);
+  for (std::size_t i = 1; i < n / 2; ++i) mWork[i] = 2.0 * mWork[i].real();
+  mWork[0] = mWork[0].real();
+  mWork[n / 2] = mWork[n / 2].real();
+  for (std::size_t i = n / 2 + 1; i < n; ++i) mWork[i] = 0.0;
+  mFft.forward(mWork);
+  for (auto& v : mWork) v = std::exp(v);
+  mFft.inverse(mWork);
+  for (std::size_t i = 0; i < outLength; ++i) out[i] = i < n ? static_cast<float>(mWork[i].real()) : 0.0f;
+}
+
+OnsetEstimator::OnsetEstimator(std::size_t irLength, double lowpassFraction)
+    : mLength(irLength),
+      mLowpassFraction(lowpassFraction),
+      mFft(std::max<std::size_t>(256, 4 * nextPow2(irLength))),
+      mSpec(mFft.size()),
+      mWork(mFft.size()),
+      mCorr(irLength + 2 * (SincKernel::kZeroCrossings + 2)) {}
+
+double OnsetEstimator::onsetSamples(const float* x) {
+  const std::size_t n = mFft.size();
+  std::fill(mSpec.begin(), mSpec.end(), std::complex<double>(0.0));
+  double energy = 0.0;
+  for (std::size_t i = 0; i < mLength; ++i) {
+    mSpec[i] = x[i];
+    energy += double(x[i]) * x[i];
+  }
+  if (!(energy > 0.0)) return 0.0;
+  mFft.forward(mSpec);
+
+  // Real cepstrum of log|X|, with a floor 120 dB below the peak so that
+  // spectral zeros do not produce -inf.
+  double peak = 0.0;
+  for (const auto& v : mSpec) peak = std::max(peak, std::abs(v));
+  const double floorMag = peak * 1e-6;
+  for (std::size_t i = 0; i < n; ++i) mWork[i] = std::log(std::max(std::abs(mSpec[i]), floorMag));
+  mFft.inverse(mWork);
+  // Fold onto positive quefrencies: the minimum-phase cepstrum.
+  for (std::size_t i = 1; i < n / 2; ++i) mWork[i] = 2.0 * mWork[i].real();
+  mWork[0] = mWork[0].real();
+  mWork[n / 2] = mWork[n / 2].real();
+  for (std::size_t i = n / 2 + 1; i < n; ++i) mWork[i] = 0.0;
+  mFft.forward(mWork);
+  // Cross-spectrum X * conj(Hmin) = |X|^2 e^{i(excess phase)}.
+  // A Gaussian low-pass weight favours the low-frequency excess-phase delay,
+  // which is stable where the high-frequency first arrival is ambiguous
+  // (contralateral ear); it is symmetric, so a unit pulse still peaks exactly.
+  const double lpFraction = mLowpassFraction;  // cutoff as a fraction of the sampling rate
+  for (std::size_t i = 0; i < n; ++i) {
+    double f = double(std::min(i, n - i)) / double(n);
+    double wlp = lpFraction > 0.0 ? std::exp(-(f / lpFraction) * (f / lpFraction)) : 1.0;
+    mWork[i] = wlp * mSpec[i] * std::conj(std::exp(mWork[i]));
+  }
+  mFft.inverse(mWork);
+
+  // Correlation at lags -pad .. mLength + pad - 1 (circular indices).
+  const long pad = SincKernel::kZeroCrossings + 2;
+  for (std::size_t j = 0; j < mCorr.size(); ++j) {
+    long lag = long(j) - pad;
+    mCorr[j] = mWork[std::size_t((lag + long(n)) % long(n))].real();
+  }
+  // Integer peak over non-negative lags (the excess-phase delay is causal).
+  std::size_t best = std::size_t(pad);
+  for (std::size_t j = std::size_t(pad); j < std::size_t(pad) + mLength; ++j)
+    if (mCorr[j] > mCorr[best]) best = j;
+  // Golden-section search on the band-limited correlation around the peak.
+  auto f = [&](double t) { return interpolateAt(mCorr.data(), mCorr.size(), t); };
+  const double g = 0.5 * (std::sqrt(5.0) - 1.0);
+  double a = double(best) - 1.0, b = double(best) + 1.0;
+  double c = b - g * (b - a), d = a + g * (b - a);
+  double fc = f(c), fd = f(d);
+  for (int it = 0; it < 48; ++it) {
+    if (fc > fd) {
+      b = d; d = c; fd = fc;
+      c = b - g * (b - a); fc = f(c);
+    } else {
+      a = c; c = d; fc = fd;
+      d = a + g * (b - a); fd = f(d);
+    }
+  }
+  double t = 0.5 * (a + b);
+  // Keep the exact integer when it is at least as good (unit pulses).
+  if (f(double(best)) >= f(t)) t = double(best);
+  return t - double(pad);
+}
+
+}  // namespace earshot::hrtf::detail
