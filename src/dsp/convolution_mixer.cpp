@@ -46,16 +46,27 @@ struct Holder {
   int refs = 0;                          // audio thread only
 };
 
+// One unit of a level block's work. A block runs its tasks in order, spread
+// over its M steps so that each step costs about the same.
+struct Task {
+  enum Kind : uint8_t { kForward, kMac, kInverse } kind;
+  uint32_t a = 0;  // kForward: source; kMac/kInverse: channel
+  uint32_t k0 = 0, k1 = 0;  // kMac: partition range
+};
+
 struct LevelState {
   PartitionLevel desc;
   size_t p = 0, k = 0, m = 0, stride = 0;
   size_t phaseOffset = 0;
   kiss_fftr_cfg fwd = nullptr, inv = nullptr;
   AlignedFloats accMain, accDiff;  // [channel][2 * stride]
-  AlignedFloats out;               // [channel][p]
+  AlignedFloats out;               // [buffer 0/1][channel][p], double-buffered
+  size_t readBuf = 0;              // buffer being played; the other is computed
   bool fading = false;
   size_t fadePos = 0;
-  bool mainTouched = false, diffTouched = false, outZero = true;
+  std::vector<char> mainTouched, diffTouched;  // per channel, this block
+  std::vector<Task> tasks;                     // the block's work in order
+  std::vector<size_t> phaseTask;               // tasks of phase p: [phaseTask[p], phaseTask[p + 1])
 };
 
 struct SourceLevel {
@@ -198,35 +209,39 @@ struct ConvolutionMixer::Impl {
       }
     }
     lv.accMain.zero();
-    lv.mainTouched = false;
     if (lv.fading) lv.accDiff.zero();
-    lv.diffTouched = false;
-    // Forward FFT of each source's newest 2P input frames (delayed by the
-    // level's input delay) into the next delay-line slot.
+    std::fill(lv.mainTouched.begin(), lv.mainTouched.end(), 0);
+    std::fill(lv.diffTouched.begin(), lv.diffTouched.end(), 0);
+  }
+
+  // Forward FFT of source `si`'s newest 2P input frames (delayed by the
+  // level's input delay) into the next delay-line slot.
+  void forward(LevelState& lv, size_t si) {
+    const size_t li = &lv - levels.data();
     const size_t nfft = 2 * lv.p;
     const int64_t end = static_cast<int64_t>(written) - static_cast<int64_t>(lv.desc.inputDelayFrames);
     const int64_t start = end - static_cast<int64_t>(nfft);
-    for (auto& sp : sources) {
-      Source& s = *sp;
-      SourceLevel& sl = s.levels[li];
-      size_t first = static_cast<size_t>(start) & histMask;
-      size_t n1 = std::min(nfft, histMask + 1 - first);
-      std::memcpy(timeBuf.data(), s.history.data() + first, n1 * sizeof(float));
-      if (n1 < nfft) std::memcpy(timeBuf.data() + n1, s.history.data(), (nfft - n1) * sizeof(float));
-      kiss_fftr(lv.fwd, timeBuf.data(), cpxBuf.data());
-      sl.head = sl.head + 1 == lv.k ? 0 : sl.head + 1;
-      float* re = sl.fdl.data() + sl.head * 2 * lv.stride;
-      float* im = re + lv.stride;
-      for (size_t b = 0; b <= lv.p; ++b) {
-        re[b] = cpxBuf[b].r;
-        im[b] = cpxBuf[b].i;
-      }
+    Source& s = *sources[si];
+    SourceLevel& sl = s.levels[li];
+    size_t first = static_cast<size_t>(start) & histMask;
+    size_t n1 = std::min(nfft, histMask + 1 - first);
+    std::memcpy(timeBuf.data(), s.history.data() + first, n1 * sizeof(float));
+    if (n1 < nfft) std::memcpy(timeBuf.data() + n1, s.history.data(), (nfft - n1) * sizeof(float));
+    kiss_fftr(lv.fwd, timeBuf.data(), cpxBuf.data());
+    sl.head = sl.head + 1 == lv.k ? 0 : sl.head + 1;
+    float* re = sl.fdl.data() + sl.head * 2 * lv.stride;
+    float* im = re + lv.stride;
+    for (size_t b = 0; b <= lv.p; ++b) {
+      re[b] = cpxBuf[b].r;
+      im[b] = cpxBuf[b].i;
     }
   }
 
-  void accumulate(LevelState& lv, size_t k0, size_t k1) {
+  void accumulate(LevelState& lv, size_t c, size_t k0, size_t k1) {
     const size_t li = &lv - levels.data();
     const size_t st = lv.stride;
+    float* mr = lv.accMain.data() + c * 2 * st;
+    float* dr = lv.accDiff.data() + c * 2 * st;
     for (auto& sp : sources) {
       SourceLevel& sl = sp->levels[li];
       const PreparedIr* cur = sl.cur ? sl.cur->ir.get() : nullptr;
@@ -237,27 +252,23 @@ struct ConvolutionMixer::Impl {
         const bool hasCur = kk < curActive;
         const bool hasPrev = kk < prevActive;
         if (!hasCur && !hasPrev) continue;
-        size_t slot = sl.head >= kk ? sl.head - kk : sl.head + lv.k - kk;
+        const size_t slot = sl.head >= kk ? sl.head - kk : sl.head + lv.k - kk;
         const float* xr = sl.fdl.data() + slot * 2 * st;
-        for (size_t c = 0; c < channels; ++c) {
-          float* mr = lv.accMain.data() + c * 2 * st;
-          float* dr = lv.accDiff.data() + c * 2 * st;
-          const float* hc = hasCur ? cur->spectrum(li, c, kk) : nullptr;
-          if (hasCur) {
-            dsp_detail::complexMac(mr, mr + st, xr, xr + st, hc, hc + st, st);
-            lv.mainTouched = true;
-          }
-          if (!sl.fading) continue;
-          const float* hp = hasPrev ? prev->spectrum(li, c, kk) : nullptr;
-          if (hasPrev && hasCur) {
-            dsp_detail::complexMacDiff(dr, dr + st, xr, xr + st, hp, hp + st, hc, hc + st, st);
-          } else if (hasPrev) {
-            dsp_detail::complexMac(dr, dr + st, xr, xr + st, hp, hp + st, st);
-          } else {
-            dsp_detail::complexMacNeg(dr, dr + st, xr, xr + st, hc, hc + st, st);
-          }
-          lv.diffTouched = true;
+        const float* hc = hasCur ? cur->spectrum(li, c, kk) : nullptr;
+        if (hasCur) {
+          dsp_detail::complexMac(mr, mr + st, xr, xr + st, hc, hc + st, st);
+          lv.mainTouched[c] = 1;
         }
+        if (!sl.fading) continue;
+        const float* hp = hasPrev ? prev->spectrum(li, c, kk) : nullptr;
+        if (hasPrev && hasCur) {
+          dsp_detail::complexMacDiff(dr, dr + st, xr, xr + st, hp, hp + st, hc, hc + st, st);
+        } else if (hasPrev) {
+          dsp_detail::complexMac(dr, dr + st, xr, xr + st, hp, hp + st, st);
+        } else {
+          dsp_detail::complexMacNeg(dr, dr + st, xr, xr + st, hc, hc + st, st);
+        }
+        lv.diffTouched[c] = 1;
       }
     }
   }
@@ -271,29 +282,23 @@ struct ConvolutionMixer::Impl {
     kiss_fftri(cfg, cpxBuf.data(), timeBuf.data());
   }
 
-  void blockFinish(LevelState& lv) {
+  // Inverse FFT of channel c's accumulators into the buffer being computed.
+  void finishChannel(LevelState& lv, size_t c) {
     const size_t p = lv.p;
     const size_t st = lv.stride;
-    if (lv.mainTouched) {
-      for (size_t c = 0; c < channels; ++c) {
-        inverse(lv.accMain.data() + c * 2 * st, p, lv.inv);
-        std::memcpy(lv.out.data() + c * p, timeBuf.data() + p, p * sizeof(float));
-      }
-      lv.outZero = false;
-    } else if (!lv.outZero) {
-      lv.out.zero();
-      lv.outZero = true;
+    float* o = lv.out.data() + ((1 - lv.readBuf) * channels + c) * p;
+    if (lv.mainTouched[c]) {
+      inverse(lv.accMain.data() + c * 2 * st, p, lv.inv);
+      std::memcpy(o, timeBuf.data() + p, p * sizeof(float));
+    } else {
+      std::memset(o, 0, p * sizeof(float));
     }
-    if (lv.fading && lv.diffTouched) {
-      for (size_t c = 0; c < channels; ++c) {
-        inverse(lv.accDiff.data() + c * 2 * st, p, lv.inv);
-        float* o = lv.out.data() + c * p;
-        const float* d = timeBuf.data() + p;
-        size_t ramped = lv.fadePos < fade ? std::min(p, fade - lv.fadePos) : 0;
-        const float* g = ramp.data() + lv.fadePos;
-        for (size_t i = 0; i < ramped; ++i) o[i] += (1.0f - g[i]) * d[i];
-      }
-      lv.outZero = false;
+    if (lv.fading && lv.diffTouched[c]) {
+      inverse(lv.accDiff.data() + c * 2 * st, p, lv.inv);
+      const float* d = timeBuf.data() + p;
+      const size_t ramped = lv.fadePos < fade ? std::min(p, fade - lv.fadePos) : 0;
+      const float* g = ramp.data() + lv.fadePos;
+      for (size_t i = 0; i < ramped; ++i) o[i] += (1.0f - g[i]) * d[i];
     }
   }
 
@@ -303,13 +308,19 @@ struct ConvolutionMixer::Impl {
     for (LevelState& lv : levels) {
       const size_t phase = static_cast<size_t>((step + lv.phaseOffset) % lv.m);
       if (phase == 0) blockStart(lv);
-      accumulate(lv, phase * lv.k / lv.m, (phase + 1) * lv.k / lv.m);
-      if (phase == lv.m - 1) blockFinish(lv);
-      if (lv.outZero) continue;
+      for (size_t t = lv.phaseTask[phase]; t < lv.phaseTask[phase + 1]; ++t) {
+        const Task& task = lv.tasks[t];
+        switch (task.kind) {
+          case Task::kForward: forward(lv, task.a); break;
+          case Task::kMac: accumulate(lv, task.a, task.k0, task.k1); break;
+          case Task::kInverse: finishChannel(lv, task.a); break;
+        }
+      }
+      if (phase == lv.m - 1) lv.readBuf = 1 - lv.readBuf;
       const size_t slice = (phase + 1 == lv.m ? 0 : phase + 1) * n;
       for (size_t c = 0; c < channels; ++c) {
         float* dst = outBlock.data() + c * n;
-        const float* src = lv.out.data() + c * lv.p + slice;
+        const float* src = lv.out.data() + (lv.readBuf * channels + c) * lv.p + slice;
         for (size_t i = 0; i < n; ++i) dst[i] += src[i];
       }
     }
@@ -346,6 +357,57 @@ struct ConvolutionMixer::Impl {
     }
   }
 };
+
+namespace {
+
+// Lays a level block's tasks (forward FFT per source, then per channel the
+// multiply-accumulate of all partitions and the inverse FFT) out over its M
+// steps in order, filling each step up to an equal share of the estimated
+// cost; an FFT is indivisible, a multiply-accumulate splits at partitions.
+void scheduleLevel(LevelState& lv, size_t sources, size_t channels) {
+  const double nfft = 2.0 * static_cast<double>(lv.p);
+  const double fft = nfft * std::log2(nfft) * 0.55 + nfft * 0.3;
+  const double mac = static_cast<double>(sources) * static_cast<double>(lv.p + 1) * 0.3;
+  const double total = fft * static_cast<double>(sources + channels) +
+                       mac * static_cast<double>(channels * lv.k);
+  const double share = total / static_cast<double>(lv.m);
+  lv.tasks.clear();
+  lv.phaseTask.assign(lv.m + 1, 0);
+  size_t phase = 0;
+  double load = 0;
+  auto place = [&](double cost) {
+    // Move to the next step when this one is full (never past the last).
+    while (phase + 1 < lv.m && load > 0 && load + 0.5 * cost > share * 1.0001) {
+      ++phase;
+      lv.phaseTask[phase] = lv.tasks.size();
+      load = 0;
+    }
+    load += cost;
+  };
+  for (size_t s = 0; s < sources; ++s) {
+    place(fft);
+    lv.tasks.push_back({Task::kForward, static_cast<uint32_t>(s), 0, 0});
+  }
+  for (size_t c = 0; c < channels; ++c) {
+    size_t k = 0;
+    while (k < lv.k) {
+      // As many partitions as fit in this step (at least one).
+      place(mac);
+      size_t k1 = k + 1;
+      while (k1 < lv.k && load + mac <= share * 1.0001) {
+        load += mac;
+        ++k1;
+      }
+      lv.tasks.push_back({Task::kMac, static_cast<uint32_t>(c), static_cast<uint32_t>(k), static_cast<uint32_t>(k1)});
+      k = k1;
+    }
+    place(fft);
+    lv.tasks.push_back({Task::kInverse, static_cast<uint32_t>(c), 0, 0});
+  }
+  for (size_t p = phase + 1; p <= lv.m; ++p) lv.phaseTask[p] = lv.tasks.size();
+}
+
+}  // namespace
 
 ConvolutionMixer::ConvolutionMixer(std::unique_ptr<Impl> impl) : mImpl(std::move(impl)) {}
 ConvolutionMixer::~ConvolutionMixer() = default;
@@ -391,7 +453,10 @@ Result<std::unique_ptr<ConvolutionMixer>> ConvolutionMixer::create(const Convolv
       }
       lv.accMain.resize(settings.channels * 2 * lv.stride);
       lv.accDiff.resize(settings.channels * 2 * lv.stride);
-      lv.out.resize(settings.channels * lv.p);
+      lv.out.resize(2 * settings.channels * lv.p);
+      lv.mainTouched.assign(settings.channels, 0);
+      lv.diffTouched.assign(settings.channels, 0);
+      scheduleLevel(lv, sourceCount, settings.channels);
       maxP = std::max(maxP, lv.p);
       impl->levels.push_back(std::move(lv));
     }

@@ -6,7 +6,7 @@ namespace earshot {
 namespace {
 
 // The layout covers the IR, starts with latency-sized partitions, doubles
-// the partition size level by level, and every level >= 1 starts late
+// grows the partition size by powers of two level by level, and every level >= 1 starts late
 // enough (offset >= 2P - 2N) for its work to be spread over P/N steps.
 TEST(PartitionLayout, CoversIrAndMeetsDeadlines) {
   for (size_t n : {16u, 64u, 256u, 1000u, 1024u}) {
@@ -25,7 +25,8 @@ TEST(PartitionLayout, CoversIrAndMeetsDeadlines) {
       for (size_t i = 0; i < lv.size(); ++i) {
         EXPECT_EQ(lv[i].offsetFrames, offset);
         if (i > 0) {
-          EXPECT_EQ(lv[i].partitionFrames, 2 * lv[i - 1].partitionFrames);
+          EXPECT_GT(lv[i].partitionFrames, lv[i - 1].partitionFrames);
+          EXPECT_EQ(lv[i].partitionFrames % lv[i - 1].partitionFrames, 0u);
           EXPECT_EQ(lv[i].offsetFrames, lv[i].inputDelayFrames + 2 * lv[i].partitionFrames - 2 * n);
         }
         EXPECT_EQ(lv[i].stepsPerBlock * n, lv[i].partitionFrames);
