@@ -222,6 +222,7 @@ Result<std::shared_ptr<const HrtfSet>> HrtfSet::load(const std::string& sofaPath
     set->mDelays[i] = (onset[i] + fileDelay[i]) / fsIn - set->mReferenceOnsetSeconds;
   }
 
+  set->buildNearestGrid();
   if (mode == InterpolationMode::kBarycentric) set->buildTriangulation();
   return std::shared_ptr<const HrtfSet>(std::move(set));
 }
@@ -285,16 +286,44 @@ void HrtfSet::buildTriangulation() {
   for (const auto& l : lists) mCellTriangles.insert(mCellTriangles.end(), l.begin(), l.end());
 }
 
+void HrtfSet::buildNearestGrid() {
+  // A site can be nearest to a point of a cell (cap centre c, radius r) only
+  // if it lies within angle(c, nearest site of c) + 2 r of c (triangle
+  // inequality), so each cell keeps just those candidates.
+  const int cells = 6 * kGridN * kGridN;
+  mNearStart.assign(cells + 1, 0);
+  mNearSites.clear();
+  for (int face = 0; face < 6; ++face) {
+    for (int j = 0; j < kGridN; ++j) {
+      for (int i = 0; i < kGridN; ++i) {
+        double u0 = -1.0 + 2.0 * i / kGridN, u1 = -1.0 + 2.0 * (i + 1) / kGridN;
+        double v0 = -1.0 + 2.0 * j / kGridN, v1 = -1.0 + 2.0 * (j + 1) / kGridN;
+        Vec3d centre = cubePoint(face, 0.5 * (u0 + u1), 0.5 * (v0 + v1));
+        double r = std::max({angleBetween(centre, cubePoint(face, u0, v0)), angleBetween(centre, cubePoint(face, u1, v0)),
+                             angleBetween(centre, cubePoint(face, u0, v1)), angleBetween(centre, cubePoint(face, u1, v1))});
+        double bestDot = -2.0;
+        for (const Vec3f& d : mDirections) bestDot = std::max(bestDot, dot(centre, Vec3d(d)));
+        double limit = std::acos(std::clamp(bestDot, -1.0, 1.0)) + 2.0 * r + 1e-4;
+        double cosLimit = limit >= kPi ? -2.0 : std::cos(limit);
+        for (uint32_t k = 0; k < mDirections.size(); ++k)
+          if (dot(centre, Vec3d(mDirections[k])) >= cosLimit) mNearSites.push_back(k);
+        mNearStart[(face * kGridN + j) * kGridN + i + 1] = uint32_t(mNearSites.size());
+      }
+    }
+  }
+}
+
 int HrtfSet::cellOf(const Vec3f& d) const { return cubeCell(d.x, d.y, d.z); }
 
 int HrtfSet::nearestMeasurement(const Vec3f& d) const {
+  const int cell = cellOf(d);
   int best = 0;
   float bestDot = -2.0f;
-  for (std::size_t i = 0; i < mDirections.size(); ++i) {
-    float c = dot(d, mDirections[i]);
+  for (uint32_t k = mNearStart[cell]; k < mNearStart[cell + 1]; ++k) {
+    float c = dot(d, mDirections[mNearSites[k]]);
     if (c > bestDot) {
       bestDot = c;
-      best = int(i);
+      best = int(mNearSites[k]);
     }
   }
   return best;

@@ -392,6 +392,14 @@ TEST(HrtfSet, NearestModeReturnsTheMeasuredHrirUnchanged) {
     EXPECT_EQ(pair->rightDelaySeconds, m.rightDelaySeconds);
     EXPECT_TRUE(std::equal(m.left, m.left + set->hrirLength(), pair->left.begin()));
   }
+  // The accelerated search finds the true nearest measurement (brute force).
+  for (const Vec3f& d : sphereDirections(3000)) {
+    InterpolationWeights w = set->weights(d);
+    ASSERT_EQ(w.count, 1);
+    float best = -2.0f;
+    for (std::size_t i = 0; i < set->measurementCount(); ++i) best = std::max(best, dot(d, set->measurement(i).headDirection));
+    EXPECT_GE(dot(d, set->measurement(w.index[0]).headDirection), best - 1e-6f);
+  }
 }
 
 TEST(HrtfSet, MeasurementsKeepTheFilesDirections) {

@@ -152,6 +152,7 @@ class HrtfSet {
   };
   HrtfSet() = default;
   void buildTriangulation();
+  void buildNearestGrid();
 
   int nearestMeasurement(const Vec3f& sofaDir) const;
   int cellOf(const Vec3f& sofaDir) const;
@@ -172,6 +173,8 @@ class HrtfSet {
   int mGridN = 0;                       // cube-map cells per face edge
   std::vector<uint32_t> mCellStart;     // 6 * mGridN^2 + 1 offsets into mCellTriangles
   std::vector<uint32_t> mCellTriangles;
+  std::vector<uint32_t> mNearStart;     // per cell: measurements that can be nearest
+  std::vector<uint32_t> mNearSites;
 };
 
 /** File name of the default HRTF set shipped in earshot's hrtf/ folder
