@@ -214,10 +214,17 @@ Result<std::shared_ptr<const HrtfSet>> HrtfSet::load(const std::string& sofaPath
 
   set->mTaps.assign(m * 2 * length, 0.0f);
   set->mDelays.resize(m * 2);
-  std::vector<float> resampled(length);
-  detail::MinimumPhase minPhase(length);
+  // Resample with margins that hold the whole interpolation kernel (its
+  // tails before tap 0 and after the last tap), so the minimum-phase
+  // version, which moves that energy to the front, loses none of it.
+  const double kernelHalfOut = detail::SincKernel::kZeroCrossings / std::min(1.0, 0.95 * sampleRateHz / fsIn) *
+                               sampleRateHz / fsIn;
+  const std::size_t margin = std::size_t(std::ceil(kernelHalfOut));
+  std::vector<float> resampled(length + 2 * margin);
+  detail::MinimumPhase minPhase(resampled.size());
   for (std::size_t i = 0; i < m * 2; ++i) {
-    detail::resampleShifted(h->DataIR.values + i * n, n, fsIn, sampleRateHz, 0.0, resampled.data(), length);
+    detail::resampleShifted(h->DataIR.values + i * n, n, fsIn, sampleRateHz, -double(margin) * fsIn / sampleRateHz,
+                            resampled.data(), resampled.size());
     minPhase.compute(resampled.data(), set->mTaps.data() + i * length, length);
     set->mDelays[i] = (onset[i] + fileDelay[i]) / fsIn - set->mReferenceOnsetSeconds;
   }

@@ -341,6 +341,22 @@ TEST(HrtfSet, ResamplingKeepsItdAndBroadbandLevel) {
   }
 }
 
+TEST(HrtfSet, ExtremeEngineRatesKeepTheFiltersGain) {
+  // A unit pulse has a flat response of gain 1, so at any rate the HRIR's DC
+  // gain (sum of taps) is 1; the windowed sinc's DC ripple is < 1e-4.
+  auto pair = std::make_unique<HrirPair>();
+  for (double fs : {8000.0, 22050.0, 192000.0}) {
+    auto set = loadOrDie(kPulse, fs);
+    ASSERT_TRUE(set);
+    EXPECT_EQ(set->hrirLength(), std::size_t(std::ceil(256.0 * fs / 48000.0)));
+    set->lookup({0.3f, 0.2f, -0.9f}, *pair);
+    double sum = 0.0;
+    for (std::size_t k = 0; k < pair->length; ++k) sum += pair->left[k];
+    EXPECT_NEAR(sum, 1.0, 1e-3) << fs;
+    EXPECT_NEAR(pair->leftDelaySeconds, 0.0, 1e-9) << fs;
+  }
+}
+
 TEST(HrtfSet, FullSphereSetInterpolatesEveryDirectionFromThreeMeasurements) {
   auto set = loadOrDie(kKu100, 48000.0);
   ASSERT_TRUE(set);
