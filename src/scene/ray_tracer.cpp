@@ -69,6 +69,8 @@ Result<std::unique_ptr<RayTracer>> RayTracer::create(const TriangleMesh& mesh) {
     idx.insert(idx.end(), tri.begin(), tri.end());
   }
 
+  rt->mPlanes = groupCoplanarTriangles(mesh);
+
   impl.device = rtcNewDevice("verbose=0");
   if (!impl.device) return Status(StatusCode::kInternal, "cannot create an Embree device");
   rtcSetDeviceErrorFunction(impl.device, onEmbreeError, &impl);

@@ -8,6 +8,7 @@
 
 #include "earshot/core/status.h"
 #include "earshot/core/vec3.h"
+#include "earshot/scene/planes.h"
 #include "earshot/scene/triangle_mesh.h"
 
 namespace earshot {
@@ -51,6 +52,9 @@ class RayTracer {
   /** Material id of a triangle. */
   uint32_t materialOf(uint32_t triangle) const { return mMesh.materialIds[triangle]; }
   bool empty() const { return mMesh.triangles.empty(); }
+  /** Coplanar groups of the mesh's triangles (for image sources). */
+  const PlaneSet& planes() const { return mPlanes; }
+  uint32_t planeOf(uint32_t triangle) const { return mPlanes.triangleToPlane[triangle]; }
   /** Axis-aligned bounds of the mesh (empty mesh: both zero). */
   Vec3f boundsMin() const { return mMin; }
   Vec3f boundsMax() const { return mMax; }
@@ -67,6 +71,7 @@ class RayTracer {
  private:
   std::unique_ptr<Impl> mImpl;
   TriangleMesh mMesh;
+  PlaneSet mPlanes;
   Vec3f mMin, mMax;
   float mEpsilon = 1e-4f;
 };

@@ -1,0 +1,221 @@
+// Image sources with ray-traced visibility: see image_sources.h.
+#include "earshot/propagation/image_sources.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <string>
+
+#include "earshot/core/random.h"
+#include "earshot/propagation/reflection_tracer.h"
+#include "earshot/scene/ray_tracer.h"
+
+namespace earshot {
+
+namespace {
+
+constexpr uint32_t kUnused = 0xFFFFFFFFu;
+
+struct Validator {
+  const RayTracer& tracer;
+  const MaterialTable& materials;
+  const Vec3d source, listener;
+  const ImageSourceSettings& settings;
+  BandArrayD airDbPerM;
+
+  // Leg from `from` toward `to`: the first surface hit must be plane `plane`
+  // at the point where the segment crosses it. Returns the crossing and its
+  // triangle, or false.
+  // `fromSurface`: the leg starts on a wall (skip it with tNear = eps).
+  bool legHitsPlane(const Vec3d& from, bool fromSurface, const Vec3d& to, uint32_t plane, Vec3d& point,
+                    uint32_t& triangle) const {
+    const Plane& p = tracer.planes().planes[plane];
+    const double d0 = p.distance(from), d1 = p.distance(to);
+    const float eps = tracer.surfaceEpsilon();
+    if (fromSurface && std::fabs(d0) <= 8.0 * eps && std::fabs(d1) > 8.0 * eps) {
+      // The previous reflection point lies on this plane too: an edge where
+      // two walls meet reflects in both at once (a corner reflector); the leg
+      // between the two reflections has zero length.
+      for (uint32_t t : tracer.planes().trianglesOfPlane[plane])
+        if (pointOnTriangle(tracer.mesh(), t, from, 8.0 * eps)) {
+          point = from;
+          triangle = t;
+          return true;
+        }
+      return false;
+    }
+    if (d0 * d1 >= 0) return false;  // the segment must cross the plane
+    const double s = d0 / (d0 - d1);
+    point = from + (to - from) * s;
+    const Vec3d delta = point - from;
+    const double dist = length(delta);
+    if (!(dist > 0)) return false;
+    Ray ray{Vec3f(from), fromSurface ? 4 * eps : 0.0f, Vec3f(delta / dist), float(dist) + 8 * eps};
+    Hit hit;
+    if (!tracer.intersect(ray, hit)) return false;
+    if (std::fabs(double(hit.t) - dist) > 8.0 * eps) return false;  // blocked before, or missed the wall
+    if (tracer.planeOf(hit.triangle) == plane) {
+      triangle = hit.triangle;
+      return true;
+    }
+    // The hit is another plane's triangle at the same distance: the path
+    // strikes an edge where the two meet. It is valid when the crossing lies
+    // on a triangle of the expected plane (edges included).
+    for (uint32_t t : tracer.planes().trianglesOfPlane[plane])
+      if (pointOnTriangle(tracer.mesh(), t, point, 8.0 * eps)) {
+        triangle = t;
+        return true;
+      }
+    return false;
+  }
+
+  bool unobstructed(const Vec3d& from, const Vec3d& to) const {
+    const Vec3d delta = to - from;
+    const double dist = length(delta);
+    if (!(dist > 0)) return true;
+    const float eps = tracer.surfaceEpsilon();
+    Ray ray{Vec3f(from), float(eps), Vec3f(delta / dist), float(dist) - 2 * eps};
+    return ray.tFar <= ray.tNear || !tracer.occluded(ray);
+  }
+
+  // Validates one sequence (planes[0] first from the source); fills path.
+  bool validate(const PlaneSequence& planes, uint32_t order, SpecularPath& path) const {
+    // Image sources: images[k] = source mirrored in planes[0..k-1].
+    Vec3d images[kMaxImageSourceOrder + 1];
+    images[0] = source;
+    for (uint32_t k = 0; k < order; ++k) {
+      const Plane& p = tracer.planes().planes[planes[k]];
+      if (std::fabs(p.distance(images[k])) < 1e-9) return false;
+      images[k + 1] = p.mirror(images[k]);
+    }
+    // Walk back from the listener toward each image.
+    Vec3d from = listener;
+    Vec3d points[kMaxImageSourceOrder];
+    uint32_t triangles[kMaxImageSourceOrder];
+    for (uint32_t k = order; k-- > 0;) {
+      if (!legHitsPlane(from, k + 1 < order, images[k + 1], planes[k], points[k], triangles[k])) return false;
+      from = points[k];
+    }
+    if (!unobstructed(from, source)) return false;
+    // Build the path.
+    double len = length(listener - images[order]);
+    path.order = order;
+    path.planes = planes;
+    path.lengthMeters = len;
+    path.delaySeconds = len / settings.speedOfSound;
+    path.spreadingGain = 1.0 / std::max(len, 1e-3);
+    path.imageSource = images[order];
+    const Vec3d last = order > 0 ? points[order - 1] : source;
+    path.directionFromListener = normalize(last - listener);
+    for (int b = 0; b < kNumBands; ++b) {
+      double g = std::pow(10.0, -airDbPerM[b] * len / 20.0);
+      for (uint32_t k = 0; k < order; ++k) {
+        const Material& m = materials[tracer.materialOf(triangles[k])];
+        double e = std::clamp(1.0 - double(m.absorption[b]), 0.0, 1.0);
+        if (settings.specularPartOnly) e *= std::clamp(1.0 - double(m.scattering[b]), 0.0, 1.0);
+        g *= std::sqrt(e);
+      }
+      path.bandGain[b] = g;
+    }
+    return true;
+  }
+};
+
+}  // namespace
+
+Status validate(const ImageSourceSettings& s) {
+  if (s.maxOrder > kMaxImageSourceOrder)
+    return invalidArgument("image-source order " + std::to_string(s.maxOrder) + " is outside [0, " +
+                           std::to_string(kMaxImageSourceOrder) + "]");
+  if (!(s.speedOfSound >= 1.0 && s.speedOfSound <= 1e5))
+    return invalidArgument("speed of sound " + std::to_string(s.speedOfSound) + " m/s is outside [1, 1e5]");
+  return validate(s.air);
+}
+
+Result<ImageSourceResult> findImageSources(const RayTracer& tracer, const MaterialTable& materials, const Vec3d& source,
+                                           const Vec3d& listener, const ImageSourceSettings& settings) {
+  EARSHOT_RETURN_IF_ERROR(validate(settings));
+  if (!isFinite(source) || !isFinite(listener)) return invalidArgument("source or listener position is not finite");
+  const auto start = std::chrono::steady_clock::now();
+  ImageSourceResult result;
+  const size_t planeCount = tracer.planes().planes.size();
+  if (settings.maxOrder == 0 || planeCount == 0) return result;
+
+  Validator v{tracer, materials, source, listener, settings, airAttenuationDbPerMeter(settings.air)};
+  auto consider = [&](const PlaneSequence& seq, uint32_t order) {
+    ++result.candidates;
+    SpecularPath path;
+    if (v.validate(seq, order, path)) {
+      result.found.insert(seq);
+      result.paths.push_back(path);
+    }
+  };
+
+  if (planeCount <= settings.maxPlanesExhaustive) {
+    // Every sequence, depth first.
+    PlaneSequence seq;
+    seq.fill(kUnused);
+    auto recurse = [&](auto&& self, uint32_t depth) -> void {
+      for (uint32_t p = 0; p < planeCount; ++p) {
+        if (depth > 0 && seq[depth - 1] == p) continue;
+        seq[depth] = p;
+        consider(seq, depth + 1);
+        if (depth + 1 < settings.maxOrder) self(self, depth + 1);
+      }
+      seq[depth] = kUnused;
+    };
+    recurse(recurse, 0);
+  } else {
+    // Candidate sequences from specular rays.
+    result.exhaustive = false;
+    PlaneSequenceSet candidates;
+    const float eps = tracer.surfaceEpsilon();
+    Pcg32 rng(settings.seed, 0xC0FFEEULL);
+    const double rotation = rng.uniformDouble();  // spin the Fibonacci sphere per seed
+    for (uint32_t i = 0; i < settings.candidateRays; ++i) {
+      Vec3d d = fibonacciDirection(i, settings.candidateRays);
+      const double c = std::cos(rotation * 6.283185307179586), s = std::sin(rotation * 6.283185307179586);
+      d = {c * d.x - s * d.y, s * d.x + c * d.y, d.z};
+      Ray ray{Vec3f(source), 0.0f, Vec3f(d), 1e30f};
+      PlaneSequence seq;
+      seq.fill(kUnused);
+      for (uint32_t k = 0; k < settings.maxOrder; ++k) {
+        Hit hit;
+        if (!tracer.intersect(ray, hit)) break;
+        seq[k] = tracer.planeOf(hit.triangle);
+        if (k > 0 && seq[k] == seq[k - 1]) break;
+        candidates.insert(seq);
+        Vec3f n = hit.normal;
+        if (dot(n, ray.direction) > 0) n = -n;
+        ray.origin = ray.origin + ray.direction * hit.t + n * eps;
+        ray.direction = normalize(ray.direction - n * (2.0f * dot(ray.direction, n)));
+      }
+    }
+    // Deterministic order: sort the candidates.
+    std::vector<PlaneSequence> sorted(candidates.begin(), candidates.end());
+    std::sort(sorted.begin(), sorted.end());
+    for (const auto& seq : sorted) {
+      uint32_t order = 0;
+      while (order < kMaxImageSourceOrder && seq[order] != kUnused) ++order;
+      consider(seq, order);
+    }
+  }
+  std::sort(result.paths.begin(), result.paths.end(), [](const SpecularPath& a, const SpecularPath& b) {
+    return a.delaySeconds < b.delaySeconds || (a.delaySeconds == b.delaySeconds && a.planes < b.planes);
+  });
+  // Reflections in two walls that meet at an edge commute: (A, B) and (B, A)
+  // give one image and one physical path through the edge. Keep one path
+  // (both sequences stay in `found`, so the tracer excludes either).
+  std::vector<SpecularPath> unique;
+  for (const SpecularPath& p : result.paths) {
+    bool seen = false;
+    for (auto it = unique.rbegin(); it != unique.rend() && it->delaySeconds > p.delaySeconds - 1e-12; ++it)
+      if (length(it->imageSource - p.imageSource) < 1e-9 * std::max(1.0, p.lengthMeters)) seen = true;
+    if (!seen) unique.push_back(p);
+  }
+  result.paths = std::move(unique);
+  result.milliseconds = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  return result;
+}
+
+}  // namespace earshot

@@ -1,0 +1,81 @@
+#include "earshot/scene/planes.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+namespace earshot {
+
+bool pointOnTriangle(const TriangleMesh& mesh, uint32_t t, const Vec3d& p, double tolerance) {
+  const auto& tri = mesh.triangles[t];
+  const Vec3d a(mesh.positions[tri[0]]), b(mesh.positions[tri[1]]), c(mesh.positions[tri[2]]);
+  const Vec3d n = cross(b - a, c - a);
+  const double area2 = length(n);
+  if (!(area2 > 0)) return false;
+  const Vec3d un = n / area2;
+  if (std::fabs(dot(p - a, un)) > tolerance) return false;
+  // Signed distance of p from each edge, inside positive.
+  const Vec3d corners[3] = {a, b, c};
+  for (int i = 0; i < 3; ++i) {
+    const Vec3d e0 = corners[i], e1 = corners[(i + 1) % 3];
+    const Vec3d edge = e1 - e0;
+    const double edgeLength = length(edge);
+    const double inside = dot(cross(edge, p - e0), un) / edgeLength;
+    if (inside < -tolerance) return false;
+  }
+  return true;
+}
+
+PlaneSet groupCoplanarTriangles(const TriangleMesh& mesh, double angleTol, double offsetTol) {
+  PlaneSet set;
+  const size_t n = mesh.triangles.size();
+  set.triangleToPlane.assign(n, PlaneSet::kNoPlane);
+  struct Entry {
+    Plane plane;
+    uint32_t triangle;
+  };
+  std::vector<Entry> entries;
+  entries.reserve(n);
+  for (size_t t = 0; t < n; ++t) {
+    const auto& tri = mesh.triangles[t];
+    const Vec3d a(mesh.positions[tri[0]]), b(mesh.positions[tri[1]]), c(mesh.positions[tri[2]]);
+    Vec3d nrm = cross(b - a, c - a);
+    const double len = length(nrm);
+    if (!(len > 0)) continue;
+    nrm = nrm / len;
+    // Canonical sign: the largest component positive (stable under noise).
+    const double ax = std::fabs(nrm.x), ay = std::fabs(nrm.y), az = std::fabs(nrm.z);
+    const double lead = (ax >= ay && ax >= az) ? nrm.x : (ay >= az ? nrm.y : nrm.z);
+    if (lead < 0) nrm = -nrm;
+    const Vec3d centroid = (a + b + c) / 3.0;
+    entries.push_back({Plane{nrm, dot(nrm, centroid)}, uint32_t(t)});
+  }
+  // Sort by offset, then sweep: a triangle joins an existing plane within the
+  // offset window whose normal agrees.
+  std::sort(entries.begin(), entries.end(), [](const Entry& x, const Entry& y) { return x.plane.offset < y.plane.offset; });
+  const double cosTol = std::cos(angleTol);
+  std::vector<uint32_t> open;  // plane ids whose offset is within the window
+  for (const Entry& e : entries) {
+    open.erase(std::remove_if(open.begin(), open.end(),
+                              [&](uint32_t id) { return e.plane.offset - set.planes[id].offset > offsetTol; }),
+               open.end());
+    uint32_t found = PlaneSet::kNoPlane;
+    for (uint32_t id : open)
+      if (dot(set.planes[id].normal, e.plane.normal) >= cosTol) {
+        found = id;
+        break;
+      }
+    if (found == PlaneSet::kNoPlane) {
+      found = uint32_t(set.planes.size());
+      set.planes.push_back(e.plane);
+      open.push_back(found);
+    }
+    set.triangleToPlane[e.triangle] = found;
+  }
+  set.trianglesOfPlane.resize(set.planes.size());
+  for (size_t t = 0; t < n; ++t)
+    if (set.triangleToPlane[t] != PlaneSet::kNoPlane) set.trianglesOfPlane[set.triangleToPlane[t]].push_back(uint32_t(t));
+  return set;
+}
+
+}  // namespace earshot

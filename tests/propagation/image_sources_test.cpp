@@ -1,0 +1,126 @@
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cmath>
+#include <fstream>
+
+#include <nlohmann/json.hpp>
+
+#include "earshot/core/math.h"
+#include "earshot/propagation/direct_path.h"
+#include "earshot/propagation/image_sources.h"
+#include "earshot/scene/ray_tracer.h"
+
+namespace earshot {
+namespace {
+
+// The reference shoebox (tests/data/reference/shoebox_multiband, see its
+// PROVENANCE.md): six walls with their own per-band absorption, specular only.
+struct ReferenceShoebox {
+  nlohmann::json meta, early;
+  MaterialTable materials;
+  std::unique_ptr<RayTracer> tracer;
+  ReferenceShoebox() {
+    const std::string dir = std::string(EARSHOT_TEST_DATA_DIR) + "/reference/shoebox_multiband/";
+    std::ifstream(dir + "meta.json") >> meta;
+    std::ifstream(dir + "early_arrivals.json") >> early;
+    std::array<uint32_t, 6> ids{};
+    for (int w = 0; w < 6; ++w) {
+      Material m;
+      m.name = "wall" + std::to_string(w);
+      for (int b = 0; b < kNumBands; ++b) m.absorption[b] = meta["alpha"][w][b].get<float>();
+      m.scattering = filledBands(0.0f);
+      m.transmission = filledBands(0.0f);
+      ids[w] = materials.add(m);
+    }
+    // makeBox's face order (west, east, south, north, floor, ceiling) is the reference's wall order.
+    auto rt = RayTracer::create(makeBox({0, 0, 0}, {10, 7, 3}, ids));
+    tracer = std::move(rt.value());
+  }
+  Vec3d source() const { return {meta["src"][0], meta["src"][1], meta["src"][2]}; }
+  Vec3d listener() const { return {meta["mic"][0], meta["mic"][1], meta["mic"][2]}; }
+};
+
+}  // namespace
+
+// Every one of the 63 arrivals up to order 3 (62 reflections + the direct
+// sound) at the right delay (within 1/fs) with per-band amplitude within
+// 0.1 dB. The reference uses 1/(4 pi r) spreading: x 4 pi for earshot's 1/r.
+TEST(ImageSources, ShoeboxMatchesTheExactImageSourceSolutionToOrderThree) {
+  ReferenceShoebox box;
+  ASSERT_EQ(box.early["n_arrivals"].get<int>(), 63);
+  ImageSourceSettings s;
+  s.maxOrder = 3;
+  auto r = findImageSources(*box.tracer, box.materials, box.source(), box.listener(), s);
+  ASSERT_TRUE(r.isOk()) << r.status().message();
+  EXPECT_TRUE(r->exhaustive);
+  EXPECT_EQ(r->paths.size(), 62u);
+  const double fs = box.meta["fs"].get<double>();
+  DirectPath direct = computeDirectPath(box.tracer.get(), box.materials, box.source(), box.listener(), {});
+  int matched = 0;
+  for (const auto& a : box.early["arrivals"]) {
+    const Vec3d image{a["image_pos"][0], a["image_pos"][1], a["image_pos"][2]};
+    const double delay = a["delay_s"];
+    BandArrayD gain{};
+    uint32_t order = a["order"];
+    if (order == 0) {
+      EXPECT_NEAR(direct.delaySeconds, delay, 1.0 / fs);
+      for (int b = 0; b < kNumBands; ++b) gain[b] = direct.spreadingGain * direct.bandGain[b];
+    } else {
+      const SpecularPath* found = nullptr;
+      for (const auto& p : r->paths)
+        if (length(p.imageSource - image) < 1e-6) found = &p;
+      ASSERT_NE(found, nullptr) << "image at " << image.x << "," << image.y << "," << image.z << " missing";
+      EXPECT_EQ(found->order, order);
+      EXPECT_NEAR(found->delaySeconds, delay, 1.0 / fs);
+      for (int b = 0; b < kNumBands; ++b) gain[b] = found->spreadingGain * found->bandGain[b];
+    }
+    for (int b = 0; b < kNumBands; ++b) {
+      const double want = a["amp"][b].get<double>() * 4.0 * kPi;
+      EXPECT_NEAR(gainToDb(gain[b]), gainToDb(want), 0.1) << "order " << order << " band " << b;
+    }
+    ++matched;
+  }
+  EXPECT_EQ(matched, 63);
+}
+
+TEST(ImageSources, AnOccluderHidesThePathsItBlocks) {
+  // Floor only, with a small panel between source and the floor reflection point.
+  MaterialTable materials;
+  TriangleMesh mesh;
+  mesh.positions = {{-20, -20, 0}, {20, -20, 0}, {20, 20, 0}, {-20, 20, 0}};
+  mesh.triangles = {{0, 1, 2}, {0, 2, 3}};
+  mesh.materialIds = {0, 0};
+  auto open = RayTracer::create(mesh);
+  ASSERT_TRUE(open.isOk());
+  ImageSourceSettings s;
+  auto a = findImageSources(**open, materials, {0, 0, 2}, {4, 0, 2}, s);
+  ASSERT_TRUE(a.isOk());
+  ASSERT_EQ(a->paths.size(), 1u);  // one floor reflection
+  EXPECT_NEAR(a->paths[0].lengthMeters, std::sqrt(16.0 + 16.0), 1e-9);
+  // Block it: a horizontal panel at z = 1 where the leg from the reflection
+  // point (2, 0, 0) to the listener passes (3, 0, 1).
+  TriangleMesh blocker;
+  blocker.positions = {{2.5f, -0.5f, 1}, {3.5f, -0.5f, 1}, {3.5f, 0.5f, 1}, {2.5f, 0.5f, 1}};
+  blocker.triangles = {{0, 1, 2}, {0, 2, 3}};
+  blocker.materialIds = {0, 0};
+  mesh.append(blocker);
+  auto blocked = RayTracer::create(mesh);
+  ASSERT_TRUE(blocked.isOk());
+  auto b = findImageSources(**blocked, materials, {0, 0, 2}, {4, 0, 2}, s);
+  ASSERT_TRUE(b.isOk());
+  for (const auto& p : b->paths) EXPECT_NE(p.planes[0], a->paths[0].planes[0]) << "floor path not blocked";
+}
+
+TEST(ImageSources, RayCandidatesFindTheSameShoeboxPathsAsExhaustiveSearch) {
+  ReferenceShoebox box;
+  ImageSourceSettings s;
+  auto exact = findImageSources(*box.tracer, box.materials, box.source(), box.listener(), s);
+  s.maxPlanesExhaustive = 0;  // force ray candidates
+  auto rays = findImageSources(*box.tracer, box.materials, box.source(), box.listener(), s);
+  ASSERT_TRUE(exact.isOk() && rays.isOk());
+  EXPECT_FALSE(rays->exhaustive);
+  EXPECT_EQ(rays->found, exact->found);
+}
+
+}  // namespace earshot
