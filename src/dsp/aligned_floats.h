@@ -55,7 +55,7 @@ class AlignedFloats {
   size_t mSize = 0;
 };
 
-/** Rounds up to a multiple of 16 floats (one AVX-512 register, 64 bytes). */
-inline size_t padBins(size_t bins) { return (bins + 15) / 16 * 16; }
+/** Rounds up to a multiple of 32 floats (the MAC kernels' register tile). */
+inline size_t padBins(size_t bins) { return (bins + 31) / 32 * 32; }
 
 }  // namespace earshot::dsp_detail

@@ -41,6 +41,8 @@ using dsp_detail::padBins;
 
 namespace {
 
+constexpr size_t kBatch = 64;  // partitions per register-tiled MAC pass
+
 struct Holder {
   std::shared_ptr<const PreparedIr> ir;  // null = silence
   int refs = 0;                          // audio thread only
@@ -248,6 +250,25 @@ struct ConvolutionMixer::Impl {
       const PreparedIr* prev = sl.fading && sl.prev ? sl.prev->ir.get() : nullptr;
       const size_t curActive = cur ? cur->activePartitions(li) : 0;
       const size_t prevActive = prev ? prev->activePartitions(li) : 0;
+      if (!sl.fading) {
+        // Steady state: all partitions of this range in one register-tiled
+        // pass over the accumulator.
+        const size_t kEnd = std::min(k1, curActive);
+        for (size_t kb = k0; kb < kEnd; kb += kBatch) {
+          const size_t cnt = std::min(kBatch, kEnd - kb);
+          const float* xs[kBatch];
+          const float* hs[kBatch];
+          for (size_t j = 0; j < cnt; ++j) {
+            const size_t kk = kb + j;
+            const size_t slot = sl.head >= kk ? sl.head - kk : sl.head + lv.k - kk;
+            xs[j] = sl.fdl.data() + slot * 2 * st;
+            hs[j] = cur->spectrum(li, c, kk);
+          }
+          dsp_detail::complexMacBatch(mr, mr + st, xs, hs, cnt, st, st);
+          lv.mainTouched[c] = 1;
+        }
+        continue;
+      }
       for (size_t kk = k0; kk < k1; ++kk) {
         const bool hasCur = kk < curActive;
         const bool hasPrev = kk < prevActive;

@@ -1,6 +1,6 @@
 #pragma once
 // Complex multiply-accumulate kernels over split real/imaginary arrays, the
-// convolver's hot loop. `count` is a multiple of 16; arrays are 64-byte
+// convolver's hot loop. `count` is a multiple of 32; arrays are 64-byte
 // aligned and do not alias. Internal to src/dsp.
 #include <cstddef>
 
@@ -9,6 +9,12 @@ namespace earshot::dsp_detail {
 /** (ar, ai) += (xr, xi) * (hr, hi), element-wise complex. */
 void complexMac(float* ar, float* ai, const float* xr, const float* xi, const float* hr, const float* hi,
                 size_t count);
+/** (ar, ai) += sum_j X_j * H_j over `parts` pairs, where x[j] and h[j] each
+ *  point at `count` real parts followed (at + stride) by the imaginary parts.
+ *  Keeps a tile of the accumulator in registers across all pairs, so the
+ *  accumulator is read and written once instead of once per partition. */
+void complexMacBatch(float* ar, float* ai, const float* const* x, const float* const* h, size_t parts,
+                     size_t stride, size_t count);
 /** (ar, ai) -= (xr, xi) * (hr, hi). */
 void complexMacNeg(float* ar, float* ai, const float* xr, const float* xi, const float* hr, const float* hi,
                    size_t count);

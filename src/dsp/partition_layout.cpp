@@ -28,6 +28,9 @@ constexpr size_t kMaxLatency = 65536;
 // Default cap on partition size (frames): the largest FFT (2x this) stays
 // well under 2 % of a 256-frame block period at 48 kHz with KissFFT.
 constexpr size_t kAutoMaxPartition = 8192;
+// ... and at most 64 latency blocks, so that one FFT is at most a few times
+// the cost of an average block at small latencies (measured at N = 64).
+constexpr size_t kAutoMaxSteps = 64;
 // Cost model constants (relative): KissFFT real FFT cost per n*log2(n), and
 // one vectorised complex multiply-accumulate.
 // Measured on x86-64 (Debian KissFFT, AVX2 kernel): ~0.55 ns per n log2 n
@@ -126,7 +129,7 @@ Status checkCommon(size_t latency, size_t maxIr, size_t maxPart) {
 size_t effectiveMaxPart(size_t latency, size_t maxPart) {
   if (maxPart != 0) return maxPart;
   size_t p = latency;
-  while (p * 2 <= kAutoMaxPartition) p *= 2;
+  while (p * 2 <= kAutoMaxPartition && p * 2 <= kAutoMaxSteps * latency) p *= 2;
   return p;
 }
 

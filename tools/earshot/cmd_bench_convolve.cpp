@@ -22,6 +22,7 @@ struct BenchOptions {
   double seconds = 20.0;
   size_t sources = 1;
   double rate = 48000.0;
+  size_t maxPartition = 0;
 };
 
 double threadCpuSeconds() {
@@ -44,6 +45,8 @@ int run(const BenchOptions& o) {
   s.latencyFrames = o.block;
   s.maxIrFrames = std::max<size_t>(1, static_cast<size_t>(std::llround(o.irSeconds * o.rate)));
   s.channels = o.channels;
+  s.maxPartitionFrames = o.maxPartition;
+  s.phase = 0;
   auto mixer = ConvolutionMixer::create(s, o.sources);
   if (!check(mixer.status())) return 2;
   ConvolutionMixer& m = **mixer;
@@ -120,6 +123,8 @@ const Registrar registrar([](CLI::App& root) {
       ->capture_default_str();
   cmd->add_option("--sources", o->sources, "Sources mixed into one output, each with its own IR")
       ->check(CLI::Range(1u, 4096u))
+      ->capture_default_str();
+  cmd->add_option("--max-partition", o->maxPartition, "Largest partition in frames (0 = automatic)")
       ->capture_default_str();
   cmd->add_option("--rate", o->rate, "Sample rate in Hz")->check(CLI::Range(8000.0, 384000.0))->capture_default_str();
   cmd->callback([o] { setExitCode(run(*o)); });

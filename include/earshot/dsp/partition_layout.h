@@ -32,8 +32,9 @@ struct ConvolverSettings {
   /** Crossfade length (frames) used when the IR changes, in
    *  [0, 1 << 20]; 0 means one latency block (latencyFrames). */
   size_t fadeFrames = 0;
-  /** Largest partition (frames); 0 = automatic (bounded so that no single
-   *  FFT makes a block spike). Otherwise a multiple of latencyFrames times a
+  /** Largest partition (frames); 0 = automatic: min(8192, 64 *
+   *  latencyFrames), so that no single FFT makes a block spike. Larger
+   *  partitions are cheaper on average but make rarer, larger spikes. Otherwise a multiple of latencyFrames times a
    *  power of two, >= latencyFrames. */
   size_t maxPartitionFrames = 0;
   /** Stagger of the large-partition schedule, in latency blocks (any value).
