@@ -109,6 +109,9 @@ void operator delete[](void* p, size_t, std::align_val_t) noexcept { operator de
 namespace earshot {
 namespace {
 
+int* volatile gSink = nullptr;
+void* volatile gSinkRaw = nullptr;
+
 struct Armed {
   Armed() {
     gAllocs = 0;
@@ -124,10 +127,11 @@ TEST(RealtimeAlloc, HookSeesAllocations) {
   long allocs, frees;
   {
     Armed a;
-    int* p = new int(3);
+    gSink = new int(3);  // through a volatile global: new/delete pairs may be elided
     void* q = std::malloc(16);
-    std::free(q);
-    delete p;
+    gSinkRaw = q;
+    std::free(gSinkRaw);
+    delete gSink;
     allocs = gAllocs;
     frees = gFrees;
   }
