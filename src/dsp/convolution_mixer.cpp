@@ -52,8 +52,9 @@ struct Holder {
 // over its M steps so that each step costs about the same.
 struct Task {
   enum Kind : uint8_t { kForward, kMac, kInverse } kind;
-  uint32_t a = 0;  // kForward: source; kMac/kInverse: channel
+  uint32_t a = 0;  // kForward: source; kMac: first channel; kInverse: channel
   uint32_t k0 = 0, k1 = 0;  // kMac: partition range
+  uint32_t a1 = 0;          // kMac: one past the last channel
 };
 
 struct LevelState {
@@ -239,58 +240,83 @@ struct ConvolutionMixer::Impl {
     }
   }
 
-  void accumulate(LevelState& lv, size_t c, size_t k0, size_t k1) {
+  void accumulate(LevelState& lv, size_t c0, size_t c1, size_t k0, size_t k1) {
+    const size_t li = &lv - levels.data();
+    const size_t st = lv.stride;
+    for (auto& sp : sources) {
+      SourceLevel& sl = sp->levels[li];
+      const PreparedIr* cur = sl.cur ? sl.cur->ir.get() : nullptr;
+      if (sl.fading || !cur) {
+        for (size_t c = c0; c < c1; ++c) accumulateFading(lv, sl, c, k0, k1);
+        continue;
+      }
+      // Steady state: the partitions of this range in register-tiled
+      // passes over the accumulators (both ears at once when binaural).
+      const size_t kEnd = std::min(k1, cur->activePartitions(li));
+      for (size_t kb = k0; kb < kEnd; kb += kBatch) {
+        const size_t cnt = std::min(kBatch, kEnd - kb);
+        const float* xs[kBatch];
+        for (size_t j = 0; j < cnt; ++j) {
+          const size_t kk = kb + j;
+          const size_t slot = sl.head >= kk ? sl.head - kk : sl.head + lv.k - kk;
+          xs[j] = sl.fdl.data() + slot * 2 * st;
+        }
+        const float* hs[kBatch];
+        const float* hs1[kBatch];
+        size_t c = c0;
+        if (c1 - c0 == 2) {
+          for (size_t j = 0; j < cnt; ++j) {
+            hs[j] = cur->spectrum(li, c0, kb + j);
+            hs1[j] = cur->spectrum(li, c0 + 1, kb + j);
+          }
+          float* a0 = lv.accMain.data() + c0 * 2 * st;
+          float* a1 = a0 + 2 * st;
+          dsp_detail::complexMacBatch2(a0, a0 + st, a1, a1 + st, xs, hs, hs1, cnt, st, st);
+          lv.mainTouched[c0] = lv.mainTouched[c0 + 1] = 1;
+          c = c1;
+        }
+        for (; c < c1; ++c) {
+          for (size_t j = 0; j < cnt; ++j) hs[j] = cur->spectrum(li, c, kb + j);
+          float* mr = lv.accMain.data() + c * 2 * st;
+          dsp_detail::complexMacBatch(mr, mr + st, xs, hs, cnt, st, st);
+          lv.mainTouched[c] = 1;
+        }
+      }
+    }
+  }
+
+  // One source and channel while the level fades (or has no current IR):
+  // main += X * H_cur, diff += X * (H_prev - H_cur).
+  void accumulateFading(LevelState& lv, SourceLevel& sl, size_t c, size_t k0, size_t k1) {
     const size_t li = &lv - levels.data();
     const size_t st = lv.stride;
     float* mr = lv.accMain.data() + c * 2 * st;
     float* dr = lv.accDiff.data() + c * 2 * st;
-    for (auto& sp : sources) {
-      SourceLevel& sl = sp->levels[li];
-      const PreparedIr* cur = sl.cur ? sl.cur->ir.get() : nullptr;
-      const PreparedIr* prev = sl.fading && sl.prev ? sl.prev->ir.get() : nullptr;
-      const size_t curActive = cur ? cur->activePartitions(li) : 0;
-      const size_t prevActive = prev ? prev->activePartitions(li) : 0;
-      if (!sl.fading) {
-        // Steady state: all partitions of this range in one register-tiled
-        // pass over the accumulator.
-        const size_t kEnd = std::min(k1, curActive);
-        for (size_t kb = k0; kb < kEnd; kb += kBatch) {
-          const size_t cnt = std::min(kBatch, kEnd - kb);
-          const float* xs[kBatch];
-          const float* hs[kBatch];
-          for (size_t j = 0; j < cnt; ++j) {
-            const size_t kk = kb + j;
-            const size_t slot = sl.head >= kk ? sl.head - kk : sl.head + lv.k - kk;
-            xs[j] = sl.fdl.data() + slot * 2 * st;
-            hs[j] = cur->spectrum(li, c, kk);
-          }
-          dsp_detail::complexMacBatch(mr, mr + st, xs, hs, cnt, st, st);
-          lv.mainTouched[c] = 1;
-        }
-        continue;
+    const PreparedIr* cur = sl.cur ? sl.cur->ir.get() : nullptr;
+    const PreparedIr* prev = sl.fading && sl.prev ? sl.prev->ir.get() : nullptr;
+    const size_t curActive = cur ? cur->activePartitions(li) : 0;
+    const size_t prevActive = prev ? prev->activePartitions(li) : 0;
+    for (size_t kk = k0; kk < k1; ++kk) {
+      const bool hasCur = kk < curActive;
+      const bool hasPrev = kk < prevActive;
+      if (!hasCur && !hasPrev) continue;
+      const size_t slot = sl.head >= kk ? sl.head - kk : sl.head + lv.k - kk;
+      const float* xr = sl.fdl.data() + slot * 2 * st;
+      const float* hc = hasCur ? cur->spectrum(li, c, kk) : nullptr;
+      if (hasCur) {
+        dsp_detail::complexMac(mr, mr + st, xr, xr + st, hc, hc + st, st);
+        lv.mainTouched[c] = 1;
       }
-      for (size_t kk = k0; kk < k1; ++kk) {
-        const bool hasCur = kk < curActive;
-        const bool hasPrev = kk < prevActive;
-        if (!hasCur && !hasPrev) continue;
-        const size_t slot = sl.head >= kk ? sl.head - kk : sl.head + lv.k - kk;
-        const float* xr = sl.fdl.data() + slot * 2 * st;
-        const float* hc = hasCur ? cur->spectrum(li, c, kk) : nullptr;
-        if (hasCur) {
-          dsp_detail::complexMac(mr, mr + st, xr, xr + st, hc, hc + st, st);
-          lv.mainTouched[c] = 1;
-        }
-        if (!sl.fading) continue;
-        const float* hp = hasPrev ? prev->spectrum(li, c, kk) : nullptr;
-        if (hasPrev && hasCur) {
-          dsp_detail::complexMacDiff(dr, dr + st, xr, xr + st, hp, hp + st, hc, hc + st, st);
-        } else if (hasPrev) {
-          dsp_detail::complexMac(dr, dr + st, xr, xr + st, hp, hp + st, st);
-        } else {
-          dsp_detail::complexMacNeg(dr, dr + st, xr, xr + st, hc, hc + st, st);
-        }
-        lv.diffTouched[c] = 1;
+      if (!sl.fading) continue;
+      const float* hp = hasPrev ? prev->spectrum(li, c, kk) : nullptr;
+      if (hasPrev && hasCur) {
+        dsp_detail::complexMacDiff(dr, dr + st, xr, xr + st, hp, hp + st, hc, hc + st, st);
+      } else if (hasPrev) {
+        dsp_detail::complexMac(dr, dr + st, xr, xr + st, hp, hp + st, st);
+      } else {
+        dsp_detail::complexMacNeg(dr, dr + st, xr, xr + st, hc, hc + st, st);
       }
+      lv.diffTouched[c] = 1;
     }
   }
 
@@ -333,7 +359,7 @@ struct ConvolutionMixer::Impl {
         const Task& task = lv.tasks[t];
         switch (task.kind) {
           case Task::kForward: forward(lv, task.a); break;
-          case Task::kMac: accumulate(lv, task.a, task.k0, task.k1); break;
+          case Task::kMac: accumulate(lv, task.a, task.a1, task.k0, task.k1); break;
           case Task::kInverse: finishChannel(lv, task.a); break;
         }
       }
@@ -407,23 +433,29 @@ void scheduleLevel(LevelState& lv, size_t sources, size_t channels) {
   };
   for (size_t s = 0; s < sources; ++s) {
     place(fft);
-    lv.tasks.push_back({Task::kForward, static_cast<uint32_t>(s), 0, 0});
+    lv.tasks.push_back({Task::kForward, static_cast<uint32_t>(s), 0, 0, 0});
   }
-  for (size_t c = 0; c < channels; ++c) {
+  // Multiply-accumulates: both ears together when binaural (the kernel
+  // reads each input spectrum once for both), else one channel at a time.
+  const size_t group = channels == 2 ? 2 : 1;
+  for (size_t c = 0; c < channels; c += group) {
+    const double cost = mac * static_cast<double>(group);
     size_t k = 0;
     while (k < lv.k) {
-      // As many partitions as fit in this step (at least one).
-      place(mac);
+      place(cost);  // as many partitions as fit in this step (at least one)
       size_t k1 = k + 1;
-      while (k1 < lv.k && load + mac <= share * 1.0001) {
-        load += mac;
+      while (k1 < lv.k && load + cost <= share * 1.0001) {
+        load += cost;
         ++k1;
       }
-      lv.tasks.push_back({Task::kMac, static_cast<uint32_t>(c), static_cast<uint32_t>(k), static_cast<uint32_t>(k1)});
+      lv.tasks.push_back({Task::kMac, static_cast<uint32_t>(c), static_cast<uint32_t>(k), static_cast<uint32_t>(k1),
+                          static_cast<uint32_t>(c + group)});
       k = k1;
     }
+  }
+  for (size_t c = 0; c < channels; ++c) {
     place(fft);
-    lv.tasks.push_back({Task::kInverse, static_cast<uint32_t>(c), 0, 0});
+    lv.tasks.push_back({Task::kInverse, static_cast<uint32_t>(c), 0, 0, 0});
   }
   for (size_t p = phase + 1; p <= lv.m; ++p) lv.phaseTask[p] = lv.tasks.size();
 }

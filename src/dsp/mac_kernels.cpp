@@ -63,6 +63,37 @@ void complexMacBatch(float* __restrict ar, float* __restrict ai, const float* co
 }
 
 EARSHOT_MAC_CLONES
+void complexMacBatch2(float* __restrict a0r, float* __restrict a0i, float* __restrict a1r, float* __restrict a1i,
+                      const float* const* x, const float* const* h0, const float* const* h1, size_t parts,
+                      size_t stride, size_t count) {
+  for (size_t i = 0; i < count; i += 16) {
+    V8 r00 = load8(a0r + i), r01 = load8(a0r + i + 8), m00 = load8(a0i + i), m01 = load8(a0i + i + 8);
+    V8 r10 = load8(a1r + i), r11 = load8(a1r + i + 8), m10 = load8(a1i + i), m11 = load8(a1i + i + 8);
+    for (size_t j = 0; j < parts; ++j) {
+      const float* xr = x[j] + i;
+      const float* xi = xr + stride;
+      const float* p0 = h0[j] + i;
+      const float* p1 = h1[j] + i;
+#define EARSHOT_MAC8X2(o, R0, M0, R1, M1)              \
+  {                                                    \
+    V8 a = load8(xr + o), b = load8(xi + o);           \
+    V8 c = load8(p0 + o), d = load8(p0 + stride + o);  \
+    R0 += a * c - b * d;                               \
+    M0 += a * d + b * c;                               \
+    c = load8(p1 + o), d = load8(p1 + stride + o);     \
+    R1 += a * c - b * d;                               \
+    M1 += a * d + b * c;                               \
+  }
+      EARSHOT_MAC8X2(0, r00, m00, r10, m10)
+      EARSHOT_MAC8X2(8, r01, m01, r11, m11)
+#undef EARSHOT_MAC8X2
+    }
+    store8(a0r + i, r00), store8(a0r + i + 8, r01), store8(a0i + i, m00), store8(a0i + i + 8, m01);
+    store8(a1r + i, r10), store8(a1r + i + 8, r11), store8(a1i + i, m10), store8(a1i + i + 8, m11);
+  }
+}
+
+EARSHOT_MAC_CLONES
 void complexMacNeg(float* __restrict ar, float* __restrict ai, const float* __restrict xr,
                    const float* __restrict xi, const float* __restrict hr, const float* __restrict hi,
                    size_t count) {

@@ -15,6 +15,10 @@ void complexMac(float* ar, float* ai, const float* xr, const float* xi, const fl
  *  accumulator is read and written once instead of once per partition. */
 void complexMacBatch(float* ar, float* ai, const float* const* x, const float* const* h, size_t parts,
                      size_t stride, size_t count);
+/** Two channels at once (binaural): (a0r, a0i) += sum_j X_j * H0_j and
+ *  (a1r, a1i) += sum_j X_j * H1_j, reading each X_j once. */
+void complexMacBatch2(float* a0r, float* a0i, float* a1r, float* a1i, const float* const* x,
+                      const float* const* h0, const float* const* h1, size_t parts, size_t stride, size_t count);
 /** (ar, ai) -= (xr, xi) * (hr, hi). */
 void complexMacNeg(float* ar, float* ai, const float* xr, const float* xi, const float* hr, const float* hi,
                    size_t count);
