@@ -229,8 +229,10 @@ BandMetrics analyzeEnergy(const double* e, size_t n, double fs, long long onsetI
   const size_t len = decayEnd - onset;
   double e0 = compEnergy;
   for (size_t k = onset; k < decayEnd; ++k) e0 += e[k];
-  std::vector<double> edcDb;
-  edcDb.reserve(std::min<size_t>(len, 1 << 16));
+  // NOTE: thread_local scratch: reused across calls so that a sweep calling
+  // this thousands of times does not pay fresh pages each time.
+  thread_local std::vector<double> edcDb;
+  edcDb.clear();
   {
     const double deepest = e0 * std::pow(10.0, -3.5);
     double remaining = e0;
@@ -293,18 +295,31 @@ BandMetrics analyzeEnergy(const double* e, size_t n, double fs, long long onsetI
 
   // Energy ratios. Sample k is "early" when k - onset < round(limit * fs).
   const size_t start = onset > preGuard ? onset - preGuard : 0;
-  auto sumE = [&](size_t from, size_t to) {
-    to = std::min(to, decayEnd);
-    double s = 0.0;
-    for (size_t k = from; k < to; ++k) s += e[k];
-    return s;
-  };
-  const size_t i50 = onset + size_t(std::lround(0.050 * fs));
-  const size_t i80 = onset + size_t(std::lround(0.080 * fs));
-  const double early50 = sumE(start, i50) + tailEnergy(0.0, double(i50 - onset) / fs);
-  const double late50 = sumE(i50, decayEnd) + tailEnergy(double(i50 - onset) / fs, kInf);
-  const double early80 = sumE(start, i80) + tailEnergy(0.0, double(i80 - onset) / fs);
-  const double late80 = sumE(i80, decayEnd) + tailEnergy(double(i80 - onset) / fs, kInf);
+  const size_t i50 = std::min(decayEnd, onset + size_t(std::lround(0.050 * fs)));
+  const size_t i80 = std::min(decayEnd, onset + size_t(std::lround(0.080 * fs)));
+  // One pass: energy of [start, i50), [i50, i80), [i80, end) and the time
+  // moment (k - onset) e[k] in samples (summing each segment once keeps an
+  // exactly empty late part exactly zero, hence C = +inf).
+  double seg[3] = {0.0, 0.0, 0.0};
+  double momentSamples = 0.0;
+  {
+    const size_t bounds[4] = {start, std::max(start, i50), std::max(start, i80), decayEnd};
+    const double onsetD = double(onset);
+    for (int sgi = 0; sgi < 3; ++sgi) {
+      double sum = 0.0, mom = 0.0;
+      for (size_t k = bounds[sgi]; k < bounds[sgi + 1]; ++k) {
+        sum += e[k];
+        mom += (double(k) - onsetD) * e[k];
+      }
+      seg[sgi] = sum;
+      momentSamples += mom;
+    }
+  }
+  const double t50 = std::round(0.050 * fs) / fs, t80 = std::round(0.080 * fs) / fs;
+  const double early50 = seg[0] + tailEnergy(0.0, t50);
+  const double late50 = seg[1] + seg[2] + tailEnergy(t50, kInf);
+  const double early80 = seg[0] + seg[1] + tailEnergy(0.0, t80);
+  const double late80 = seg[2] + tailEnergy(t80, kInf);
   const double total = early50 + late50;
   if (!(total > 0.0)) {
     for (Metric k : {Metric::kC50, Metric::kC80, Metric::kD50, Metric::kTs})
@@ -314,9 +329,7 @@ BandMetrics analyzeEnergy(const double* e, size_t n, double fs, long long onsetI
   m.c50Db = late50 > 0.0 ? 10.0 * std::log10(early50 / late50) : kInf;
   m.c80Db = late80 > 0.0 ? 10.0 * std::log10(early80 / late80) : kInf;
   m.d50 = early50 / total;
-  double moment = compMoment;
-  for (size_t k = start; k < decayEnd; ++k) moment += (double(k) - double(onset)) / fs * e[k];
-  m.tsS = moment / total;
+  m.tsS = (momentSamples / fs + compMoment) / total;
   return m;
 }
 
@@ -424,7 +437,9 @@ Result<std::vector<BandMetrics>> analyzeIr(const std::vector<float>& ir, double 
   std::vector<BandMetrics> out(kAnalysisBandCount);
   // Bands go through the filter two at a time; buffers are reused for every
   // pair (no page faults per band).
-  std::vector<double> y, y2;
+  // Scratch reused across calls on this thread (page faults on fresh
+  // multi-megabyte buffers cost as much as the filtering itself).
+  thread_local std::vector<double> y, y2;
   auto finishBand = [&](int b, std::vector<double>& band, size_t guard) {
     applyWindow(band, guard);
     for (double& v : band) v *= v;
