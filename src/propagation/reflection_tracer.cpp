@@ -88,11 +88,14 @@ inline Vec3f cosineDirection(const Vec3f& n, Pcg32& rng) {
 }
 
 struct Accumulator {
-  std::vector<int64_t> hist;                 // [bin][band][component]
+  std::vector<int64_t> hist;                 // [bin][kStride]
   std::vector<int64_t> perOrder;             // [order][band]
+  std::vector<int64_t> aliveDiff;            // [bin + 1][band]: difference array of energy in flight
+  std::vector<int64_t> cut;                  // [bin][band]
   int64_t escaped[kNumBands] = {};
   int64_t late[kNumBands] = {};
-  uint64_t raysEscaped = 0, segments = 0, shadows = 0;
+  std::vector<int64_t> pathEnergy, pathRetained;  // [free-path bin][band]
+  uint64_t raysEscaped = 0, segments = 0, shadows = 0, raysCut = 0, rouletted = 0, excluded = 0;
 };
 
 // A rotation matrix from a random unit quaternion (Shoemake 1992).
@@ -132,6 +135,16 @@ double autoReceiverRadius(const RayTracer& tracer, const Vec3d& listener) {
 }
 
 }  // namespace
+
+size_t freePathBin(double length) {
+  // log10 from -3 (1 mm) to 4 (10 km) over the bins.
+  const double x = (std::log10(std::max(length, 1e-3)) + 3.0) / 7.0 * double(kFreePathBins);
+  return std::min(kFreePathBins - 1, size_t(std::max(0.0, x)));
+}
+
+double freePathBinCenter(size_t bin) {
+  return std::pow(10.0, -3.0 + 7.0 * (double(bin) + 0.5) / double(kFreePathBins));
+}
 
 Vec3d fibonacciDirection(uint32_t i, uint32_t n) {
   const double golden = kPi * (3.0 - std::sqrt(5.0));
@@ -214,12 +227,19 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
   for (auto& a : acc) {
     a.hist.assign(bins * EnergyHistogram::kStride, 0);
     a.perOrder.assign(size_t(maxOrder + 1) * kNumBands, 0);
+    a.aliveDiff.assign((bins + 1) * kNumBands, 0);
+    a.cut.assign(bins * kNumBands, 0);
+    a.pathEnergy.assign(kFreePathBins * kNumBands, 0);
+    a.pathRetained.assign(kFreePathBins * kNumBands, 0);
   }
+  const uint32_t lossFromOrder = std::max(1u, maxOrder / 2);  // the later half of the bounces
+  const float rouletteThreshold = rayEnergy * 1e-6f;          // 60 dB down
+  constexpr float kSurvival = 0.1f;
 
+  auto binOf = [&](float pathLength) { return std::min(bins, size_t(pathLength * invC * invBin)); };
   auto deposit = [&](Accumulator& a, float pathLength, const float* energy, float weight, const Vec3f& doa,
                      uint32_t order) {
-    const float t = pathLength * invC;
-    const size_t bin = size_t(t * invBin);
+    const size_t bin = size_t(pathLength * invC * invBin);
     if (bin >= bins) {
       for (int b = 0; b < kNumBands; ++b) a.late[b] += toFixed(double(energy[b]) * weight);
       return;
@@ -241,6 +261,18 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
     h[kNumBands + 1] += toFixed(mean * doa.y);
     h[kNumBands + 2] += toFixed(mean * doa.z);
   };
+  // Energy in flight over [from, to) bins (air applied at the segment's start).
+  auto alive = [&](Accumulator& a, float fromLength, float toLength, const float* energy) {
+    const size_t b0 = binOf(fromLength), b1 = binOf(toLength);
+    if (b0 >= b1) return;
+    float f[kNumBands];
+    air.factors(fromLength, f);
+    for (int b = 0; b < kNumBands; ++b) {
+      const int64_t q = toFixed(double(energy[b]) * f[b]);
+      a.aliveDiff[b0 * kNumBands + b] += q;
+      a.aliveDiff[b1 * kNumBands + b] -= q;
+    }
+  };
 
   const uint32_t tasks = (settings.rays + kRaysPerTask - 1) / kRaysPerTask;
   pool.parallelFor(tasks, [&](size_t task, unsigned worker) {
@@ -255,6 +287,9 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
       float pathLength = 0;
       bool detectSegment = false;  // last event specular/transmission after a reflection
       bool reflected = false;
+      bool pureSpecular = true;    // every event so far a specular reflection
+      PlaneSequence planes;
+      planes.fill(0xFFFFFFFFu);
       for (uint32_t order = 0;; ++order) {
         Hit hit;
         ++a.segments;
@@ -269,22 +304,49 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
             const float root = std::sqrt(disc);
             const float t0 = std::max(0.0f, -bq - root), t1 = std::min(segment, -bq + root);
             if (t1 > t0) {
-              const float tc = std::clamp(-bq, t0, t1);
-              deposit(a, pathLength + tc, energy, (t1 - t0) * invSphereVolume, -ray.direction, order);
+              if (pureSpecular && order <= settings.excludedMaxOrder && settings.excludedSpecular &&
+                  settings.excludedSpecular->count(planes)) {
+                ++a.excluded;
+              } else {
+                const float tc = std::clamp(-bq, t0, t1);
+                deposit(a, pathLength + tc, energy, (t1 - t0) * invSphereVolume, -ray.direction, order);
+              }
             }
           }
         }
         if (!hasHit) {
           ++a.raysEscaped;
-          for (int b = 0; b < kNumBands; ++b) a.escaped[b] += toFixed(energy[b] / (4.0 * kPi));
+          for (int b = 0; b < kNumBands; ++b) {
+            a.escaped[b] += toFixed(energy[b] / (4.0 * kPi));
+            if (order >= lossFromOrder) a.pathEnergy[(kFreePathBins - 1) * kNumBands + b] += toFixed(energy[b]);
+          }
           break;
         }
-        if (order == maxOrder) break;  // the last segment was traced only for the sphere
+        alive(a, pathLength, pathLength + hit.t, energy);
+        const MatFactors& m = mats[tracer.materialOf(hit.triangle)];
+        if (order >= lossFromOrder) {
+          const size_t fb = freePathBin(hit.t) * kNumBands;
+          for (int b = 0; b < kNumBands; ++b) {
+            a.pathEnergy[fb + b] += toFixed(energy[b]);
+            a.pathRetained[fb + b] += toFixed(energy[b] * std::min(1.0f, m.reflect[b] + m.transmit[b]));
+          }
+        }
         pathLength += hit.t;
+        if (order == maxOrder) {
+          // Stopped by the bounce limit: what it would have carried on with.
+          ++a.raysCut;
+          const size_t bin = binOf(pathLength);
+          if (bin < bins) {
+            float f[kNumBands];
+            air.factors(pathLength, f);
+            for (int b = 0; b < kNumBands; ++b)
+              a.cut[bin * kNumBands + b] += toFixed(double(energy[b]) * (m.reflect[b] + m.transmit[b]) * f[b]);
+          }
+          break;
+        }
         const Vec3f p = ray.origin + ray.direction * hit.t;
         Vec3f n = hit.normal;
         if (dot(n, ray.direction) > 0) n = -n;  // face the incoming ray
-        const MatFactors& m = mats[tracer.materialOf(hit.triangle)];
 
         // Next-event estimation of the diffusely reflected part.
         const Vec3f toL = L - p;
@@ -310,11 +372,12 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
 
         // Continue: through the surface, specularly, or diffusely.
         const float pT = m.meanTransmit > 0 ? m.meanTransmit / (m.meanTransmit + m.meanReflect) : 0.0f;
-        bool alive = false;
+        float maxEnergy = 0;
         if (pT > 0 && rng.uniform() < pT) {
-          for (int b = 0; b < kNumBands; ++b) alive |= (energy[b] *= m.transmit[b] / pT) > 0;
+          for (int b = 0; b < kNumBands; ++b) maxEnergy = std::max(maxEnergy, energy[b] *= m.transmit[b] / pT);
           ray.origin = p - n * eps;  // direction unchanged
           detectSegment = reflected;
+          pureSpecular = false;
         } else {
           float specW = 0, total = 0;
           for (int b = 0; b < kNumBands; ++b) {
@@ -324,18 +387,29 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
           }
           const float pSpec = total > 0 ? specW / total : 0.0f;
           if (pSpec > 0 && rng.uniform() < pSpec) {
-            for (int b = 0; b < kNumBands; ++b) alive |= (energy[b] *= (1.0f - m.scatter[b]) / pSpec) > 0;
+            for (int b = 0; b < kNumBands; ++b)
+              maxEnergy = std::max(maxEnergy, energy[b] *= (1.0f - m.scatter[b]) / pSpec);
             ray.direction = normalize(ray.direction - n * (2.0f * dot(ray.direction, n)));
             detectSegment = true;
+            if (order < kMaxImageSourceOrder) planes[order] = tracer.planeOf(hit.triangle);
           } else {
-            for (int b = 0; b < kNumBands; ++b) alive |= (energy[b] *= m.scatter[b] / (1.0f - pSpec)) > 0;
+            for (int b = 0; b < kNumBands; ++b)
+              maxEnergy = std::max(maxEnergy, energy[b] *= m.scatter[b] / (1.0f - pSpec));
             ray.direction = cosineDirection(n, rng);
             detectSegment = false;
+            pureSpecular = false;
           }
           ray.origin = p + n * eps;
           reflected = true;
         }
-        if (!alive) break;
+        if (!(maxEnergy > 0)) break;
+        if (settings.russianRoulette && maxEnergy < rouletteThreshold) {
+          if (rng.uniform() >= kSurvival) {
+            ++a.rouletted;
+            break;
+          }
+          for (float& e : energy) e /= kSurvival;
+        }
       }
     }
   });
@@ -345,6 +419,12 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
   for (size_t w = 1; w < acc.size(); ++w) {
     for (size_t i = 0; i < total.hist.size(); ++i) total.hist[i] += acc[w].hist[i];
     for (size_t i = 0; i < total.perOrder.size(); ++i) total.perOrder[i] += acc[w].perOrder[i];
+    for (size_t i = 0; i < total.aliveDiff.size(); ++i) total.aliveDiff[i] += acc[w].aliveDiff[i];
+    for (size_t i = 0; i < total.cut.size(); ++i) total.cut[i] += acc[w].cut[i];
+    for (size_t i = 0; i < total.pathEnergy.size(); ++i) {
+      total.pathEnergy[i] += acc[w].pathEnergy[i];
+      total.pathRetained[i] += acc[w].pathRetained[i];
+    }
     for (int b = 0; b < kNumBands; ++b) {
       total.escaped[b] += acc[w].escaped[b];
       total.late[b] += acc[w].late[b];
@@ -352,19 +432,42 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
     total.raysEscaped += acc[w].raysEscaped;
     total.segments += acc[w].segments;
     total.shadows += acc[w].shadows;
+    total.raysCut += acc[w].raysCut;
+    total.rouletted += acc[w].rouletted;
+    total.excluded += acc[w].excluded;
   }
   auto& data = result.histogram.data();
   for (size_t i = 0; i < data.size(); ++i) data[i] = double(total.hist[i]) / kFixedScale;
   for (uint32_t o = 0; o <= maxOrder; ++o)
     for (int b = 0; b < kNumBands; ++b)
       stats.detectedPerOrder[o][b] = double(total.perOrder[size_t(o) * kNumBands + b]) / kFixedScale;
+  TailData& tail = result.tail;
+  tail.alive.assign(bins, BandArrayD{});
+  tail.cut.assign(bins, BandArrayD{});
+  int64_t running[kNumBands] = {};
+  for (size_t i = 0; i < bins; ++i)
+    for (int b = 0; b < kNumBands; ++b) {
+      running[b] += total.aliveDiff[i * kNumBands + b];
+      tail.alive[i][b] = double(running[b]) / kFixedScale;
+      tail.cut[i][b] = double(total.cut[i * kNumBands + b]) / kFixedScale;
+    }
   for (int b = 0; b < kNumBands; ++b) {
     stats.energyEscaped[b] = double(total.escaped[b]) / kFixedScale;
     stats.energyLate[b] = double(total.late[b]) / kFixedScale;
   }
+  tail.pathEnergy.assign(kFreePathBins, BandArrayD{});
+  tail.pathRetained.assign(kFreePathBins, BandArrayD{});
+  for (size_t i = 0; i < kFreePathBins; ++i)
+    for (int b = 0; b < kNumBands; ++b) {
+      tail.pathEnergy[i][b] = double(total.pathEnergy[i * kNumBands + b]) / kFixedScale;
+      tail.pathRetained[i][b] = double(total.pathRetained[i * kNumBands + b]) / kFixedScale;
+    }
   stats.raysEscaped = total.raysEscaped;
   stats.segmentsTraced = total.segments;
   stats.shadowRays = total.shadows;
+  stats.raysCut = total.raysCut;
+  stats.raysRouletted = total.rouletted;
+  stats.specularExcluded = total.excluded;
   stats.traceMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return result;
 }

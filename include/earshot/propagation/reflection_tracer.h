@@ -16,7 +16,15 @@
  *    reflection): the segment's chord through a receiver sphere of radius R,
  *    energy x chord / (4/3 pi R^3) (unbiased for a field uniform over R).
  *  The first segment (source to first hit) is the direct sound's business
- *  and never detected here.
+ *  and never detected here; purely specular paths whose plane sequence the
+ *  image-source method rendered (`excludedSpecular`) are not detected either.
+ *
+ *  For tail completion the tracer also records, per bin and band, the energy
+ *  of rays in flight ("alive") and of rays stopped by the bounce limit
+ *  ("cut"), and over the later half of the bounces the energy-weighted loss
+ *  per reflection and mean free path (tail_completion.h). Rays whose energy
+ *  has fallen 60 dB survive Russian roulette with probability 1/10 and
+ *  carry 10x their energy, which keeps every estimate unbiased.
  *
  *  Determinism: each ray draws from its own PCG32 stream (seed, ray index)
  *  and detections are summed in 2^-50 fixed point (integer addition is
@@ -30,6 +38,7 @@
 #include "earshot/materials/material.h"
 #include "earshot/propagation/air_absorption.h"
 #include "earshot/propagation/energy_histogram.h"
+#include "earshot/propagation/image_sources.h"
 
 namespace earshot {
 
@@ -46,7 +55,27 @@ struct ReflectionSettings {
   double maxTimeSeconds = 4.0;        ///< histogram length; later arrivals are counted in stats only
   double receiverRadiusMeters = 0.0;  ///< sphere for specular detection; 0 = automatic
   double minDistanceMeters = 0.1;     ///< clamp of 1/d^2 in next-event estimation
+  /** Specular paths rendered elsewhere (image sources): not detected here. Not owned. */
+  const PlaneSequenceSet* excludedSpecular = nullptr;
+  uint32_t excludedMaxOrder = 0;      ///< orders 1..this are checked against excludedSpecular
+  bool russianRoulette = true;        ///< stop rays 60 dB down (unbiased)
 };
+
+/** What tail completion needs from a trace (energies in the histogram's units). */
+struct TailData {
+  std::vector<BandArrayD> alive;      ///< per bin: energy of rays in flight
+  std::vector<BandArrayD> cut;        ///< per bin: energy of rays stopped by the bounce limit
+  /** Free paths of the later half of the bounces, in log-spaced length bins
+   *  (freePathBinCenter): the energy e arriving at a reflection after a free
+   *  path in that bin, and e times the fraction the reflection keeps. Escapes
+   *  count in `pathEnergy` of the last bin and keep nothing. */
+  std::vector<BandArrayD> pathEnergy, pathRetained;
+};
+
+/** Free-path bins: kFreePathBins log-spaced bins from 1 mm to 10 km. */
+constexpr size_t kFreePathBins = 2048;
+size_t freePathBin(double lengthMeters);
+double freePathBinCenter(size_t bin);
 
 struct ReflectionStats {
   uint64_t raysTraced = 0;
@@ -56,6 +85,9 @@ struct ReflectionStats {
   BandArrayD energyEscaped{};         ///< fraction of emitted energy that escaped, per band
   BandArrayD energyLate{};            ///< detected energy arriving after maxTimeSeconds
   std::vector<BandArrayD> detectedPerOrder;  ///< detected energy by reflection order (index 0 unused)
+  uint64_t raysCut = 0;               ///< rays stopped by the bounce limit
+  uint64_t raysRouletted = 0;         ///< rays ended by Russian roulette
+  uint64_t specularExcluded = 0;      ///< detections left to the image sources
   double receiverRadiusMeters = 0.0;
   double traceMs = 0.0;               ///< wall time of the tracing
 };
@@ -63,6 +95,7 @@ struct ReflectionStats {
 struct ReflectionResult {
   EnergyHistogram histogram;
   ReflectionStats stats;
+  TailData tail;
 };
 
 /** Validates settings (message names the field). */

@@ -1,0 +1,126 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numeric>
+
+#include "earshot/core/thread_pool.h"
+#include "earshot/propagation/tail_completion.h"
+#include "earshot/scene/ray_tracer.h"
+
+namespace earshot {
+namespace {
+
+struct Room {
+  MaterialTable materials;
+  std::unique_ptr<RayTracer> tracer;
+  Room(float absorption, float scattering) {
+    Material m;
+    m.name = "wall";
+    m.absorption = filledBands(absorption);
+    m.scattering = filledBands(scattering);
+    m.transmission = filledBands(0.0f);
+    auto rt = RayTracer::create(makeBox({0, 0, 0}, {10, 7, 3}, materials.add(m)));
+    tracer = std::move(rt.value());
+  }
+};
+
+// Schroeder decay: time (s) at which the EDC falls to `db` below its start.
+double edcCrossing(const EnergyHistogram& h, int band, double db) {
+  std::vector<double> edc(h.binCount() + 1, 0.0);
+  for (size_t i = h.binCount(); i-- > 0;) edc[i] = edc[i + 1] + h.energy(i, band);
+  for (size_t i = 0; i < h.binCount(); ++i)
+    if (10 * std::log10(edc[i] / edc[0]) <= db) return double(i) * h.binSeconds();
+  return NAN;
+}
+
+// T30 by least squares over -5..-35 dB of the Schroeder decay.
+double t30(const EnergyHistogram& h, int band) {
+  std::vector<double> edc(h.binCount() + 1, 0.0);
+  for (size_t i = h.binCount(); i-- > 0;) edc[i] = edc[i + 1] + h.energy(i, band);
+  double sx = 0, sy = 0, sxx = 0, sxy = 0, n = 0;
+  for (size_t i = 0; i < h.binCount(); ++i) {
+    double db = 10 * std::log10(edc[i] / edc[0]);
+    if (db > -5 || db < -35) continue;
+    double x = double(i) * h.binSeconds();
+    sx += x, sy += db, sxx += x * x, sxy += x * db, n += 1;
+  }
+  return -60.0 / ((n * sxy - sx * sy) / (n * sxx - sx * sx));
+}
+
+const Vec3d kSource{2, 3.5, 1.5}, kListener{7, 3.5, 1.5};
+
+}  // namespace
+
+// The default budget (16384 rays x 12 bounces) plus completion gives the
+// decay of a trace that covers it all (150 bounces): T30 within 5 % (1 JND)
+// and the -20 dB point of the EDC within 5 %.
+TEST(TailCompletion, TwelveBouncesPlusCompletionMatchAFullTrace) {
+  for (float alpha : {0.1f, 0.3f}) {
+    Room room(alpha, 1.0f);
+    ThreadPool pool(2);
+    ReflectionSettings s;
+    s.maxTimeSeconds = 4.0;
+    s.bounces = 150;
+    auto full = traceReflections(*room.tracer, room.materials, kSource, kListener, s, pool);
+    s.bounces = 12;
+    auto cut = traceReflections(*room.tracer, room.materials, kSource, kListener, s, pool);
+    ASSERT_TRUE(full.isOk() && cut.isOk());
+    EXPECT_GT(cut->stats.raysCut, 0u);
+    TailInfo info;
+    auto completed = completeTail(cut->histogram, cut->tail, TailCompletionSettings{}, &info);
+    ASSERT_TRUE(completed.isOk()) << completed.status().message();
+    EXPECT_TRUE(info.extended);
+    for (int b = 0; b < kNumBands; ++b) {
+      const double want = t30(full->histogram, b), got = t30(*completed, b);
+      EXPECT_NEAR(got, want, 0.05 * want) << "alpha " << alpha << " band " << b;
+      const double want20 = edcCrossing(full->histogram, b, -20), got20 = edcCrossing(*completed, b, -20);
+      EXPECT_NEAR(got20, want20, 0.05 * want20) << "alpha " << alpha << " band " << b;
+      // Without completion the 12-bounce trace is badly truncated (the test can fail).
+      if (alpha < 0.2f) EXPECT_LT(t30(cut->histogram, b), 0.8 * want) << "band " << b;
+    }
+    // The automatic length reaches 60 dB down the Schroeder decay: for an
+    // exponential tail at least T60 minus the time to the tail's start.
+    EXPECT_GT(info.lengthSeconds, 0.9 * info.t60Seconds[0]);
+    EXPECT_LT(info.lengthSeconds, 1.2 * info.t60Seconds[0] + info.startSeconds[0]);
+  }
+}
+
+// Same material, same positions: a floor alone (rays escape) against a closed
+// 10x7x3 m room. The automatic length follows the decay: far shorter outdoors.
+TEST(TailCompletion, OpenSceneGetsAShortTail) {
+  MaterialTable materials;
+  TriangleMesh floor;
+  floor.positions = {{-50, -50, 0}, {50, -50, 0}, {50, 50, 0}, {-50, 50, 0}};
+  floor.triangles = {{0, 1, 2}, {0, 2, 3}};
+  floor.materialIds = {0, 0};
+  auto open = RayTracer::create(floor);
+  auto closed = RayTracer::create(makeBox({0, 0, 0}, {10, 7, 3}, 0));
+  ThreadPool pool(2);
+  ReflectionSettings s;
+  auto r = traceReflections(**open, materials, kSource, kListener, s, pool);
+  auto q = traceReflections(**closed, materials, kSource, kListener, s, pool);
+  ASSERT_TRUE(r.isOk() && q.isOk());
+  EXPECT_GT(r->stats.raysEscaped, s.rays / 2);
+  TailInfo openInfo, closedInfo;
+  ASSERT_TRUE(completeTail(r->histogram, r->tail, TailCompletionSettings{}, &openInfo).isOk());
+  ASSERT_TRUE(completeTail(q->histogram, q->tail, TailCompletionSettings{}, &closedInfo).isOk());
+  EXPECT_LT(openInfo.lengthSeconds, 0.25 * closedInfo.lengthSeconds)
+      << openInfo.lengthSeconds << " s outdoors vs " << closedInfo.lengthSeconds << " s in the room";
+}
+
+TEST(TailCompletion, ExplicitLengthIsHonoured) {
+  Room room(0.2f, 1.0f);
+  ThreadPool pool(1);
+  ReflectionSettings s;
+  s.rays = 2000;
+  auto r = traceReflections(*room.tracer, room.materials, kSource, kListener, s, pool);
+  ASSERT_TRUE(r.isOk());
+  TailCompletionSettings t;
+  t.lengthSeconds = 2.5;
+  auto completed = completeTail(r->histogram, r->tail, t);
+  ASSERT_TRUE(completed.isOk());
+  EXPECT_NEAR(completed->durationSeconds(), 2.5, completed->binSeconds());
+  EXPECT_GT(completed->energy(completed->binCount() - 1, 0), 0.0);
+}
+
+}  // namespace earshot
