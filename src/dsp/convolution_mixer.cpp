@@ -55,6 +55,7 @@ struct Task {
   uint32_t a = 0;  // kForward: source; kMac: first channel; kInverse: channel
   uint32_t k0 = 0, k1 = 0;  // kMac: partition range
   uint32_t a1 = 0;          // kMac: one past the last channel
+  uint32_t source = 0;      // kMac
 };
 
 struct LevelState {
@@ -240,15 +241,15 @@ struct ConvolutionMixer::Impl {
     }
   }
 
-  void accumulate(LevelState& lv, size_t c0, size_t c1, size_t k0, size_t k1) {
+  void accumulate(LevelState& lv, size_t si, size_t c0, size_t c1, size_t k0, size_t k1) {
     const size_t li = &lv - levels.data();
     const size_t st = lv.stride;
-    for (auto& sp : sources) {
-      SourceLevel& sl = sp->levels[li];
+    {
+      SourceLevel& sl = sources[si]->levels[li];
       const PreparedIr* cur = sl.cur ? sl.cur->ir.get() : nullptr;
       if (sl.fading || !cur) {
         for (size_t c = c0; c < c1; ++c) accumulateFading(lv, sl, c, k0, k1);
-        continue;
+        return;
       }
       // Steady state: the partitions of this range in register-tiled
       // passes over the accumulators (both ears at once when binaural).
@@ -359,7 +360,7 @@ struct ConvolutionMixer::Impl {
         const Task& task = lv.tasks[t];
         switch (task.kind) {
           case Task::kForward: forward(lv, task.a); break;
-          case Task::kMac: accumulate(lv, task.a, task.a1, task.k0, task.k1); break;
+          case Task::kMac: accumulate(lv, task.source, task.a, task.a1, task.k0, task.k1); break;
           case Task::kInverse: finishChannel(lv, task.a); break;
         }
       }
@@ -431,31 +432,34 @@ void scheduleLevel(LevelState& lv, size_t sources, size_t channels) {
     }
     load += cost;
   };
+  // Per source: its forward FFT, then its multiply-accumulates (both ears
+  // together when binaural: the kernel reads each input spectrum once for
+  // both), so that every step mixes FFTs and MACs and an error in the
+  // estimated FFT/MAC cost ratio does not pile one kind onto a few steps.
+  const size_t group = channels == 2 ? 2 : 1;
+  const double perSourceMac = mac / static_cast<double>(sources);
   for (size_t s = 0; s < sources; ++s) {
     place(fft);
-    lv.tasks.push_back({Task::kForward, static_cast<uint32_t>(s), 0, 0, 0});
-  }
-  // Multiply-accumulates: both ears together when binaural (the kernel
-  // reads each input spectrum once for both), else one channel at a time.
-  const size_t group = channels == 2 ? 2 : 1;
-  for (size_t c = 0; c < channels; c += group) {
-    const double cost = mac * static_cast<double>(group);
-    size_t k = 0;
-    while (k < lv.k) {
-      place(cost);  // as many partitions as fit in this step (at least one)
-      size_t k1 = k + 1;
-      while (k1 < lv.k && load + cost <= share * 1.0001) {
-        load += cost;
-        ++k1;
+    lv.tasks.push_back({Task::kForward, static_cast<uint32_t>(s), 0, 0, 0, 0});
+    for (size_t c = 0; c < channels; c += group) {
+      const double cost = perSourceMac * static_cast<double>(group);
+      size_t k = 0;
+      while (k < lv.k) {
+        place(cost);  // as many partitions as fit in this step (at least one)
+        size_t k1 = k + 1;
+        while (k1 < lv.k && load + cost <= share * 1.0001) {
+          load += cost;
+          ++k1;
+        }
+        lv.tasks.push_back({Task::kMac, static_cast<uint32_t>(c), static_cast<uint32_t>(k),
+                            static_cast<uint32_t>(k1), static_cast<uint32_t>(c + group), static_cast<uint32_t>(s)});
+        k = k1;
       }
-      lv.tasks.push_back({Task::kMac, static_cast<uint32_t>(c), static_cast<uint32_t>(k), static_cast<uint32_t>(k1),
-                          static_cast<uint32_t>(c + group)});
-      k = k1;
     }
   }
   for (size_t c = 0; c < channels; ++c) {
     place(fft);
-    lv.tasks.push_back({Task::kInverse, static_cast<uint32_t>(c), 0, 0, 0});
+    lv.tasks.push_back({Task::kInverse, static_cast<uint32_t>(c), 0, 0, 0, 0});
   }
   for (size_t p = phase + 1; p <= lv.m; ++p) lv.phaseTask[p] = lv.tasks.size();
 }
