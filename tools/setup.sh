@@ -15,6 +15,7 @@ PACKAGES=(
   libtinygltf-dev libmysofa-dev nlohmann-json3-dev libcli11-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   python3 python3-numpy python3-matplotlib
+  clang libclang-rt-14-dev
 )
 
 if [ -z "${EARSHOT_SKIP_APT:-}" ]; then

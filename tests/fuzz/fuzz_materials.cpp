@@ -1,0 +1,31 @@
+// libFuzzer target: parseMaterials on arbitrary text (nlohmann_json parse,
+// key validation, band interpolation).
+#include <cmath>
+#include <cstdint>
+#include <string>
+
+#include "earshot/materials/material.h"
+#include "fuzz_temp_file.h"
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+  const std::string text(reinterpret_cast<const char*>(data), size);
+  auto result = earshot::parseMaterials(text, "fuzz.json");
+  if (!result.isOk()) {
+    EARSHOT_FUZZ_CHECK(!result.status().message().empty());
+    return 0;
+  }
+  // Accepted tables keep the documented invariants in every engine band.
+  const earshot::MaterialTable& table = result.value();
+  EARSHOT_FUZZ_CHECK(table.size() >= 1);
+  for (const auto& m : table.all()) {
+    for (size_t b = 0; b < m.absorption.size(); ++b) {
+      const float a = m.absorption[b], s = m.scattering[b], t = m.transmission[b];
+      EARSHOT_FUZZ_CHECK(std::isfinite(a) && a >= 0.0f && a <= 1.0f);
+      EARSHOT_FUZZ_CHECK(std::isfinite(s) && s >= 0.0f && s <= 1.0f);
+      EARSHOT_FUZZ_CHECK(std::isfinite(t) && t >= 0.0f && t <= 1.0f);
+      // Interpolation between checked bands keeps t <= a up to float rounding.
+      EARSHOT_FUZZ_CHECK(t <= a + 1e-6f);
+    }
+  }
+  return 0;
+}
