@@ -434,6 +434,15 @@ Result<std::vector<BandMetrics>> analyzeIr(const std::vector<float>& ir, double 
     }
   };
 
+  {
+    const size_t a = ws > 0.0 ? size_t(std::ceil(ws)) : 0, b = we >= double(n) ? n : size_t(std::ceil(we));
+    bool any = false;
+    for (size_t k = a; k < b && !any; ++k) any = src[k] != 0.0f;
+    if (!any)
+      return invalidArgument("window [" + std::to_string(ws / rateHz) + ", " + std::to_string(we / rateHz) +
+                             ") s after emission holds no energy of the impulse response");
+  }
+
   std::vector<BandMetrics> out(kAnalysisBandCount);
   // Bands go through the filter two at a time; buffers are reused for every
   // pair (no page faults per band).

@@ -192,6 +192,25 @@ TEST(RoomAcoustics, WindowEndTruncatesTheDecay) {
   EXPECT_LE(bb.decayEndS, 0.45 + 1.0 / kFs);
 }
 
+TEST(RoomAcoustics, WindowCanCountFromTheDirectSound) {
+  // Impulses at 100 ms (direct) and +30 ms; a window [0, 20 ms) from the
+  // emission holds nothing (an error), from the direct sound only the direct.
+  std::vector<float> ir(size_t(0.3 * kFs), 0.0f);
+  ir[4800] = 1.0f;
+  ir[4800 + 1440] = 1.0f;
+  AnalysisOptions o;
+  o.windowEndS = 0.02;
+  EXPECT_FALSE(analyzeIr(ir, kFs, o).isOk());
+  o.windowOrigin = WindowOrigin::kDirectSound;
+  auto r = analyzeIr(ir, kFs, o);
+  ASSERT_TRUE(r.isOk()) << r.status().message();
+  EXPECT_DOUBLE_EQ((*r)[kBroadbandIndex].tsS, 0.0);  // the reflection at +30 ms is outside
+  o.windowEndS = 0.05;
+  r = analyzeIr(ir, kFs, o);
+  ASSERT_TRUE(r.isOk());
+  EXPECT_NEAR((*r)[kBroadbandIndex].tsS, 0.015, 1e-12);
+}
+
 TEST(RoomAcoustics, IgnoringTheDirectSoundRemovesItsEnergy) {
   std::vector<float> ir(size_t(0.3 * kFs), 0.0f);
   ir[480] = 1.0f;
