@@ -3,12 +3,17 @@
 //
 // Method: uniformly partitioned overlap-save with a frequency-domain delay
 // line per level (Soo & Pang 1990; Wefers, "Partitioned convolution
-// algorithms for real-time auralization", 2015), levels of doubling partition
-// size combined as in Gardner 1995 / Garcia 2002 (see partition_layout.cpp).
-// Every latency step (N input frames) each level runs 1/M of its block's work:
-// the forward FFT at phase 0, partitions [p K / M, (p + 1) K / M) of the
-// multiply-accumulate at phase p, the inverse FFTs at phase M - 1. Products
-// of all sources sharing a level are summed before the inverse FFTs.
+// algorithms for real-time auralization", 2015), levels of partition sizes
+// growing by powers of two combined as in Gardner 1995 / Garcia 2002 (see partition_layout.cpp).
+// Every latency step (N input frames) each level runs 1/M of its block's
+// work. The block's tasks (per source: forward FFT of the newest 2P input
+// frames, then the multiply-accumulate over its K partitions; then one
+// inverse FFT per output channel) are laid out in order over the M steps at
+// construction, each step filled to an equal share of the estimated cost
+// (scheduleLevel), so no step carries a whole FFT block's work. Outputs are
+// double-buffered: block j is computed while block j - 1 is played, and is
+// played during the M steps that follow. Products of all sources sharing a
+// level are summed before the inverse FFTs.
 //
 // IR changes: a level adopts a source's newest IR only when it starts a new
 // block and is not fading. For the block(s) covering the fade it accumulates

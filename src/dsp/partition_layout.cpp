@@ -3,17 +3,20 @@
 // Method: W. G. Gardner, "Efficient convolution without input-output delay",
 // JAES 43(3), 1995, and G. Garcia, "Optimal filter partition for efficient
 // convolution with short input/output delay", AES 113th Convention, 2002.
-// Level l has partitions of P_l = N * 2^l frames. A level processes the input
-// in P_l-frame blocks with overlap-save FFTs of size 2 P_l; a block's
-// forward FFT, multiply-accumulate and inverse FFTs are spread over
-// M_l = P_l / N latency steps, so its output must start no earlier than
-// taps 2 P_l - 2 N (the "offset" constraint). Any level that starts later
+// Level l has partitions of P_l = N * 2^e_l frames (e_0 = 0, increasing).
+// A level processes the input in P_l-frame blocks with overlap-save FFTs of
+// size 2 P_l; a block's forward FFT, multiply-accumulate and inverse FFTs are
+// spread over M_l = P_l / N latency steps, so the level's first tap must be
+// at least 2 P_l - 2 N (the "offset" constraint). Any level that starts later
 // than that reads the input delayed by the difference (inputDelayFrames),
 // which keeps every block's results arriving exactly at their deadline.
-// Among layouts with K partitions per level (the last level takes the rest),
-// we choose K minimising an operation count: per output frame a level costs
-// (1 + C) FFTs of size 2P (alpha * 2P log2(2P) / P) plus C * K complex
-// multiply-accumulates (beta each), where C is the channel count.
+// Given the set of sizes, each level gets the fewest partitions that satisfy
+// the next level's constraint (covering taps with larger partitions is
+// always cheaper) and the last covers the rest; we search all sets of sizes
+// up to the largest partition and keep the cheapest by an operation count:
+// per output frame a level costs (1 + C) FFTs of size 2P
+// (alpha * 2P log2(2P) / P, plus copies) and C * K complex
+// multiply-accumulates (beta each), C being the channel count.
 #include "earshot/dsp/partition_layout.h"
 
 #include <cmath>
@@ -46,33 +49,6 @@ size_t nextPow2(size_t v) {
   size_t p = 1;
   while (p < v) p <<= 1;
   return p;
-}
-
-void build(size_t n, size_t maxIr, size_t maxPart, size_t k, size_t* historyOut,
-                      std::vector<PartitionLevel>* levelsOut, size_t* capacityOut) {
-  std::vector<PartitionLevel> levels;
-  size_t p = n;
-  size_t offset = 0;
-  size_t remaining = maxIr;
-  size_t history = 0;
-  while (remaining > 0) {
-    PartitionLevel lv;
-    lv.partitionFrames = p;
-    lv.offsetFrames = offset;
-    bool last = p >= maxPart || remaining <= k * p;
-    lv.partitionCount = last ? (remaining + p - 1) / p : k;
-    lv.stepsPerBlock = p / n;
-    lv.inputDelayFrames = levels.empty() ? 0 : offset - (2 * p - 2 * n);
-    history = std::max(history, 2 * p + lv.inputDelayFrames + n);
-    size_t covered = lv.partitionCount * p;
-    offset += covered;
-    remaining -= std::min(remaining, covered);
-    levels.push_back(lv);
-    p *= 2;
-  }
-  *historyOut = nextPow2(history);
-  *levelsOut = levels;
-  *capacityOut = offset;
 }
 
 double cost(const std::vector<PartitionLevel>& levels, size_t channels) {
@@ -134,18 +110,6 @@ size_t effectiveMaxPart(size_t latency, size_t maxPart) {
 }
 
 }  // namespace
-
-Result<PartitionLayout> PartitionLayout::createFixed(size_t latencyFrames, size_t maxIrFrames,
-                                                     size_t maxPartitionFrames, size_t countPerLevel) {
-  EARSHOT_RETURN_IF_ERROR(checkCommon(latencyFrames, maxIrFrames, maxPartitionFrames));
-  if (countPerLevel < 2 || countPerLevel > 4096)
-    return invalidArgument("partition countPerLevel=" + std::to_string(countPerLevel) + " must be in [2, 4096]");
-  PartitionLayout out;
-  out.mLatency = latencyFrames;
-  build(latencyFrames, maxIrFrames, effectiveMaxPart(latencyFrames, maxPartitionFrames), countPerLevel,
-        &out.mHistory, &out.mLevels, &out.mCapacity);
-  return out;
-}
 
 Result<PartitionLayout> PartitionLayout::create(const ConvolverSettings& s) {
   EARSHOT_RETURN_IF_ERROR(checkCommon(s.latencyFrames, s.maxIrFrames, s.maxPartitionFrames));

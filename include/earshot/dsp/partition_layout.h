@@ -1,8 +1,8 @@
 #pragma once
 /** @file How an impulse response is cut into partitions for the streaming
  *  convolver: a non-uniform layout (Gardner 1995; Garcia 2002) of "levels",
- *  each a run of equal partitions whose size doubles from one level to the
- *  next, so the first partitions are as short as the latency and the tail is
+ *  each a run of equal partitions whose size grows by a power of two from
+ *  one level to the next, so the first partitions are as short as the latency and the tail is
  *  handled by large, cheap FFTs.
  *
  *  The layout is immutable and depends only on the latency, the longest IR it
@@ -66,11 +66,6 @@ class PartitionLayout {
    *  channel count and maximum partition. Fails with a message naming the
    *  field when a setting is out of range. Any thread; allocates. */
   static Result<PartitionLayout> create(const ConvolverSettings& settings);
-
-  /** Builds a layout with `countPerLevel` partitions per level (the last level
-   *  takes what remains). For tests and experiments; countPerLevel >= 2. */
-  static Result<PartitionLayout> createFixed(size_t latencyFrames, size_t maxIrFrames,
-                                             size_t maxPartitionFrames, size_t countPerLevel);
 
   size_t latencyFrames() const { return mLatency; }
   /** IR taps the layout holds (>= maxIrFrames). */
