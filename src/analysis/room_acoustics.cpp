@@ -10,9 +10,12 @@
 //   the late decay 5..25 dB above noise, intersection with the noise level,
 //   iterated; the integral is truncated at the cross-point and the energy of
 //   the exponential decay beyond it is added (their "compensation").
-//   Exact, noise-free data that simply ends (its last 10 % still decays) is
-//   integrated to its last non-zero sample with no compensation.
-// - Onset: first sample within 20 dB of the maximum (ISO 3382-1, A.3.4 note).
+//   The noise mean is also subtracted before the cross-point (ISO 3382-1
+//   names both truncation/compensation and noise subtraction as corrections),
+//   removing the ~1 % lengthening left by truncation alone. Exact, noise-free
+//   data that simply ends (its last 10 % still decays at over half the overall
+//   rate) is integrated to its last non-zero sample with no compensation.
+// - Onset: first sample within 20 dB of the maximum (ISO 3382-1, Annex A).
 #include "earshot/analysis/room_acoustics.h"
 
 #include <algorithm>
@@ -83,6 +86,7 @@ struct NoiseResult {
   size_t cross = 0;           // samples after the onset where integration stops
   double slopeDbPerS = 0.0;   // late decay rate used for the compensation
   double crossEnergy = 0.0;   // energy per sample of the decay line at the cross-point
+  double noiseEnergy = 0.0;   // mean noise energy per sample
   double noiseRelDb = kNaN;   // noise level relative to the late-decay line at the onset
 };
 
@@ -152,6 +156,7 @@ NoiseResult lundeby(const double* e, size_t n, double fs) {
   r.cross = std::max<size_t>(1, std::min(n, size_t(std::lround(tc * fs))));
   r.slopeDbPerS = fit.slope;
   r.crossEnergy = std::pow(10.0, (fit.intercept + fit.slope * tc) / 10.0);
+  r.noiseEnergy = std::pow(10.0, noiseDb / 10.0);
   r.noiseRelDb = noiseDb - fit.intercept;
   return r;
 }
@@ -223,26 +228,32 @@ BandMetrics analyzeEnergy(const double* e, size_t n, double fs, long long onsetI
   // Time moment of the tail about the onset: fs * E_c * (tc / -A + 1 / A^2).
   const double compMoment = compensate ? nr.crossEnergy * fs * (tcRel / -rate + 1.0 / (rate * rate)) : 0.0;
 
-  // Schroeder integral from the onset: EDC(k) = sum_{j >= k} e + tail, formed
-  // as total minus a running sum (no array), in dB only as far as the deepest
-  // fit needs (-35 dB; relative rounding error there ~1e-16 / 3e-4).
+  // Schroeder integral from the onset: EDC(k) = sum_{j >= k} (e - noise) +
+  // tail, formed as total minus a running sum (no array), in dB only as far as
+  // the deepest fit needs (-35 dB; relative rounding error there ~1e-16 /
+  // 3e-4). With a noise floor its mean is subtracted up to the cross-point
+  // too (truncation + compensation + subtraction):
+  // truncation alone leaves the noise integrated before the cross-point,
+  // which lengthened T30 by ~1.3 % in the noise test.
   const size_t len = decayEnd - onset;
+  const double noiseE = compensate ? nr.noiseEnergy : 0.0;
   double e0 = compEnergy;
-  for (size_t k = onset; k < decayEnd; ++k) e0 += e[k];
+  for (size_t k = onset; k < decayEnd; ++k) e0 += e[k] - noiseE;
   // NOTE: thread_local scratch: reused across calls so that a sweep calling
   // this thousands of times does not pay fresh pages each time.
   thread_local std::vector<double> edcDb;
   edcDb.clear();
   {
     const double deepest = e0 * std::pow(10.0, -3.5);
+    const double tiny = e0 * 1e-30;  // noise subtraction can dip a sum below 0
     double remaining = e0;
     for (size_t k = 0; k < len; ++k) {
-      edcDb.push_back(toDb(remaining / e0));
+      edcDb.push_back(toDb(std::max(remaining, tiny) / e0));
       if (remaining < deepest) break;
-      remaining -= e[onset + k];
+      remaining -= e[onset + k] - noiseE;
     }
   }
-  const double lastEdc = e[decayEnd - 1] + compEnergy;
+  const double lastEdc = std::max(e[decayEnd - 1] - noiseE, 0.0) + compEnergy;
   const double floorDb = toDb(lastEdc / e0);
   // Data that simply ends (no noise found): the EDC plunges to -inf at the end
   // whatever the decay, so "reaching" -35 dB proves nothing. Estimate where

@@ -88,6 +88,16 @@ TEST(RoomAcoustics, ShortDecayIsNotLengthenedByTheOctaveFilter) {
     EXPECT_NEAR(m.t20S, t, 0.02 * t) << f << " Hz";
     EXPECT_NEAR(m.t30S, t, 0.02 * t) << f << " Hz";
   }
+  // The 125 Hz limit: EDT = 0.1 s still within 1 JND (a causal filter would
+  // need T > 0.18 s by the usual B T > 16 rule).
+  std::vector<float> ir(size_t(0.6 * kFs), 0.0f);
+  for (size_t i = 960; i < ir.size(); ++i) {
+    const double ts = double(i - 960) / kFs;
+    ir[i] = float(std::sin(2 * kPi * 125.0 * ts + 0.3) * std::exp(-6.9 * ts / 0.1));
+  }
+  auto r = analyzeIr(ir, kFs);
+  ASSERT_TRUE(r.isOk());
+  EXPECT_NEAR((*r)[0].edtS, 0.1, kJndDecayRelative * 0.1);
 }
 
 TEST(RoomAcoustics, PureImpulseHasOnlyEarlyEnergy) {
@@ -145,9 +155,10 @@ TEST(RoomAcoustics, TwoImpulsesWithinFiftyMillisecondsGiveInfiniteClarity) {
 }
 
 // Lundeby's treatment: with stationary noise 50 dB below the decay's start,
-// T20 and T30 still come out right (4 sigma as above plus 2 % for the
-// compensation's residual bias); integrating the noise instead lengthens T30
-// far beyond that. With noise 30 dB down, T20/T30 lack the ISO 10 dB margin
+// T20 and T30 still come out right (4 sigma as above plus 1 % for the
+// method's residual bias: over seeds 3..8 the mean T30 error is +0.02 %, it
+// was +1.3 % before the noise was also subtracted); integrating the noise
+// instead lengthens T30 far beyond that. With noise 30 dB down, T20/T30 lack the ISO 10 dB margin
 // and must be n/a, not garbage.
 TEST(RoomAcoustics, LundebyTruncationHandlesANoiseFloor) {
   const double t = 0.5;
@@ -157,8 +168,8 @@ TEST(RoomAcoustics, LundebyTruncationHandlesANoiseFloor) {
   const BandMetrics& bb = (*r)[kBroadbandIndex];
   EXPECT_TRUE(bb.noiseFloorFound);
   EXPECT_NEAR(bb.noiseFloorDb, -50.0, 2.0);
-  EXPECT_NEAR(bb.t30S, t, (4 * sigmaRel(0.55, kFs / 2, t) + 0.02) * t);
-  EXPECT_NEAR(bb.t20S, t, (4 * sigmaRel(0.88, kFs / 2, t) + 0.02) * t);
+  EXPECT_NEAR(bb.t30S, t, (4 * sigmaRel(0.55, kFs / 2, t) + 0.01) * t);
+  EXPECT_NEAR(bb.t20S, t, (4 * sigmaRel(0.88, kFs / 2, t) + 0.01) * t);
   EXPECT_LT(bb.decayEndS, 0.01 + 50.0 / 60.0 * t + 0.1);  // cross-point near where the decay meets the noise
 
   AnalysisOptions none;
