@@ -48,10 +48,21 @@ Status validate(const IrSynthesisSettings& s) {
   return Status::ok();
 }
 
-size_t irLengthSamples(const DirectPath* direct, const EnergyHistogram* reflections, const IrSynthesisSettings& s) {
+Arrival toArrival(const DirectPath& direct) {
+  Arrival a;
+  a.delaySeconds = direct.delaySeconds;
+  a.gain = direct.audible ? direct.spreadingGain : 0.0;
+  a.bandGain = direct.bandGain;
+  a.direction = direct.directionFromListener;
+  return a;
+}
+
+size_t irLengthSamples(const std::vector<Arrival>& arrivals, const EnergyHistogram* reflections,
+                       const IrSynthesisSettings& s) {
   if (s.lengthSeconds > 0) return std::max<size_t>(1, size_t(std::llround(s.lengthSeconds * s.sampleRateHz)));
   double end = 0.0;
-  if (direct && direct->audible) end = direct->delaySeconds;
+  for (const Arrival& a : arrivals)
+    if (a.gain != 0) end = std::max(end, a.delaySeconds);
   if (reflections) {
     long last = reflections->lastNonEmptyBin();
     if (last >= 0) end = std::max(end, double(last + 1) * reflections->binSeconds());
@@ -61,9 +72,19 @@ size_t irLengthSamples(const DirectPath* direct, const EnergyHistogram* reflecti
 
 Result<AudioBuffer> synthesizeOmniIr(const DirectPath* direct, const EnergyHistogram* reflections,
                                      const IrSynthesisSettings& settings) {
+  std::vector<Arrival> arrivals;
+  if (direct && direct->audible) arrivals.push_back(toArrival(*direct));
+  return synthesizeOmniIr(arrivals, reflections, settings);
+}
+
+Result<AudioBuffer> synthesizeOmniIr(const std::vector<Arrival>& arrivals, const EnergyHistogram* reflections,
+                                     const IrSynthesisSettings& settings) {
   EARSHOT_RETURN_IF_ERROR(validate(settings));
+  for (const Arrival& a : arrivals)
+    if (!std::isfinite(a.delaySeconds) || a.delaySeconds < 0 || !std::isfinite(a.gain))
+      return invalidArgument("arrival with delay " + std::to_string(a.delaySeconds) + " s, gain " + std::to_string(a.gain));
   const double fs = settings.sampleRateHz;
-  const size_t length = irLengthSamples(direct, reflections, settings);
+  const size_t length = irLengthSamples(arrivals, reflections, settings);
   if (length > kMaxSamples) return outOfRange("IR of " + std::to_string(length) + " samples is over the limit");
   const size_t n = fastFftSize(length + kMargin);
   const size_t bins = n / 2 + 1;
@@ -81,16 +102,37 @@ Result<AudioBuffer> synthesizeOmniIr(const DirectPath* direct, const EnergyHisto
 
   std::vector<std::complex<double>> spectrum(bins, 0.0);
 
-  // Direct sound: exact fractional delay per band.
-  if (direct && direct->audible) {
-    const double tau = direct->delaySeconds * fs;  // samples
+  // Discrete arrivals: exact fractional delays per band. At most two band
+  // weights are non-zero at any frequency: precompute the lower one.
+  if (!arrivals.empty()) {
+    std::vector<uint8_t> lowerBand(bins);
+    std::vector<double> lowerWeight(bins);
     for (size_t k = 0; k < bins; ++k) {
-      double g = 0;
-      for (int b = 0; b < kNumBands; ++b) g += direct->bandGain[b] * weights[b][k];
-      const double phase = -2.0 * kPi * double(k) * tau / double(n);
-      spectrum[k] += direct->spreadingGain * g * std::complex<double>(std::cos(phase), std::sin(phase));
+      int lb = kNumBands - 1;
+      for (int b = 0; b < kNumBands; ++b)
+        if (weights[b][k] > 0) {
+          lb = b;
+          break;
+        }
+      lowerBand[k] = uint8_t(lb);
+      lowerWeight[k] = weights[lb][k];
     }
-    // Nyquist bin of a real signal must be real; keep its real part.
+    for (const Arrival& a : arrivals) {
+      if (a.gain == 0) continue;
+      const double tau = a.delaySeconds * fs;  // samples
+      // exp(-j 2 pi k tau / n) by recurrence: one complex multiply per bin.
+      const std::complex<double> step = std::polar(1.0, -2.0 * kPi * tau / double(n));
+      std::complex<double> phase = 1.0;
+      for (size_t k = 0; k < bins; ++k) {
+        const int lb = lowerBand[k];
+        const double w = lowerWeight[k];
+        const double g = a.bandGain[lb] * w + (lb + 1 < kNumBands ? a.bandGain[lb + 1] * (1.0 - w) : 0.0);
+        spectrum[k] += a.gain * g * phase;
+        phase *= step;
+        if ((k & 1023) == 1023) phase /= std::abs(phase);  // keep |phase| = 1 over long recurrences
+      }
+    }
+    // The Nyquist bin of a real signal must be real.
     if (n % 2 == 0) spectrum[bins - 1] = spectrum[bins - 1].real();
   }
 

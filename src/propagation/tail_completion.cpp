@@ -40,11 +40,12 @@ Result<EnergyHistogram> completeTail(const EnergyHistogram& h, const TailData& t
     }
     info.meanLoss[b] = 1.0 - kept / total;
     info.meanFreePathMeters[b] = kept > 0 ? length / kept : 0.0;
+    std::vector<std::pair<double, double>> paths;  // (free path, energy kept), non-empty bins only
+    for (size_t i = 0; i < tail.pathRetained.size(); ++i)
+      if (tail.pathRetained[i][b] > 0) paths.emplace_back(freePathBinCenter(i), tail.pathRetained[i][b]);
     auto F = [&](double d) {
       double sum = 0;
-      for (size_t i = 0; i < tail.pathRetained.size(); ++i)
-        if (tail.pathRetained[i][b] > 0)
-          sum += tail.pathRetained[i][b] * std::exp((d / settings.speedOfSound - m[b]) * freePathBinCenter(i));
+      for (const auto& [l, kept] : paths) sum += kept * std::exp((d / settings.speedOfSound - m[b]) * l);
       return sum / total;
     };
     double lo = 0.0, hi = 1e6;
@@ -53,7 +54,7 @@ Result<EnergyHistogram> completeTail(const EnergyHistogram& h, const TailData& t
     } else if (F(lo) >= 1.0) {
       delta[b] = 1e-3;  // lossless: no decay to extrapolate
     } else {
-      for (int it = 0; it < 200 && hi - lo > 1e-9 * hi; ++it) {
+      for (int it = 0; it < 100 && hi - lo > 1e-7 * hi; ++it) {
         const double mid = 0.5 * (lo + hi);
         (F(mid) < 1.0 ? lo : hi) = mid;
       }

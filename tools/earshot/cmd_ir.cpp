@@ -12,10 +12,8 @@
 #include "earshot/core/thread_pool.h"
 #include "earshot/io/atomic_file.h"
 #include "earshot/io/wav.h"
-#include "earshot/ir/ir_synthesis.h"
+#include "earshot/ir/ir_pipeline.h"
 #include "earshot/materials/material.h"
-#include "earshot/propagation/direct_path.h"
-#include "earshot/propagation/reflection_tracer.h"
 #include "earshot/scene/gltf_loader.h"
 #include "earshot/scene/ray_tracer.h"
 
@@ -39,6 +37,8 @@ struct IrOptions {
   std::string json;
   double binMs = 1.0;
   double receiverRadius = 0.0;
+  std::string quality = "balanced";
+  uint32_t ismOrder = 3;
 };
 
 double msSince(std::chrono::steady_clock::time_point t) {
@@ -77,7 +77,7 @@ Result<AirConditions> parseAir(const std::string& text) {
   return air;
 }
 
-int run(const IrOptions& o) {
+int run(const IrOptions& o, const CLI::App& cmd) {
   const auto t0 = std::chrono::steady_clock::now();
   nlohmann::json stats;
   if (o.receiver != "omni") {
@@ -86,6 +86,33 @@ int run(const IrOptions& o) {
   }
   auto air = parseAir(o.air);
   if (!check(air.status())) return 2;
+
+  // Settings: the preset, then any explicit option over it.
+  OmniIrSettings settings;
+  auto preset = qualityPreset(o.quality);
+  if (!preset.isOk()) {
+    printError("--quality: " + preset.status().message());
+    return 2;
+  }
+  apply(*preset, settings);
+  if (cmd.count("--rays")) settings.rays = o.rays;
+  if (cmd.count("--bounces")) settings.bounces = o.bounces;
+  if (cmd.count("--ism-order")) settings.imageSourceOrder = o.ismOrder;
+  if (cmd.count("--bin-ms")) settings.binSeconds = o.binMs / 1000.0;
+  settings.sampleRateHz = o.rate;
+  settings.seed = o.seed;
+  settings.air = *air;
+  settings.receiverRadiusMeters = o.receiverRadius;
+  if (o.length != "auto") {
+    try {
+      size_t used = 0;
+      settings.lengthSeconds = std::stod(o.length, &used);
+      if (used != o.length.size() || !(settings.lengthSeconds > 0)) throw std::invalid_argument("");
+    } catch (...) {
+      printError("--length: '" + o.length + "' is not a positive number of seconds or 'auto'");
+      return 2;
+    }
+  }
 
   // Materials.
   MaterialTable materials = defaultMaterials();
@@ -119,74 +146,48 @@ int run(const IrOptions& o) {
   }
   stats["bvh_build_ms"] = msSince(tBuild);
   stats["triangles"] = mesh.triangleCount();
+  stats["planes"] = (*tracer)->planes().planes.size();
 
+  ThreadPool pool(o.threads);
   const Vec3d source{o.source[0], o.source[1], o.source[2]};
   const Vec3d listener{o.listener[0], o.listener[1], o.listener[2]};
+  auto result = computeOmniIr(**tracer, materials, source, listener, settings, pool);
+  if (!check(result.status())) return 2;
+  const OmniIrResult& r = *result;
 
-  // Direct path.
-  auto tDirect = std::chrono::steady_clock::now();
-  DirectPathSettings ds;
-  ds.air = *air;
-  DirectPath direct = computeDirectPath(tracer->get(), materials, source, listener, ds);
-  stats["direct_ms"] = msSince(tDirect);
-  stats["direct"] = {{"distance_m", direct.distanceMeters}, {"delay_s", direct.delaySeconds},
-                     {"surfaces_crossed", direct.surfacesCrossed}, {"audible", direct.audible}};
+  stats["quality"] = o.quality;
+  stats["settings"] = {{"rays", settings.rays},           {"bounces", settings.bounces},
+                       {"ism_order", settings.imageSourceOrder}, {"bin_ms", settings.binSeconds * 1000.0},
+                       {"seed", settings.seed},           {"sample_rate_hz", settings.sampleRateHz}};
+  stats["threads"] = pool.threadCount();
+  stats["direct"] = {{"distance_m", r.direct.distanceMeters}, {"delay_s", r.direct.delaySeconds},
+                     {"surfaces_crossed", r.direct.surfacesCrossed}, {"audible", r.direct.audible}};
+  stats["early_reflections"] = {{"paths", r.early.size()},
+                                {"candidates", r.imageSourceCandidates},
+                                {"exhaustive", r.imageSourcesExhaustive}};
+  const auto& st = r.traceStats;
+  stats["rays_traced"] = (*tracer)->empty() ? 0 : st.raysTraced;
+  stats["rays_escaped"] = st.raysEscaped;
+  stats["rays_cut_by_bounce_limit"] = st.raysCut;
+  stats["rays_ended_by_roulette"] = st.raysRouletted;
+  stats["segments_traced"] = st.segmentsTraced;
+  stats["shadow_rays"] = st.shadowRays;
+  stats["specular_detections_left_to_image_sources"] = st.specularExcluded;
+  stats["energy_escaped_fraction"] = st.energyEscaped;
+  stats["receiver_radius_m"] = st.receiverRadiusMeters;
+  stats["tail"] = {{"extended", r.tail.extended},
+                   {"t60_s", r.tail.t60Seconds},
+                   {"start_s", r.tail.startSeconds},
+                   {"mean_loss_per_reflection", r.tail.meanLoss},
+                   {"mean_free_path_m", r.tail.meanFreePathMeters}};
+  stats["skipped"] = r.skipped;
+  stats["time_ms"] = {{"direct", r.timings.directMs},     {"early_reflections", r.timings.imageSourcesMs},
+                      {"trace", r.timings.traceMs},       {"tail", r.timings.tailMs},
+                      {"synthesis", r.timings.synthesisMs}, {"pipeline", r.timings.totalMs}};
+  stats["ir_samples"] = r.ir.frameCount();
+  stats["ir_seconds"] = double(r.ir.frameCount()) / settings.sampleRateHz;
 
-  // Reflections.
-  IrSynthesisSettings is;
-  is.sampleRateHz = o.rate;
-  is.seed = o.seed;
-  if (o.length != "auto") {
-    try {
-      size_t used = 0;
-      is.lengthSeconds = std::stod(o.length, &used);
-      if (used != o.length.size() || !(is.lengthSeconds > 0)) throw std::invalid_argument("");
-    } catch (...) {
-      printError("--length: '" + o.length + "' is not a positive number of seconds or 'auto'");
-      return 2;
-    }
-  }
-  if (!check(validate(is))) return 2;
-  ReflectionSettings rs;
-  rs.rays = o.rays;
-  rs.bounces = o.bounces;
-  rs.seed = o.seed;
-  rs.air = *air;
-  rs.binSeconds = o.binMs / 1000.0;
-  rs.receiverRadiusMeters = o.receiverRadius;
-  if (is.lengthSeconds > 0) rs.maxTimeSeconds = is.lengthSeconds;
-  if (!check(validate(rs))) return 2;
-
-  std::unique_ptr<ThreadPool> pool = std::make_unique<ThreadPool>(o.threads);
-  std::optional<ReflectionResult> reflections;
-  if (!(*tracer)->empty() && o.bounces > 0) {
-    auto r = traceReflections(**tracer, materials, source, listener, rs, *pool);
-    if (!check(r.status())) return 2;
-    reflections = std::move(r.value());
-    const auto& st = reflections->stats;
-    stats["rays_traced"] = st.raysTraced;
-    stats["rays_escaped"] = st.raysEscaped;
-    stats["segments_traced"] = st.segmentsTraced;
-    stats["shadow_rays"] = st.shadowRays;
-    stats["energy_escaped_fraction"] = st.energyEscaped;
-    stats["energy_after_histogram"] = st.energyLate;
-    stats["receiver_radius_m"] = st.receiverRadiusMeters;
-    stats["trace_ms"] = st.traceMs;
-  } else {
-    stats["rays_traced"] = 0;
-    stats["reflections"] = (*tracer)->empty() ? "skipped: no geometry" : "skipped: 0 bounces";
-  }
-  stats["threads"] = pool->threadCount();
-
-  // Synthesis.
-  auto tSynth = std::chrono::steady_clock::now();
-  auto ir = synthesizeOmniIr(direct.audible ? &direct : nullptr, reflections ? &reflections->histogram : nullptr, is);
-  if (!check(ir.status())) return 2;
-  stats["synthesis_ms"] = msSince(tSynth);
-  stats["ir_samples"] = ir->frameCount();
-  stats["sample_rate_hz"] = o.rate;
-
-  if (!check(writeWavFloat(o.output, *ir))) return 2;
+  if (!check(writeWavFloat(o.output, r.ir))) return 2;
   stats["total_ms"] = msSince(t0);
   if (!o.json.empty() && !check(writeTextFileAtomically(o.json, stats.dump(2) + "\n"))) return 2;
   return 0;
@@ -206,17 +207,22 @@ const Registrar registrar([](CLI::App& root) {
       ->check(CLI::IsMember({"omni", "binaural"}))
       ->capture_default_str();
   cmd->add_option("--rate", o->rate, "Sample rate in Hz")->check(CLI::Range(8000.0, 384000.0))->capture_default_str();
-  cmd->add_option("--rays", o->rays, "Rays traced")->check(CLI::Range(1u, 100000000u))->capture_default_str();
-  cmd->add_option("--bounces", o->bounces, "Reflections per ray")->check(CLI::Range(0u, 100000u))->capture_default_str();
+  cmd->add_option("--rays", o->rays, "Rays traced (balanced: 16384)")->check(CLI::Range(1u, 100000000u));
+  cmd->add_option("--bounces", o->bounces, "Reflections per ray (balanced: 12)")->check(CLI::Range(0u, 100000u));
   cmd->add_option("--length", o->length, "IR length in seconds, or auto")->capture_default_str();
   cmd->add_option("--seed", o->seed, "Random seed (same seed, same output, any thread count)")->capture_default_str();
   cmd->add_option("--threads", o->threads, "Threads (0 = all cores)")->check(CLI::Range(0u, 256u))->capture_default_str();
   cmd->add_option("--air", o->air, "Air absorption: TEMP_C,HUMIDITY_PCT or off (ISO 9613-1)")->capture_default_str();
   cmd->add_option("--json", o->json, "Write statistics (rays, escaped energy, time per stage) to this JSON file");
-  cmd->add_option("--bin-ms", o->binMs, "Energy histogram resolution in ms")->check(CLI::Range(0.01, 100.0))->capture_default_str();
+  cmd->add_option("--bin-ms", o->binMs, "Energy histogram resolution in ms (balanced: 1)")->check(CLI::Range(0.01, 100.0));
   cmd->add_option("--receiver-radius", o->receiverRadius, "Receiver sphere radius for specular paths in m (0 = auto)")
       ->check(CLI::Range(0.0, 1000.0))->capture_default_str();
-  cmd->callback([o] { setExitCode(run(*o)); });
+  cmd->add_option("--quality", o->quality, "Preset: draft | balanced | high | reference (explicit options override it)")
+      ->check(CLI::IsMember({"draft", "balanced", "high", "reference"}))
+      ->capture_default_str();
+  cmd->add_option("--ism-order", o->ismOrder, "Image-source order of early specular reflections (0 = none)")
+      ->check(CLI::Range(0u, kMaxImageSourceOrder));
+  cmd->callback([o, cmd] { setExitCode(run(*o, *cmd)); });
 });
 
 }  // namespace

@@ -14,6 +14,7 @@
  *  Conventions (DESIGN.md): time 0 = emission, 1/r amplitude, float, no
  *  normalisation. */
 #include <cstdint>
+#include <vector>
 
 #include "earshot/core/audio_buffer.h"
 #include "earshot/core/status.h"
@@ -21,6 +22,18 @@
 #include "earshot/propagation/energy_histogram.h"
 
 namespace earshot {
+
+/** One discrete arrival (the direct sound, an image source): a band-limited
+ *  fractional-delay impulse. */
+struct Arrival {
+  double delaySeconds = 0;
+  double gain = 0;          ///< broadband pressure factor (spreading)
+  BandArrayD bandGain{};    ///< per-band pressure factor (air, reflections, transmission)
+  Vec3d direction;          ///< unit, from the listener toward the arrival (world frame)
+};
+
+/** The direct path as an arrival (inaudible paths give gain 0). */
+Arrival toArrival(const DirectPath& direct);
 
 struct IrSynthesisSettings {
   double sampleRateHz = 48000.0;  ///< [8000, 384000]
@@ -32,9 +45,15 @@ struct IrSynthesisSettings {
 Status validate(const IrSynthesisSettings& settings);
 
 /** Length in samples that synthesizeOmniIr will produce. */
-size_t irLengthSamples(const DirectPath* direct, const EnergyHistogram* reflections, const IrSynthesisSettings& settings);
+size_t irLengthSamples(const std::vector<Arrival>& arrivals, const EnergyHistogram* reflections,
+                       const IrSynthesisSettings& settings);
 
-/** A 1-channel pressure IR. Either input may be null (then omitted). */
+/** A 1-channel pressure IR from discrete arrivals and a (late) energy
+ *  histogram, which may be null. */
+Result<AudioBuffer> synthesizeOmniIr(const std::vector<Arrival>& arrivals, const EnergyHistogram* reflections,
+                                     const IrSynthesisSettings& settings);
+
+/** Convenience: the direct path (may be null) and a histogram. */
 Result<AudioBuffer> synthesizeOmniIr(const DirectPath* direct, const EnergyHistogram* reflections,
                                      const IrSynthesisSettings& settings);
 

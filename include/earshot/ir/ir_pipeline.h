@@ -1,0 +1,67 @@
+#pragma once
+/** @file One source/listener pair to an omnidirectional IR: the direct path,
+ *  early specular reflections (image sources), stochastic late reflections
+ *  (with the image-source paths excluded), tail completion, synthesis. The
+ *  one implementation behind `earshot ir`, `earshot tradeoff` and rendering. */
+#include <string>
+#include <vector>
+
+#include "earshot/core/audio_buffer.h"
+#include "earshot/core/status.h"
+#include "earshot/ir/ir_synthesis.h"
+#include "earshot/propagation/direct_path.h"
+#include "earshot/propagation/image_sources.h"
+#include "earshot/propagation/reflection_tracer.h"
+#include "earshot/propagation/tail_completion.h"
+
+namespace earshot {
+
+class RayTracer;
+class ThreadPool;
+
+struct OmniIrSettings {
+  double sampleRateHz = 48000.0;
+  double lengthSeconds = 0.0;      ///< 0: automatic (from the decay)
+  uint32_t rays = 16384;
+  uint32_t bounces = 12;
+  uint32_t imageSourceOrder = 3;   ///< 0: no image sources (all reflections stochastic)
+  uint64_t seed = 1;
+  double speedOfSound = 343.0;
+  AirConditions air;
+  double binSeconds = 0.001;
+  double receiverRadiusMeters = 0.0;  ///< 0: automatic
+  bool completeTail = true;
+};
+
+/** Named quality presets: rays, bounces, image-source order, histogram bin. */
+struct QualityPreset {
+  std::string name;
+  uint32_t rays, bounces, imageSourceOrder;
+  double binSeconds;
+};
+/** "draft", "balanced" (the defaults), "high", "reference". */
+Result<QualityPreset> qualityPreset(const std::string& name);
+const std::vector<QualityPreset>& qualityPresets();
+void apply(const QualityPreset& preset, OmniIrSettings& settings);
+
+struct OmniIrTimings {
+  double directMs = 0, imageSourcesMs = 0, traceMs = 0, tailMs = 0, synthesisMs = 0, totalMs = 0;
+};
+
+struct OmniIrResult {
+  AudioBuffer ir;                      ///< 1 channel
+  DirectPath direct;
+  std::vector<SpecularPath> early;     ///< image-source paths rendered
+  EnergyHistogram late;                ///< completed stochastic histogram
+  ReflectionStats traceStats;
+  TailInfo tail;
+  uint64_t imageSourceCandidates = 0;
+  bool imageSourcesExhaustive = true;
+  OmniIrTimings timings;
+  std::vector<std::string> skipped;    ///< work not needed for this scene, with why
+};
+
+Result<OmniIrResult> computeOmniIr(const RayTracer& tracer, const MaterialTable& materials, const Vec3d& source,
+                                   const Vec3d& listener, const OmniIrSettings& settings, ThreadPool& pool);
+
+}  // namespace earshot

@@ -1,0 +1,136 @@
+#include "earshot/ir/ir_pipeline.h"
+
+#include <chrono>
+
+#include "earshot/core/thread_pool.h"
+#include "earshot/scene/ray_tracer.h"
+
+namespace earshot {
+
+namespace {
+double msSince(std::chrono::steady_clock::time_point t) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count();
+}
+}  // namespace
+
+const std::vector<QualityPreset>& qualityPresets() {
+  static const std::vector<QualityPreset> presets = {
+      {"draft", 2048, 8, 2, 0.002},
+      {"balanced", 16384, 12, 3, 0.001},
+      {"high", 65536, 24, 3, 0.001},
+      {"reference", 262144, 64, 3, 0.0005},
+  };
+  return presets;
+}
+
+Result<QualityPreset> qualityPreset(const std::string& name) {
+  for (const auto& p : qualityPresets())
+    if (p.name == name) return p;
+  return invalidArgument("quality '" + name + "' is not one of draft, balanced, high, reference");
+}
+
+void apply(const QualityPreset& p, OmniIrSettings& s) {
+  s.rays = p.rays;
+  s.bounces = p.bounces;
+  s.imageSourceOrder = p.imageSourceOrder;
+  s.binSeconds = p.binSeconds;
+}
+
+Result<OmniIrResult> computeOmniIr(const RayTracer& tracer, const MaterialTable& materials, const Vec3d& source,
+                                   const Vec3d& listener, const OmniIrSettings& s, ThreadPool& pool) {
+  const auto t0 = std::chrono::steady_clock::now();
+  if (!isFinite(source) || !isFinite(listener)) return invalidArgument("source or listener position is not finite");
+  OmniIrResult out;
+  IrSynthesisSettings synth;
+  synth.sampleRateHz = s.sampleRateHz;
+  synth.lengthSeconds = s.lengthSeconds;
+  synth.seed = s.seed;
+  EARSHOT_RETURN_IF_ERROR(validate(synth));
+
+  // Direct sound.
+  auto t = std::chrono::steady_clock::now();
+  DirectPathSettings ds;
+  ds.speedOfSound = s.speedOfSound;
+  ds.air = s.air;
+  EARSHOT_RETURN_IF_ERROR(validate(ds.air));
+  out.direct = computeDirectPath(&tracer, materials, source, listener, ds);
+  out.timings.directMs = msSince(t);
+  std::vector<Arrival> arrivals;
+  if (out.direct.audible) arrivals.push_back(toArrival(out.direct));
+  if (tracer.empty()) out.skipped.push_back("reflections: no geometry");
+  if (out.direct.surfacesCrossed == 0 && !tracer.empty()) out.skipped.push_back("transmission: nothing between source and listener");
+
+  // Early specular reflections.
+  const PlaneSequenceSet* excluded = nullptr;
+  ImageSourceResult ism;
+  if (!tracer.empty() && s.imageSourceOrder > 0) {
+    t = std::chrono::steady_clock::now();
+    ImageSourceSettings is;
+    is.maxOrder = s.imageSourceOrder;
+    is.speedOfSound = s.speedOfSound;
+    is.air = s.air;
+    is.seed = s.seed;
+    is.candidateRays = std::min<uint32_t>(s.rays, 16384);
+    auto r = findImageSources(tracer, materials, source, listener, is);
+    if (!r.isOk()) return r.status();
+    ism = std::move(r.value());
+    out.timings.imageSourcesMs = msSince(t);
+    out.early = ism.paths;
+    out.imageSourceCandidates = ism.candidates;
+    out.imageSourcesExhaustive = ism.exhaustive;
+    excluded = &ism.found;
+    for (const SpecularPath& p : ism.paths) {
+      Arrival a;
+      a.delaySeconds = p.delaySeconds;
+      a.gain = p.spreadingGain;
+      a.bandGain = p.bandGain;
+      a.direction = p.directionFromListener;
+      arrivals.push_back(a);
+    }
+  }
+
+  // Late reflections.
+  const EnergyHistogram* late = nullptr;
+  if (!tracer.empty() && s.bounces > 0) {
+    ReflectionSettings rs;
+    rs.rays = s.rays;
+    rs.bounces = s.bounces;
+    rs.seed = s.seed;
+    rs.speedOfSound = s.speedOfSound;
+    rs.air = s.air;
+    rs.binSeconds = s.binSeconds;
+    rs.receiverRadiusMeters = s.receiverRadiusMeters;
+    if (s.lengthSeconds > 0) rs.maxTimeSeconds = s.lengthSeconds;
+    rs.excludedSpecular = excluded;
+    rs.excludedMaxOrder = excluded ? s.imageSourceOrder : 0;
+    auto r = traceReflections(tracer, materials, source, listener, rs, pool);
+    if (!r.isOk()) return r.status();
+    out.traceStats = r->stats;
+    out.timings.traceMs = r->stats.traceMs;
+    t = std::chrono::steady_clock::now();
+    if (s.completeTail) {
+      TailCompletionSettings ts;
+      ts.lengthSeconds = s.lengthSeconds;
+      ts.speedOfSound = s.speedOfSound;
+      ts.air = s.air;
+      auto c = completeTail(r->histogram, r->tail, ts, &out.tail);
+      if (!c.isOk()) return c.status();
+      out.late = std::move(c.value());
+      if (!out.tail.extended) out.skipped.push_back("tail completion: no ray reached the bounce limit");
+    } else {
+      out.late = std::move(r->histogram);
+    }
+    out.timings.tailMs = msSince(t);
+    late = &out.late;
+  }
+
+  t = std::chrono::steady_clock::now();
+  auto ir = synthesizeOmniIr(arrivals, late, synth);
+  if (!ir.isOk()) return ir.status();
+  out.ir = std::move(ir.value());
+  out.timings.synthesisMs = msSince(t);
+  out.timings.totalMs = msSince(t0);
+  return out;
+}
+
+}  // namespace earshot
