@@ -18,10 +18,11 @@
  *  measurable EDT; cf. Jacobsen & Rindel 1987, time-reversed filtering). The
  *  pre-ringing sits before the direct sound; `preGuardSamples` says how far.
  *  Measured EDT bias on an exponentially decaying 125 Hz tone (analyzeIr):
- *  +0.8 % at EDT = 0.2 s, +3.8 % at 0.1 s (under 1 JND), +30 % at 0.05 s; at
- *  250 Hz +3.8 % at 0.05 s; T20/T30 stay within 0.5 % down to 0.1 s. (The
- *  limit usually quoted for a causal octave filter is B T > 16, i.e. T >
- *  0.18 s at 125 Hz.)
+ *  +0.8 % at EDT = 0.2 s, +3.8 % at 0.1 s (under 1 JND), +30 % at 0.05 s; it
+ *  scales with 1 / fc (250 Hz: +3.8 % at 0.05 s). T20/T30 stay within 1.5 %
+ *  down to T = 8 / fc. analyzeIr reports shorter values as n/a. (The limit
+ *  usually quoted for a causal octave filter is B T > 16, i.e. T > 0.18 s at
+ *  125 Hz.) The filter's own impulse response has T30 = 4.3 / fc.
  *
  *  Threading: pure functions; any thread. */
 #include <cstddef>

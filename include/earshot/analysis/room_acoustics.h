@@ -115,9 +115,11 @@ constexpr int kBroadbandIndex = kNumBands;
 /** ISO 3382-1 parameters of a one-channel IR: element b < kNumBands is the
  *  octave band kBandCentersHz[b] (zero-phase octave filter, see
  *  octave_filter.h), element kBroadbandIndex is the unfiltered IR. The onset
- *  is detected once on the broadband IR and used for every band. Errors
- *  (invalid argument): empty IR, rate not in (0, 1e6], non-finite sample, all
- *  samples zero, a window that leaves nothing. Cost: O(bands x samples), about
+ *  is detected once on the broadband IR and used for every band. A band's
+ *  EDT below 12 / fc and T20/T30 below 8 / fc (125 Hz: 96 ms, 64 ms) are n/a:
+ *  there the octave filter's own ringing biases them by over 1 JND. Errors
+ *  (invalid argument): empty IR, rate not in [1000, 1e6] Hz, non-finite
+ *  sample, all samples zero, a window that leaves no energy. Cost: O(bands x samples), about
  *  a few ms for 2 s at 48 kHz. */
 Result<std::vector<BandMetrics>> analyzeIr(const std::vector<float>& ir, double rateHz,
                                            const AnalysisOptions& options = {});
