@@ -131,6 +131,35 @@ INSTANTIATE_TEST_SUITE_P(IrLengths, ConvolverMatchesDirect,
                                            size_t{192000}),
                          [](const auto& info) { return "ir" + std::to_string(info.param); });
 
+// The stagger option shifts when each level does its work, never the
+// result: still the direct convolution to 1e-5 of peak (see above).
+TEST(Convolver, StaggeredPhaseIsStillExact) {
+  const size_t irLen = 30000;
+  std::vector<std::vector<float>> ir = {decayingNoise(irLen, 81), decayingNoise(irLen, 82)};
+  std::vector<float> x = decayingNoise(irLen + 4000, 83, 0.0);
+  std::fill(x.begin() + 3000, x.end(), 0.0f);
+  std::vector<std::vector<double>> ref = {directConvolve(x, ir[0], x.size()), directConvolve(x, ir[1], x.size())};
+  double peak = 0;
+  for (auto& ch : ref)
+    for (double v : ch) peak = std::max(peak, std::fabs(v));
+  for (uint32_t phase : {1u, 5u, 37u, 1000u}) {
+    ConvolverSettings s;
+    s.latencyFrames = 64;
+    s.maxIrFrames = irLen;
+    s.channels = 2;
+    s.phase = phase;
+    auto conv = Convolver::create(s);
+    ASSERT_TRUE(conv.isOk());
+    ASSERT_GT((*conv)->layout().levels().size(), 1u);  // so the phase matters
+    ASSERT_TRUE((*conv)->setIr(prepare(ir, (*conv)->layout())).isOk());
+    Streamed r = stream(**conv, x, [] { return size_t{100}; });
+    double worst = 0;
+    for (size_t c = 0; c < 2; ++c)
+      for (size_t t = 64; t < x.size(); ++t) worst = std::max(worst, std::fabs(r.out[c][t] - ref[c][t - 64]));
+    EXPECT_LE(worst, 1e-5 * peak) << "phase " << phase;
+  }
+}
+
 // An impulse in gives the IR out, exactly latencyFrames later, and nothing
 // before. Tolerance: float FFT round-off relative to a unit-peak IR.
 TEST(Convolver, ImpulseGivesIrAtLatency) {
@@ -146,6 +175,25 @@ TEST(Convolver, ImpulseGivesIrAtLatency) {
     for (size_t t = 0; t < irLen; ++t) ASSERT_NEAR(r.out[c][64 + t], ir[c][t], 2e-6) << "channel " << c << " tap " << t;
     for (size_t t = 64 + irLen; t < x.size(); ++t) ASSERT_NEAR(r.out[c][t], 0.0f, 2e-6);
   }
+}
+
+// Processing in place (output 0 is the input buffer) gives the same samples
+// as separate buffers.
+TEST(Convolver, InPlaceEqualsOutOfPlace) {
+  std::vector<std::vector<float>> ir = {decayingNoise(3000, 91), decayingNoise(3000, 92)};
+  auto x = decayingNoise(10000, 93, 0.0);
+  auto a = makeConvolver(64, 3000, 2), b = makeConvolver(64, 3000, 2);
+  ASSERT_TRUE(a->setIr(prepare(ir, a->layout())).isOk());
+  ASSERT_TRUE(b->setIr(prepare(ir, b->layout())).isOk());
+  Streamed ref = stream(*a, x, [] { return size_t{77}; });
+  std::vector<float> buf = x, right(x.size());
+  for (size_t pos = 0; pos < x.size(); pos += 77) {
+    size_t n = std::min<size_t>(77, x.size() - pos);
+    float* outs[2] = {buf.data() + pos, right.data() + pos};
+    b->process(buf.data() + pos, outs, n);
+  }
+  EXPECT_EQ(buf, ref.out[0]);
+  EXPECT_EQ(right, ref.out[1]);
 }
 
 std::vector<float> sine(size_t frames, double hz, double amp) {
@@ -176,18 +224,22 @@ TEST(Convolver, SwapEveryBlockIsClickFree) {
     return stream(*conv, x, [&] { return block; });
   };
   Streamed a = steady(irA), b = steady(irB);
-  auto conv = makeConvolver(block, irLen, 2);
-  auto pa = prepare(irA, conv->layout()), pb = prepare(irB, conv->layout());
-  Streamed s = stream(*conv, x, [&] { return block; },
-                 [&](size_t call) { ASSERT_TRUE(conv->setIr(call % 2 ? pb : pa).isOk()); });
-  const size_t from = irLen + 2 * block;  // past the build-up of the reverb tail
-  for (size_t c = 0; c < 2; ++c) {
-    double limit = 2.0 * std::max(maxStep(a.out[c], from), maxStep(b.out[c], from));
-    EXPECT_LE(maxStep(s.out[c], from), limit) << "channel " << c;
-    // And the swapping really changed the output (the test could fail).
-    double diff = 0;
-    for (size_t t = from; t < frames; ++t) diff = std::max(diff, std::fabs(double(s.out[c][t]) - a.out[c][t]));
-    EXPECT_GT(diff, 1e-3);
+  // Default fade (one block) and a fade longer than a block (1000 frames,
+  // so a fade spans several blocks and new IRs wait for it to end).
+  for (size_t fade : {size_t{0}, size_t{1000}}) {
+    auto conv = makeConvolver(block, irLen, 2, fade);
+    auto pa = prepare(irA, conv->layout()), pb = prepare(irB, conv->layout());
+    Streamed s = stream(*conv, x, [&] { return block; },
+                        [&](size_t call) { ASSERT_TRUE(conv->setIr(call % 2 ? pb : pa).isOk()); });
+    const size_t from = irLen + 2 * block;  // past the build-up of the reverb tail
+    for (size_t c = 0; c < 2; ++c) {
+      double limit = 2.0 * std::max(maxStep(a.out[c], from), maxStep(b.out[c], from));
+      EXPECT_LE(maxStep(s.out[c], from), limit) << "channel " << c << " fade " << fade;
+      // And the swapping really changed the output (the test could fail).
+      double diff = 0;
+      for (size_t t = from; t < frames; ++t) diff = std::max(diff, std::fabs(double(s.out[c][t]) - a.out[c][t]));
+      EXPECT_GT(diff, 1e-3) << "fade " << fade;
+    }
   }
 }
 

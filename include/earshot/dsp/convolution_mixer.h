@@ -56,7 +56,8 @@ class ConvolutionMixer {
   /** Convolves `frames` frames (any count, may change every call, 0 allowed).
    *  inputs[s] is source s's mono input (nullptr = silence for this call);
    *  outputs[c] receives output channel c (settings().channels of them,
-   *  overwritten, not added). inputs and outputs must not alias.
+   *  overwritten, not added). An output may be the same buffer as an input
+   *  (in place): every input frame is read before that frame is written.
    *  Thread: the audio thread only. Real-time safe. */
   void process(const float* const* inputs, float* const* outputs, size_t frames);
 

@@ -36,7 +36,8 @@ class Convolver {
   void collectGarbage() { mMixer->collectGarbage(); }
 
   /** Convolves `frames` frames of `in` (nullptr = silence) into
-   *  out[0..channels) (overwritten). Any frame count, changing between calls.
+   *  out[0..channels) (overwritten; out[0] may be `in`, in place). Any frame
+   *  count, changing between calls.
    *  Thread: audio thread only. Real-time safe. */
   void process(const float* in, float* const* out, size_t frames) { mMixer->process(&in, out, frames); }
 
