@@ -99,7 +99,6 @@ TEST_P(ConvolverMatchesDirect, AllBlockSizes) {
     for (double v : ch) peak = std::max(peak, std::fabs(v));
 
   for (const BlockCase& bc : kBlocks) {
-    if (irLen >= 96000 && (bc.block == 1 || bc.block == 7)) continue;  // same code path, just slow
     auto conv = makeConvolver(bc.latency, irLen, 2);
     ASSERT_TRUE(conv);
     ASSERT_EQ(conv->latencyFrames(), bc.latency);
