@@ -207,4 +207,26 @@ Result<Comparison> compareMetrics(const std::vector<BandMetrics>& test, const st
   return out;
 }
 
+Result<AudioComparison> compareAudio(const AudioBuffer& test, const AudioBuffer& reference,
+                                     const CompareOptions& options, const AnalysisOptions& analysis,
+                                     int onlyChannel) {
+  if (onlyChannel < 0 && test.channelCount() != reference.channelCount())
+    return invalidArgument("IR has " + std::to_string(test.channelCount()) + " channels but the reference has " +
+                           std::to_string(reference.channelCount()) + "; compare one channel");
+  auto a = analyzeAudio(test, analysis, onlyChannel);
+  if (!a) return Status(a.status().code(), "IR: " + a.status().message());
+  auto b = analyzeAudio(reference, analysis, onlyChannel);
+  if (!b) return Status(b.status().code(), "reference: " + b.status().message());
+  AudioComparison out;
+  for (size_t i = 0; i < a->channels.size(); ++i) {
+    auto c = compareMetrics(a->channels[i], b->channels[i], options);
+    if (!c) return c.status();
+    out.failures += c->failures;
+    out.worstJnd = std::max(out.worstJnd, c->worstJnd);
+    out.channelIndices.push_back(onlyChannel >= 0 ? onlyChannel : int(i));
+    out.channels.push_back(std::move(*c));
+  }
+  return out;
+}
+
 }  // namespace earshot::analysis

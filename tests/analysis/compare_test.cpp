@@ -63,7 +63,9 @@ TEST(Compare, NotAvailableInTheTestFailsButInTheReferenceIsSkipped) {
   EXPECT_EQ(r->failures, 1);
   int skipped = 0;
   for (const auto& row : r->rows) {
-    if (row.verdict == Verdict::kFail) EXPECT_NE(row.note.find("decay range too short"), std::string::npos);
+    if (row.verdict == Verdict::kFail) {
+      EXPECT_NE(row.note.find("decay range too short"), std::string::npos);
+    }
     if (row.verdict == Verdict::kSkipped) ++skipped;
   }
   EXPECT_EQ(skipped, 1);
@@ -109,6 +111,36 @@ TEST(Compare, ToleranceFileErrorsNameTheField) {
   EXPECT_NE(badBand.status().message().find("300"), std::string::npos);
   EXPECT_FALSE(parseTolerance("{not json", "tol.json").isOk());
   EXPECT_FALSE(loadToleranceFile("/nonexistent/tol.json").isOk());
+}
+
+TEST(Compare, AudioComparisonGoesChannelByChannel) {
+  // Two-channel IRs: left identical, right with a 20 % longer decay.
+  const double fs = 48000.0;
+  auto decay = [&](double t) {
+    std::vector<float> x(size_t(fs), 0.0f);
+    uint32_t state = 12345;
+    for (size_t i = 480; i < x.size(); ++i) {
+      state = state * 1664525u + 1013904223u;  // LCG noise: same in both IRs
+      const double u = double(state >> 8) / double(1u << 24) - 0.5;
+      x[i] = float(u * std::exp(-6.9 * double(i - 480) / fs / t));
+    }
+    return x;
+  };
+  AudioBuffer ref(2, size_t(fs), fs), test(2, size_t(fs), fs);
+  ref.channels[0] = ref.channels[1] = test.channels[0] = decay(0.4);
+  test.channels[1] = decay(0.48);
+  auto r = compareAudio(test, ref);
+  ASSERT_TRUE(r.isOk()) << r.status().message();
+  ASSERT_EQ(r->channels.size(), 2u);
+  EXPECT_TRUE(r->channels[0].withinTolerance());
+  EXPECT_FALSE(r->channels[1].withinTolerance());
+  auto left = compareAudio(test, ref, {}, {}, 0);
+  ASSERT_TRUE(left.isOk());
+  EXPECT_TRUE(left->withinTolerance());
+  EXPECT_EQ(left->channelIndices, std::vector<int>{0});
+  AudioBuffer mono(1, size_t(fs), fs);
+  mono.channels[0] = decay(0.4);
+  EXPECT_FALSE(compareAudio(test, mono).isOk());
 }
 
 TEST(Compare, BandNamesParse) {

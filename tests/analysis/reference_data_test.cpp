@@ -55,12 +55,14 @@ TEST(ReferenceData, ShoeboxBandMetricsMatchMetaJson) {
       EXPECT_NEAR(differenceInJnd(Metric::kC80, m.c80Db, ref.at("C80").get<double>()), 0.0, tol) << key;
       EXPECT_NEAR(differenceInJnd(Metric::kD50, m.d50, ref.at("D50").get<double>()), 0.0, tol) << key;
       EXPECT_NEAR(differenceInJnd(Metric::kTs, m.tsS, ref.at("Ts").get<double>()), 0.0, tol) << key;
-      if (ref.at("T20_converged").get<bool>())
+      if (ref.at("T20_converged").get<bool>()) {
         EXPECT_NEAR(differenceInJnd(Metric::kT20, m.t20S, ref.at("T20").get<double>()), 0.0, tol)
             << key << " " << m.reason(Metric::kT20);
-      if (ref.at("T30_converged").get<bool>())
+      }
+      if (ref.at("T30_converged").get<bool>()) {
         EXPECT_NEAR(differenceInJnd(Metric::kT30, m.t30S, ref.at("T30").get<double>()), 0.0, tol)
             << key << " " << m.reason(Metric::kT30);
+      }
     }
   }
 }

@@ -120,27 +120,23 @@ void runCompare(const CompareCliOptions& o) {
                std::to_string(ref->channelCount()) + "; choose one with --channel");
     return;
   }
-  auto irA = analysis::analyzeAudio(*ir, ao, o.channel);
-  if (!irA) {
-    printError(o.irPath + ": " + irA.status().message());
+  auto cmpResult = analysis::compareAudio(*ir, *ref, cmp, ao, o.channel);
+  if (!cmpResult) {
+    const std::string& msg = cmpResult.status().message();
+    // Name the file rather than "IR"/"reference".
+    if (msg.rfind("IR: ", 0) == 0)
+      printError(o.irPath + ": " + msg.substr(4));
+    else if (msg.rfind("reference: ", 0) == 0)
+      printError(o.refPath + ": " + msg.substr(11));
+    else
+      printError(msg);
     return;
   }
-  auto refA = analysis::analyzeAudio(*ref, ao, o.channel);
-  if (!refA) {
-    printError(o.refPath + ": " + refA.status().message());
-    return;
-  }
-
-  int failures = 0;
-  double worst = 0.0;
+  const int failures = cmpResult->failures;
+  const double worst = cmpResult->worstJnd;
   std::vector<std::pair<size_t, analysis::Comparison>> perChannel;
-  for (size_t i = 0; i < irA->channels.size(); ++i) {
-    auto c = analysis::compareMetrics(irA->channels[i], refA->channels[i], cmp);
-    if (!check(c.status())) return;
-    failures += c->failures;
-    worst = std::max(worst, c->worstJnd);
-    perChannel.emplace_back(o.channel >= 0 ? size_t(o.channel) : i, std::move(*c));
-  }
+  for (size_t i = 0; i < cmpResult->channels.size(); ++i)
+    perChannel.emplace_back(size_t(cmpResult->channelIndices[i]), std::move(cmpResult->channels[i]));
 
   if (o.json) {
     nlohmann::ordered_json j;

@@ -88,4 +88,21 @@ struct CompareOptions {
 Result<Comparison> compareMetrics(const std::vector<BandMetrics>& test, const std::vector<BandMetrics>& reference,
                                   const CompareOptions& options = {});
 
+/** Comparison of every channel of two IRs (mono or binaural). */
+struct AudioComparison {
+  std::vector<int> channelIndices;     ///< channel number of each entry of `channels`
+  std::vector<Comparison> channels;
+  int failures = 0;
+  double worstJnd = 0.0;
+  bool withinTolerance() const { return failures == 0; }
+};
+
+/** Analyses both IRs (analyzeAudio with `analysis`) and compares them channel
+ *  by channel, or only channel `onlyChannel` if >= 0. Errors: different
+ *  channel counts (without onlyChannel), a missing channel, analysis errors
+ *  (messages say "IR" or "reference"). Cost: two analyzeAudio calls. */
+Result<AudioComparison> compareAudio(const AudioBuffer& test, const AudioBuffer& reference,
+                                     const CompareOptions& options = {}, const AnalysisOptions& analysis = {},
+                                     int onlyChannel = -1);
+
 }  // namespace earshot::analysis
