@@ -55,7 +55,8 @@ class AlignedFloats {
   size_t mSize = 0;
 };
 
-/** Rounds up to a multiple of 32 floats (the MAC kernels' register tile). */
-inline size_t padBins(size_t bins) { return (bins + 31) / 32 * 32; }
+/** Rounds up to a multiple of 8 floats (one AVX register; the MAC kernels
+ *  work in tiles of 16 or 32 floats with an 8-float tail). */
+inline size_t padBins(size_t bins) { return (bins + 7) / 8 * 8; }
 
 }  // namespace earshot::dsp_detail

@@ -36,7 +36,8 @@ static inline void store8(float* p, V8 v) { __builtin_memcpy(p, &v, sizeof(v)); 
 EARSHOT_MAC_CLONES
 void complexMacBatch(float* __restrict ar, float* __restrict ai, const float* const* x, const float* const* h,
                      size_t parts, size_t stride, size_t count) {
-  for (size_t i = 0; i < count; i += 32) {
+  size_t i = 0;
+  for (; i + 32 <= count; i += 32) {
     V8 r0 = load8(ar + i), r1 = load8(ar + i + 8), r2 = load8(ar + i + 16), r3 = load8(ar + i + 24);
     V8 m0 = load8(ai + i), m1 = load8(ai + i + 8), m2 = load8(ai + i + 16), m3 = load8(ai + i + 24);
     for (size_t j = 0; j < parts; ++j) {
@@ -55,18 +56,30 @@ void complexMacBatch(float* __restrict ar, float* __restrict ai, const float* co
       EARSHOT_MAC8(r1, m1, 8)
       EARSHOT_MAC8(r2, m2, 16)
       EARSHOT_MAC8(r3, m3, 24)
-#undef EARSHOT_MAC8
     }
     store8(ar + i, r0), store8(ar + i + 8, r1), store8(ar + i + 16, r2), store8(ar + i + 24, r3);
     store8(ai + i, m0), store8(ai + i + 8, m1), store8(ai + i + 16, m2), store8(ai + i + 24, m3);
   }
+  for (; i < count; i += 8) {  // tail, 8 floats at a time
+    V8 r0 = load8(ar + i), m0 = load8(ai + i);
+    for (size_t j = 0; j < parts; ++j) {
+      const float* xr = x[j] + i;
+      const float* xi = xr + stride;
+      const float* hr = h[j] + i;
+      const float* hi = hr + stride;
+      EARSHOT_MAC8(r0, m0, 0)
+    }
+    store8(ar + i, r0), store8(ai + i, m0);
+  }
+#undef EARSHOT_MAC8
 }
 
 EARSHOT_MAC_CLONES
 void complexMacBatch2(float* __restrict a0r, float* __restrict a0i, float* __restrict a1r, float* __restrict a1i,
                       const float* const* x, const float* const* h0, const float* const* h1, size_t parts,
                       size_t stride, size_t count) {
-  for (size_t i = 0; i < count; i += 16) {
+  size_t i = 0;
+  for (; i + 16 <= count; i += 16) {
     V8 r00 = load8(a0r + i), r01 = load8(a0r + i + 8), m00 = load8(a0i + i), m01 = load8(a0i + i + 8);
     V8 r10 = load8(a1r + i), r11 = load8(a1r + i + 8), m10 = load8(a1i + i), m11 = load8(a1i + i + 8);
     for (size_t j = 0; j < parts; ++j) {
@@ -86,11 +99,22 @@ void complexMacBatch2(float* __restrict a0r, float* __restrict a0i, float* __res
   }
       EARSHOT_MAC8X2(0, r00, m00, r10, m10)
       EARSHOT_MAC8X2(8, r01, m01, r11, m11)
-#undef EARSHOT_MAC8X2
     }
     store8(a0r + i, r00), store8(a0r + i + 8, r01), store8(a0i + i, m00), store8(a0i + i + 8, m01);
     store8(a1r + i, r10), store8(a1r + i + 8, r11), store8(a1i + i, m10), store8(a1i + i + 8, m11);
   }
+  if (i < count) {  // 8-float tail
+    V8 r00 = load8(a0r + i), m00 = load8(a0i + i), r10 = load8(a1r + i), m10 = load8(a1i + i);
+    for (size_t j = 0; j < parts; ++j) {
+      const float* xr = x[j] + i;
+      const float* xi = xr + stride;
+      const float* p0 = h0[j] + i;
+      const float* p1 = h1[j] + i;
+      EARSHOT_MAC8X2(0, r00, m00, r10, m10)
+    }
+    store8(a0r + i, r00), store8(a0i + i, m00), store8(a1r + i, r10), store8(a1i + i, m10);
+  }
+#undef EARSHOT_MAC8X2
 }
 
 EARSHOT_MAC_CLONES

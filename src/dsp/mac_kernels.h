@@ -1,6 +1,6 @@
 #pragma once
 // Complex multiply-accumulate kernels over split real/imaginary arrays, the
-// convolver's hot loop. `count` is a multiple of 32; arrays are 64-byte
+// convolver's hot loop. `count` is a multiple of 8; arrays are 64-byte
 // aligned and do not alias. Internal to src/dsp.
 #include <cstddef>
 
