@@ -111,14 +111,16 @@ NoiseResult lundeby(const double* e, size_t n, double fs) {
   auto lev = [&](size_t b) { return levels[b]; };
   // Noise-free test: stationary noise has the same mean level in both halves
   // of the last 10 %; a decay that simply ends (exact or synthetic data) still
-  // falls there at a good part of its overall rate (measured from the peak to
-  // the last 10 %). Over half the overall rate counts as "still decaying".
+  // falls there at a good part of the rate it had just before (fitted over
+  // 50 .. 90 % of the data, so that a double-slope decay is judged by its late
+  // slope). Over half that rate, and at least 0.25 dB between the halves,
+  // counts as "still decaying".
   {
-    const size_t tailBlock = tail / block;
-    const LineFit overall = fitLine(peak, std::max(tailBlock, peak + 2), blockT, lev);
+    const size_t b0 = std::max(peak, (n / 2) / block), b1 = std::max(tail / block, b0 + 2);
+    const LineFit local = fitLine(std::min(b0, levels.size() - 1), std::min(b1, levels.size()), blockT, lev);
     const double tailDropDb = 10.0 * std::log10(m1 / m2);
-    const double expectedDb = overall.ok ? -overall.slope * double(n / 20) / fs : 0.0;
-    if (expectedDb > 0.0 && tailDropDb > 0.5 * expectedDb) return r;
+    const double expectedDb = local.ok ? -local.slope * double(n / 20) / fs : 0.0;
+    if (expectedDb > 0.5 && tailDropDb > 0.5 * expectedDb) return r;
   }
 
   // Preliminary fit: from the peak down to 10 dB above the noise.

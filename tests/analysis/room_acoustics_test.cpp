@@ -196,6 +196,22 @@ TEST(RoomAcoustics, LundebyTruncationHandlesANoiseFloor) {
   EXPECT_NEAR(nb.edtS, t, 0.1 * t);  // EDT needs only 20 dB
 }
 
+// A double-slope decay (fast, then a slow tail 30 dB down, as in a broadband
+// IR whose low bands ring longer) that simply ends is not noise: the tail
+// still decays at its own, slower rate. T30 is then the -5..-35 dB fit of the
+// two-slope EDC, which lies between the two decay times.
+TEST(RoomAcoustics, DoubleSlopeDecayIsNotMistakenForNoise) {
+  auto fast = noiseDecay(0.3, 0.01, 3.0, 9), slow = noiseDecay(2.0, 0.01, 3.0, 10);
+  std::vector<float> ir(fast.size());
+  for (size_t i = 0; i < ir.size(); ++i) ir[i] = fast[i] + 0.03f * slow[i];
+  auto r = analyzeIr(ir, kFs);
+  ASSERT_TRUE(r.isOk());
+  const BandMetrics& bb = (*r)[kBroadbandIndex];
+  EXPECT_FALSE(bb.noiseFloorFound);
+  EXPECT_GT(bb.t30S, 0.3);
+  EXPECT_LT(bb.t30S, 2.0);
+}
+
 TEST(RoomAcoustics, WindowEndTruncatesTheDecay) {
   auto ir = noiseDecay(1.0, 0.01, 1.6, 5);
   AnalysisOptions o;
