@@ -24,6 +24,9 @@ void complexMac(float* __restrict ar, float* __restrict ai, const float* __restr
 // NOTE: written with GCC/Clang vector extensions (8 floats) so that the
 // 32-float accumulator tile lives in registers; plain loops over a local
 // array were kept on the stack by GCC 12.
+// The default clone passes V8 in memory, the AVX clone in registers; both
+// inline these helpers, so the ABI note GCC emits does not apply.
+#pragma GCC diagnostic ignored "-Wpsabi"
 typedef float V8 __attribute__((vector_size(32)));
 
 static inline V8 load8(const float* p) {
