@@ -23,6 +23,7 @@ struct BenchOptions {
   size_t sources = 1;
   double rate = 48000.0;
   size_t maxPartition = 0;
+  bool silenceCheck = false;
 };
 
 double threadCpuSeconds() {
@@ -99,6 +100,31 @@ int run(const BenchOptions& o) {
   const double worst = blockSeconds.back();
   std::printf("convolve L=%g B=%zu sources=%zu rt_factor=%.1f p99_block_pct=%.3f max_block_pct=%.3f\n", o.irSeconds,
               o.block, o.sources, audio / std::max(cpu, 1e-9), 100.0 * p99 / period, 100.0 * worst / period);
+  if (o.silenceCheck) {
+    // Full-scale noise, then as long again of silence: with denormals
+    // flushed the silent blocks must not cost more than the noisy ones.
+    Pcg32 rng(99, 5);
+    std::vector<std::vector<float>> loud(o.sources, std::vector<float>(o.block));
+    std::vector<float> zeros(o.block, 0.0f);
+    double noiseCpu = 0, silenceCpu = 0;
+    for (int pass = 0; pass < 2; ++pass) {
+      for (size_t i = 0; i < blocks; ++i) {
+        for (size_t src = 0; src < o.sources; ++src) {
+          if (pass == 0) {
+            for (float& v : loud[src]) v = 2.0f * rng.uniform() - 1.0f;
+            ins[src] = loud[src].data();
+          } else {
+            ins[src] = zeros.data();
+          }
+        }
+        const double t0 = threadCpuSeconds();
+        m.process(ins.data(), outs.data(), o.block);
+        (pass == 0 ? noiseCpu : silenceCpu) += threadCpuSeconds() - t0;
+      }
+    }
+    std::printf("convolve-silence L=%g B=%zu noise_us_per_block=%.2f silence_us_per_block=%.2f ratio=%.3f\n",
+                o.irSeconds, o.block, 1e6 * noiseCpu / blocks, 1e6 * silenceCpu / blocks, silenceCpu / noiseCpu);
+  }
   return 0;
 }
 
@@ -126,6 +152,8 @@ const Registrar registrar([](CLI::App& root) {
       ->capture_default_str();
   cmd->add_option("--max-partition", o->maxPartition, "Largest partition in frames (0 = automatic)")
       ->capture_default_str();
+  cmd->add_flag("--silence-check", o->silenceCheck,
+                "Also time --seconds of full-scale noise then as much silence (denormal check)");
   cmd->add_option("--rate", o->rate, "Sample rate in Hz")->check(CLI::Range(8000.0, 384000.0))->capture_default_str();
   cmd->callback([o] { setExitCode(run(*o)); });
 });

@@ -1,0 +1,45 @@
+// `earshot bench convolve` end to end: the one-line report and its errors.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <cstdio>
+#include <regex>
+#include <string>
+
+namespace {
+
+struct Ran {
+  std::string out;
+  int code = -1;
+};
+
+Ran runCli(const std::string& args) {
+  std::string cmd = std::string("'") + EARSHOT_CLI + "' " + args + " 2>&1";
+  Ran r;
+  FILE* p = popen(cmd.c_str(), "r");
+  if (!p) return r;
+  char buf[512];
+  while (fgets(buf, sizeof buf, p)) r.out += buf;
+  int status = pclose(p);
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+TEST(CliBenchConvolve, PrintsOneReportLine) {
+  Ran r = runCli("bench convolve --ir-seconds 0.1 --block 128 --seconds 0.2 --sources 2");
+  ASSERT_EQ(r.code, 0) << r.out;
+  std::smatch m;
+  std::regex line(
+      R"(convolve L=0\.1 B=128 sources=2 rt_factor=([0-9.]+) p99_block_pct=([0-9.]+) max_block_pct=([0-9.]+)\n)");
+  ASSERT_TRUE(std::regex_match(r.out, m, line)) << r.out;
+  EXPECT_GT(std::stod(m[1]), 0.0);
+  EXPECT_LE(std::stod(m[2]), std::stod(m[3]));  // p99 never above the maximum
+}
+
+TEST(CliBenchConvolve, RejectsABlockKissFftWouldAllocateFor) {
+  Ran r = runCli("bench convolve --block 14 --seconds 0.1");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.out.find("latencyFrames=14"), std::string::npos) << r.out;
+}
+
+}  // namespace
