@@ -1,5 +1,6 @@
 #include "earshot/ir/ir_pipeline.h"
 
+#include <algorithm>
 #include <chrono>
 
 #include "earshot/core/thread_pool.h"
@@ -113,6 +114,7 @@ Result<OmniIrResult> computeOmniIr(const RayTracer& tracer, const MaterialTable&
       ts.lengthSeconds = s.lengthSeconds;
       ts.speedOfSound = s.speedOfSound;
       ts.air = s.air;
+      for (const SpecularPath& p : out.early) ts.calibrationStartSeconds = std::max(ts.calibrationStartSeconds, p.delaySeconds);
       auto c = completeTail(r->histogram, r->tail, ts, &out.tail);
       if (!c.isOk()) return c.status();
       out.late = std::move(c.value());

@@ -17,9 +17,11 @@ namespace earshot {
 
 namespace {
 
-// Samples appended beyond the IR before the circular FFT: what the direct
-// sound's sinc tail wraps around with is below 1 / (pi * kMargin) ~ -82 dB.
-constexpr size_t kMargin = 4096;
+// Samples appended beyond the IR before the circular FFT, so that what the
+// zero-phase band filters spread before time 0 (the 125 Hz band's response
+// lasts ~0.1 s each way) wraps into the margin and not onto the IR's end, and
+// the direct sound's sinc tail stays below 1 / (pi * margin).
+constexpr double kMarginSeconds = 0.35;
 // IRs longer than this are refused (10 minutes at 48 kHz).
 constexpr size_t kMaxSamples = size_t(48000) * 600;
 
@@ -86,7 +88,7 @@ Result<AudioBuffer> synthesizeOmniIr(const std::vector<Arrival>& arrivals, const
   const double fs = settings.sampleRateHz;
   const size_t length = irLengthSamples(arrivals, reflections, settings);
   if (length > kMaxSamples) return outOfRange("IR of " + std::to_string(length) + " samples is over the limit");
-  const size_t n = fastFftSize(length + kMargin);
+  const size_t n = fastFftSize(length + size_t(kMarginSeconds * fs));
   const size_t bins = n / 2 + 1;
 
   FftrPtr fwd(kiss_fftr_alloc(int(n), 0, nullptr, nullptr));

@@ -91,7 +91,6 @@ struct Accumulator {
   std::vector<int64_t> hist;                 // [bin][kStride]
   std::vector<int64_t> perOrder;             // [order][band]
   std::vector<int64_t> aliveDiff;            // [bin + 1][band]: difference array of energy in flight
-  std::vector<int64_t> cut;                  // [bin][band]
   int64_t escaped[kNumBands] = {};
   int64_t late[kNumBands] = {};
   std::vector<int64_t> pathEnergy, pathRetained;  // [free-path bin][band]
@@ -207,32 +206,38 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
   // Per-material factors, precomputed.
   struct MatFactors {
     float reflect[kNumBands], transmit[kNumBands], scatter[kNumBands];
-    float meanReflect, meanTransmit;
+    float meanReflect, meanTransmit, meanScatter;
   };
   std::vector<MatFactors> mats(materials.size());
   for (size_t i = 0; i < materials.size(); ++i) {
     const Material& m = materials[uint32_t(i)];
     MatFactors& f = mats[i];
-    f.meanReflect = f.meanTransmit = 0;
+    f.meanReflect = f.meanTransmit = f.meanScatter = 0;
     for (int b = 0; b < kNumBands; ++b) {
       f.reflect[b] = std::clamp(1.0f - m.absorption[b], 0.0f, 1.0f);
       f.transmit[b] = std::clamp(std::min(m.transmission[b], m.absorption[b]), 0.0f, 1.0f);
       f.scatter[b] = std::clamp(m.scattering[b], 0.0f, 1.0f);
       f.meanReflect += f.reflect[b] / kNumBands;
       f.meanTransmit += f.transmit[b] / kNumBands;
+      f.meanScatter += f.scatter[b] / kNumBands;
     }
   }
 
+  std::vector<CutRay> cutRays(settings.rays);  // slot per ray: deterministic
+  std::vector<uint8_t> wasCut(settings.rays, 0);
   std::vector<Accumulator> acc(pool.threadCount());
   for (auto& a : acc) {
     a.hist.assign(bins * EnergyHistogram::kStride, 0);
     a.perOrder.assign(size_t(maxOrder + 1) * kNumBands, 0);
     a.aliveDiff.assign((bins + 1) * kNumBands, 0);
-    a.cut.assign(bins * kNumBands, 0);
     a.pathEnergy.assign(kFreePathBins * kNumBands, 0);
     a.pathRetained.assign(kFreePathBins * kNumBands, 0);
   }
   const uint32_t lossFromOrder = std::max(1u, maxOrder / 2);  // the later half of the bounces
+  // A ray's own decay rate is measured from its first reflection on: a
+  // specular ray keeps its direction class, and six bounces are too few to
+  // see the rarely hit walls of a flat room (its rate would be a lucky draw).
+  const uint32_t ownRateFromOrder = 1;
   const float rouletteThreshold = rayEnergy * 1e-6f;          // 60 dB down
   constexpr float kSurvival = 0.1f;
 
@@ -290,6 +295,7 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
       bool pureSpecular = true;    // every event so far a specular reflection
       PlaneSequence planes;
       planes.fill(0xFFFFFFFFu);
+      float halfEnergy[kNumBands] = {}, halfPath = 0, scatterSum = 0;  // state at the later half's start
       for (uint32_t order = 0;; ++order) {
         Hit hit;
         ++a.segments;
@@ -324,6 +330,10 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
         }
         alive(a, pathLength, pathLength + hit.t, energy);
         const MatFactors& m = mats[tracer.materialOf(hit.triangle)];
+        if (order == ownRateFromOrder) {
+          for (int b = 0; b < kNumBands; ++b) halfEnergy[b] = energy[b];
+          halfPath = pathLength;
+        }
         if (order >= lossFromOrder) {
           const size_t fb = freePathBin(hit.t) * kNumBands;
           for (int b = 0; b < kNumBands; ++b) {
@@ -333,17 +343,30 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
         }
         pathLength += hit.t;
         if (order == maxOrder) {
-          // Stopped by the bounce limit: what it would have carried on with.
+          // Stopped by the bounce limit: what it would have carried on with,
+          // and its own decay rate over the later bounces.
           ++a.raysCut;
-          const size_t bin = binOf(pathLength);
-          if (bin < bins) {
-            float f[kNumBands];
-            air.factors(pathLength, f);
-            for (int b = 0; b < kNumBands; ++b)
-              a.cut[bin * kNumBands + b] += toFixed(double(energy[b]) * (m.reflect[b] + m.transmit[b]) * f[b]);
+          CutRay& c = cutRays[rayIndex];
+          wasCut[rayIndex] = 1;
+          c.pathMeters = pathLength;
+          const uint32_t hits = maxOrder - ownRateFromOrder + 1;
+          c.scattering = (scatterSum + m.meanScatter) / float(hits);
+          const float seconds = (pathLength - halfPath) * invC;
+          c.historySeconds = seconds;
+          {
+            Vec3f nn = hit.normal;
+            if (dot(nn, ray.direction) > 0) nn = -nn;
+            c.direction = normalize(ray.direction - nn * (2.0f * dot(ray.direction, nn)));
+          }
+          for (int b = 0; b < kNumBands; ++b) {
+            c.energy[b] = energy[b] * std::min(1.0f, m.reflect[b] + m.transmit[b]);
+            c.decayRate[b] = (seconds > 0 && c.energy[b] > 0 && halfEnergy[b] > 0)
+                                 ? std::max(0.0f, std::log(halfEnergy[b] / c.energy[b]) / seconds)
+                                 : 0.0f;
           }
           break;
         }
+        if (order >= ownRateFromOrder) scatterSum += m.meanScatter;
         const Vec3f p = ray.origin + ray.direction * hit.t;
         Vec3f n = hit.normal;
         if (dot(n, ray.direction) > 0) n = -n;  // face the incoming ray
@@ -420,7 +443,6 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
     for (size_t i = 0; i < total.hist.size(); ++i) total.hist[i] += acc[w].hist[i];
     for (size_t i = 0; i < total.perOrder.size(); ++i) total.perOrder[i] += acc[w].perOrder[i];
     for (size_t i = 0; i < total.aliveDiff.size(); ++i) total.aliveDiff[i] += acc[w].aliveDiff[i];
-    for (size_t i = 0; i < total.cut.size(); ++i) total.cut[i] += acc[w].cut[i];
     for (size_t i = 0; i < total.pathEnergy.size(); ++i) {
       total.pathEnergy[i] += acc[w].pathEnergy[i];
       total.pathRetained[i] += acc[w].pathRetained[i];
@@ -443,13 +465,13 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
       stats.detectedPerOrder[o][b] = double(total.perOrder[size_t(o) * kNumBands + b]) / kFixedScale;
   TailData& tail = result.tail;
   tail.alive.assign(bins, BandArrayD{});
-  tail.cut.assign(bins, BandArrayD{});
+  for (uint32_t i = 0; i < settings.rays; ++i)
+    if (wasCut[i]) tail.cutRays.push_back(cutRays[i]);
   int64_t running[kNumBands] = {};
   for (size_t i = 0; i < bins; ++i)
     for (int b = 0; b < kNumBands; ++b) {
       running[b] += total.aliveDiff[i * kNumBands + b];
       tail.alive[i][b] = double(running[b]) / kFixedScale;
-      tail.cut[i][b] = double(total.cut[i * kNumBands + b]) / kFixedScale;
     }
   for (int b = 0; b < kNumBands; ++b) {
     stats.energyEscaped[b] = double(total.escaped[b]) / kFixedScale;

@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cmath>
 #include <string>
+#include <utility>
+#include <vector>
 
 namespace earshot {
 
@@ -64,73 +66,123 @@ Result<EnergyHistogram> completeTail(const EnergyHistogram& h, const TailData& t
     info.t60Seconds[b] = kNepersPer60Db / delta[b];
   }
 
-  // 2. Completeness and the start of extrapolation, per band.
-  std::vector<BandArrayD> corrected(traced);
-  BandArrayD level{};
-  std::array<size_t, kNumBands> start{};
-  for (int b = 0; b < kNumBands; ++b) {
-    start[b] = traced;
-    double virtualEnergy = 0;
-    const double decay = std::exp(-delta[b] * dt);
-    bool anyCut = false;
-    for (size_t i = 0; i < traced; ++i) {
-      if (i > 0) virtualEnergy = virtualEnergy * decay + (i - 1 < tail.cut.size() ? tail.cut[i - 1][b] : 0.0);
-      anyCut |= virtualEnergy > 0;
-      const double alive = i < tail.alive.size() ? tail.alive[i][b] : 0.0;
-      if (anyCut && haveRates && !(alive > 0 && alive >= virtualEnergy)) {
-        start[b] = i;
-        break;
-      }
-      corrected[i][b] = h.energy(i, b) * (alive > 0 ? (alive + virtualEnergy) / alive : 1.0);
-    }
-    if (start[b] < traced) {
-      // Level of the exponential, fitted to the window before the start.
-      const size_t window = std::min(start[b], std::max<size_t>(1, size_t(kFitWindowSeconds / dt)));
-      double num = 0, den = 0;
-      for (size_t j = start[b] - window; j < start[b]; ++j) {
-        const double shape = std::exp(-delta[b] * (double(j) - double(start[b])) * dt);
-        num += corrected[j][b] * shape;
-        den += shape * shape;
-      }
-      level[b] = den > 0 ? num / den : 0.0;
-      info.extended = true;
-    }
-    info.startSeconds[b] = double(start[b]) * dt;
+  // 2. Virtual energy in flight of the cut rays, per band: rays bucketed by
+  // their effective rate (log-spaced), each bucket a one-pole recursion.
+  constexpr int kRateBuckets = 96;
+  constexpr double kMinRate = 0.05, kMaxRate = 2e4;  // nepers per second
+  auto bucketOf = [&](double rate) {
+    const double x = std::log(std::max(rate, kMinRate) / kMinRate) / std::log(kMaxRate / kMinRate);
+    return std::min(kRateBuckets - 1, int(x * kRateBuckets));
+  };
+  auto bucketRate = [&](int j) { return kMinRate * std::pow(kMaxRate / kMinRate, (j + 0.5) / kRateBuckets); };
+  // A cut ray's future rate: its own loss rate since its first reflection
+  // (a specular ray keeps its direction class), relaxed toward the
+  // population's rate by the scattering it meets. NOTE: with few bounces a
+  // near-axial ray in a flat room may miss a rarely hit absorbing wall by
+  // chance, and such lucky rays lengthen the late tail (pooling rays by
+  // direction instead shortens it: see tests/regression, known gaps).
+  // Rates here exclude air (applied to the virtual energy as exp(-m c t)); the
+  // renewal root delta includes it.
+  auto rateOf = [&](const CutRay& c, int b) {
+    const double own = c.decayRate[b];
+    const double population = haveRates ? std::max(0.0, delta[b] - m[b] * settings.speedOfSound) : own;
+    return (1.0 - c.scattering) * own + c.scattering * population;
+  };
+  double slowest = 1e30, lastCut = 0;
+  for (const CutRay& c : tail.cutRays) {
+    lastCut = std::max(lastCut, double(c.pathMeters) / settings.speedOfSound);
+    for (int b = 0; b < kNumBands; ++b)
+      if (c.energy[b] > 0) slowest = std::min(slowest, rateOf(c, b) + m[b] * settings.speedOfSound);
   }
+  const bool anyCut = !tail.cutRays.empty() && slowest < 1e29;
 
-  // 3. Length.
+  // Length of the histogram to fill.
   size_t bins = traced;
   if (settings.lengthSeconds > 0) {
     bins = std::max<size_t>(1, size_t(std::ceil(settings.lengthSeconds / dt)));
-  } else if (info.extended) {
-    double end = 0;
-    for (int b = 0; b < kNumBands; ++b)
-      if (start[b] < traced && level[b] > 0)
-        end = std::max(end, info.startSeconds[b] + settings.dynamicRangeDb / 10.0 * std::log(10.0) / delta[b]);
-    end = std::min(end, settings.maxAutoSeconds);
+  } else if (anyCut) {
+    const double end = std::min(settings.maxAutoSeconds,
+                                lastCut + settings.dynamicRangeDb / 10.0 * std::log(10.0) / std::max(slowest, 1e-3));
     bins = std::max(bins, size_t(std::ceil(end / dt)));
   } else {
-    // Nothing to extend: end after the last arrival.
     bins = size_t(std::max(1L, h.lastNonEmptyBin() + 1));
   }
+
+  std::vector<BandArrayD> virtualEnergy(bins, BandArrayD{});
+  if (anyCut) {
+    for (int b = 0; b < kNumBands; ++b) {
+      // cuts[i][j]: energy cut in bin i with rate bucket j.
+      std::vector<std::vector<double>> cuts(bins, std::vector<double>());
+      std::vector<double> bucket(kRateBuckets, 0.0);
+      std::vector<std::pair<size_t, std::pair<int, double>>> events;
+      for (const CutRay& c : tail.cutRays) {
+        if (!(c.energy[b] > 0)) continue;
+        const double rate = rateOf(c, b);
+        const size_t bin = size_t(double(c.pathMeters) / settings.speedOfSound / dt);
+        if (bin >= bins) continue;
+        events.push_back({bin, {bucketOf(rate), double(c.energy[b])}});
+      }
+      std::sort(events.begin(), events.end());
+      std::vector<double> stepDecay(kRateBuckets);
+      for (int j = 0; j < kRateBuckets; ++j) stepDecay[j] = std::exp(-bucketRate(j) * dt);
+      const double airPerBin = std::exp(-m[b] * settings.speedOfSound * dt);
+      size_t next = 0;
+      double airFactor = 1.0;  // exp(-m c t) at bin i
+      for (size_t i = 0; i < bins; ++i) {
+        double sum = 0;
+        for (int j = 0; j < kRateBuckets; ++j) {
+          bucket[j] *= stepDecay[j];
+          sum += bucket[j];
+        }
+        while (next < events.size() && events[next].first == i) {
+          bucket[events[next].second.first] += events[next].second.second;
+          ++next;
+        }
+        virtualEnergy[i][b] = sum * airFactor;
+        airFactor *= airPerBin;
+      }
+    }
+  }
+
+  // 3. kappa: detections per unit energy in flight, where the trace is
+  // complete (virtual energy under 10 % of the traced) and after the
+  // image-source part.
+  const size_t calib0 = std::min(traced, size_t(settings.calibrationStartSeconds / dt));
+  for (int b = 0; b < kNumBands; ++b) {
+    size_t end = calib0;
+    while (end < traced && end < tail.alive.size() && tail.alive[end][b] > 0 &&
+           virtualEnergy[end][b] < 0.1 * tail.alive[end][b])
+      ++end;
+    size_t begin = calib0;
+    if (end > begin + size_t(kFitWindowSeconds / dt)) begin = end - size_t(kFitWindowSeconds / dt);
+    double detected = 0, inFlight = 0;
+    for (size_t i = begin; i < end; ++i) {
+      detected += h.energy(i, b);
+      inFlight += tail.alive[i][b];
+    }
+    info.kappa[b] = inFlight > 0 ? detected / inFlight : 0.0;
+    size_t start = traced;
+    for (size_t i = 0; i < traced && i < tail.alive.size(); ++i)
+      if (virtualEnergy[i][b] > tail.alive[i][b] && virtualEnergy[i][b] > 0) {
+        start = i;
+        break;
+      }
+    info.startSeconds[b] = double(start) * dt;
+  }
+  info.extended = anyCut;
 
   EnergyHistogram out(dt, bins);
   for (size_t i = 0; i < bins; ++i) {
     BandArrayD e{};
     double meanIn = 0, meanOut = 0;
     for (int b = 0; b < kNumBands; ++b) {
-      if (i < start[b] && i < traced) {
-        e[b] = corrected[i][b];
-        meanIn += h.energy(i, b);
-      } else if (start[b] < traced) {
-        e[b] = level[b] * std::exp(-delta[b] * (double(i) - double(start[b])) * dt);
-      }
+      const double tracedEnergy = i < traced ? h.energy(i, b) : 0.0;
+      e[b] = tracedEnergy + info.kappa[b] * virtualEnergy[i][b];
+      meanIn += tracedEnergy;
       meanOut += e[b];
     }
-    // Direction: the traced bin's, scaled with its energy; none where extrapolated.
-    Vec3d dir{};
-    if (i < traced && meanIn > 0) dir = h.directionSum(i) * (meanOut / meanIn);
-    // add() weights the direction by the band mean; pass it normalised.
+    // Direction: the traced detections keep theirs; the virtual part has none.
+    Vec3d dir = (i < traced && meanIn > 0) ? h.directionSum(i) : Vec3d{};
     const double mean = meanOut / kNumBands;
     out.add(i, e, mean > 0 ? dir / mean : Vec3d{});
   }

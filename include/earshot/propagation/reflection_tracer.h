@@ -61,10 +61,20 @@ struct ReflectionSettings {
   bool russianRoulette = true;        ///< stop rays 60 dB down (unbiased)
 };
 
+/** A ray stopped by the bounce limit: what it would have carried on with. */
+struct CutRay {
+  float pathMeters = 0;               ///< path length at the stop
+  float historySeconds = 0;           ///< time over which decayRate was measured
+  float scattering = 0;               ///< mean scattering coefficient met over its reflections
+  Vec3f direction;                    ///< direction it would have left in (after the last reflection, specular)
+  BandArray energy{};                 ///< energy after the last reflection (no air)
+  BandArray decayRate{};              ///< its own loss rate since its first reflection, nepers per second (no air)
+};
+
 /** What tail completion needs from a trace (energies in the histogram's units). */
 struct TailData {
-  std::vector<BandArrayD> alive;      ///< per bin: energy of rays in flight
-  std::vector<BandArrayD> cut;        ///< per bin: energy of rays stopped by the bounce limit
+  std::vector<BandArrayD> alive;      ///< per bin: energy of rays in flight (air applied)
+  std::vector<CutRay> cutRays;        ///< in ray order
   /** Free paths of the later half of the bounces, in log-spaced length bins
    *  (freePathBinCenter): the energy e arriving at a reflection after a free
    *  path in that bin, and e times the fraction the reflection keeps. Escapes

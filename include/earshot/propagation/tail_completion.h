@@ -2,22 +2,24 @@
 /** @file Completing the late tail beyond the traced bounces.
  *
  *  12 bounces cover ~0.15 s of a 1.4 s reverb in a 10x7x3 m room; a tracer
- *  that stops there truncates the IR. Per band:
- *  1. Decay rate delta from the traced rays: the root of the renewal (Lotka)
- *     equation sum_k w_k rho_k exp(-m l_k) exp(delta l_k / c) = sum_k w_k
- *     over the reflections of the later half of the bounces (energy w_k,
- *     free path l_k before it, fraction kept rho_k, air m). With one free
- *     path length this is Eyring's law; with the real spread of free paths
- *     it is the slower decay Kuttruff derives (Room Acoustics, 5th ed.,
- *     sec. 5.5: a flat 10x7x3 m room with alpha = 0.3 decays ~7 % slower
- *     than Eyring's formula says, and so does a full trace).
- *  2. Completeness of each bin: rays stopped by the bounce limit would have
- *     carried on; their energy, decayed at delta, is "virtual" energy in
- *     flight V. A bin's detections are scaled by (A + V) / A, A being the
- *     traced energy in flight, while A / (A + V) >= 1/2.
- *  3. From the first bin below that, an exponential at rate delta, its level
- *     fitted (least squares with the known slope) to the preceding 50 ms.
- *  The completed bins carry no direction (a late diffuse field). */
+ *  that stops there truncates the IR. Instead, every ray stopped by the
+ *  bounce limit carries on "virtually", decaying at
+ *    rate = (1 - s) * (its own loss rate over its later bounces)
+ *         + s * (the population's rate) + air,
+ *  s being the mean scattering it met: a specular ray keeps its direction, so
+ *  its own rate is its future (in a flat room grazing rays decay slowly and
+ *  dominate the late tail: pure-specular decay is a mixture of exponentials,
+ *  not Eyring's); a scattered ray forgets it and decays at the population's
+ *  rate. The population's rate is the root delta of the renewal (Lotka)
+ *  equation sum_k w_k rho_k exp(delta l_k / c) = sum_k w_k over the later
+ *  reflections (energy w, free path l, fraction kept rho): with the real
+ *  spread of free paths it is the slower decay Kuttruff derives (Room
+ *  Acoustics, 5th ed., sec. 5.5), ~7 % slower than Eyring's at alpha 0.3.
+ *  The virtual energy in flight V(t) is detected as the traced energy in
+ *  flight A(t) is: the completed histogram is H(t) + kappa V(t), kappa being
+ *  the detections per unit energy in flight measured in the traced part
+ *  (after the image-source paths). The completed part carries no direction
+ *  (a late diffuse field). */
 #include "earshot/core/status.h"
 #include "earshot/propagation/air_absorption.h"
 #include "earshot/propagation/energy_histogram.h"
@@ -33,13 +35,17 @@ struct TailCompletionSettings {
   double maxAutoSeconds = 30.0;  ///< cap of the automatic length
   double speedOfSound = 343.0;
   AirConditions air;
+  /** Detections before this time are not used to calibrate kappa (the early
+   *  specular paths rendered as image sources are missing from them). */
+  double calibrationStartSeconds = 0.0;
 };
 
 struct TailInfo {
-  bool extended = false;             ///< an exponential tail was appended in some band
-  BandArrayD startSeconds{};         ///< where the extrapolation starts, per band
-  BandArrayD decayRatePerSecond{};   ///< delta (energy, nepers per second)
+  bool extended = false;             ///< rays were cut and their virtual energy added
+  BandArrayD startSeconds{};         ///< where the traced energy in flight falls below the virtual
+  BandArrayD decayRatePerSecond{};   ///< the population's rate delta (energy, nepers per second, air included)
   BandArrayD t60Seconds{};           ///< 13.8155 / delta
+  BandArrayD kappa{};                ///< detections per unit energy in flight
   BandArrayD meanLoss{};             ///< energy-weighted loss per reflection
   BandArrayD meanFreePathMeters{};   ///< energy-weighted mean free path
   double lengthSeconds = 0.0;        ///< of the returned histogram
