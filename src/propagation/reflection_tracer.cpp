@@ -10,6 +10,7 @@
 #include <chrono>
 #include <cmath>
 #include <array>
+#include <cstring>
 #include <string>
 
 #include "earshot/core/math.h"
@@ -135,14 +136,20 @@ double autoReceiverRadius(const RayTracer& tracer, const Vec3d& listener) {
 
 }  // namespace
 
+// The bit pattern of a positive float grows monotonically and piecewise
+// linearly in log2: exponent and 6 mantissa bits give 64 bins per octave.
 size_t freePathBin(double length) {
-  // log10 from -3 (1 mm) to 4 (10 km) over the bins.
-  const double x = (std::log10(std::max(length, 1e-3)) + 3.0) / 7.0 * double(kFreePathBins);
-  return std::min(kFreePathBins - 1, size_t(std::max(0.0, x)));
+  const float l = float(std::max(length, 1.0 / 1024.0));
+  uint32_t bits;
+  std::memcpy(&bits, &l, sizeof bits);
+  constexpr uint32_t kFirst = 117u << 23;  // 2^-10 m
+  return std::min<size_t>(kFreePathBins - 1, (bits - kFirst) >> 17);
 }
 
 double freePathBinCenter(size_t bin) {
-  return std::pow(10.0, -3.0 + 7.0 * (double(bin) + 0.5) / double(kFreePathBins));
+  // Octave bin / 64 above 2^-10, at the middle of the bin's mantissa range.
+  const double octave = double(bin / 64), fraction = (double(bin % 64) + 0.5) / 64.0;
+  return std::ldexp(1.0 + fraction, int(octave) - 10);
 }
 
 Vec3d fibonacciDirection(uint32_t i, uint32_t n) {

@@ -82,8 +82,9 @@ struct TailData {
   std::vector<BandArrayD> pathEnergy, pathRetained;
 };
 
-/** Free-path bins: kFreePathBins log-spaced bins from 1 mm to 10 km. */
-constexpr size_t kFreePathBins = 2048;
+/** Free-path bins: log-spaced, 64 per octave from 1/1024 m up (~10 km at
+ *  the last), read off a float's exponent and top mantissa bits. */
+constexpr size_t kFreePathBins = 24 * 64;
 size_t freePathBin(double lengthMeters);
 double freePathBinCenter(size_t bin);
 
