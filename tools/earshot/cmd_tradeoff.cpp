@@ -1,0 +1,368 @@
+// `earshot tradeoff`: accuracy against cost of the IR pipeline over a grid of
+// (rays, bounces). Each point runs computeOmniIr (the one implementation
+// behind `earshot ir`) --repeats times with different seeds, takes the median
+// wall time, and measures the error of each run against a reference IR as
+// ISO 3382-1 just-noticeable differences (analysis/compare.h): per metric, the
+// mean |JND| over the 250 Hz .. 4 kHz octave bands, averaged over the repeats.
+// max_jnd is the largest of those seven per-metric means (the worst metric).
+//
+// The loaders below (material map, air) duplicate the small ones private to
+// cmd_ir.cpp on purpose: that file belongs to another command.
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <memory>
+#include <sstream>
+
+#include <sys/wait.h>
+
+#include <nlohmann/json.hpp>
+
+#include "command.h"
+#include "earshot/analysis/compare.h"
+#include "earshot/analysis/room_acoustics.h"
+#include "earshot/core/thread_pool.h"
+#include "earshot/io/atomic_file.h"
+#include "earshot/io/wav.h"
+#include "earshot/ir/ir_pipeline.h"
+#include "earshot/materials/material.h"
+#include "earshot/scene/gltf_loader.h"
+#include "earshot/scene/ray_tracer.h"
+
+namespace earshot::cli {
+namespace {
+
+namespace an = earshot::analysis;
+
+struct TradeoffOptions {
+  std::string geometry;
+  std::string materials;
+  std::string materialMap;
+  std::array<double, 3> source{}, listener{};
+  std::string rays = "1000,4000,16000,64000";
+  std::string bounces = "6,12,24";
+  std::string reference;
+  int repeats = 3;
+  unsigned threads = 0;
+  std::string air = "20,50";
+  std::string output;
+  std::string plot;
+  std::string plotScript = "tools/plot_tradeoff.py";
+  std::string python = "python3";
+};
+
+/** Octave bands whose errors are averaged: 250 Hz .. 4 kHz. */
+constexpr double kLowestBandHz = 250.0, kHighestBandHz = 4000.0;
+/** Seed of the default reference run, apart from the sweep's seeds 1..repeats. */
+constexpr uint64_t kReferenceSeed = 1000003;
+
+Result<std::vector<uint32_t>> parseList(const std::string& option, const std::string& text, uint32_t minValue) {
+  std::vector<uint32_t> out;
+  std::stringstream ss(text);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    size_t used = 0;
+    unsigned long long v = 0;
+    try {
+      v = std::stoull(item, &used);
+    } catch (...) {
+      used = 0;
+    }
+    if (used == 0 || used != item.size() || item[0] == '-' || v < minValue || v > 100000000ull)
+      return invalidArgument(option + ": '" + item + "' in '" + text + "' is not an integer in [" +
+                             std::to_string(minValue) + ", 100000000]");
+    out.push_back(uint32_t(v));
+  }
+  if (out.empty()) return invalidArgument(option + ": '" + text + "' is not a comma-separated list of integers");
+  return out;
+}
+
+Result<std::map<std::string, std::string>> readMaterialMap(const std::string& path) {
+  std::ifstream f(path);
+  if (!f) return notFound(path + ": cannot open material map");
+  nlohmann::json j = nlohmann::json::parse(f, nullptr, false);
+  if (j.is_discarded()) return parseError(path + ": not valid JSON");
+  if (!j.is_object()) return parseError(path + ": material map must be an object {\"gltf name\": \"acoustic name\"}");
+  std::map<std::string, std::string> map;
+  for (auto& [k, v] : j.items()) {
+    if (!v.is_string()) return parseError(path + ": \"" + k + "\" must map to a material name (string)");
+    map[k] = v.get<std::string>();
+  }
+  return map;
+}
+
+Result<AirConditions> readAir(const std::string& text) {
+  AirConditions air;
+  if (text == "off") {
+    air.enabled = false;
+    return air;
+  }
+  double t = 0, h = 0;
+  char comma = 0, extra = 0;
+  std::istringstream ss(text);
+  if (!(ss >> t >> comma >> h) || comma != ',' || (ss >> extra))
+    return invalidArgument("--air: '" + text + "' is not TEMP_C,HUMIDITY_PCT or 'off'");
+  air.temperatureC = t;
+  air.humidityPercent = h;
+  Status s = validate(air);
+  if (!s.isOk()) return invalidArgument("--air: " + s.message());
+  return air;
+}
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
+}
+
+/** Runs a shell command quietly; returns its exit status (-1 if it did not run). */
+int runQuiet(const std::string& command) {
+  int status = std::system((command + " >/dev/null 2>&1").c_str());
+  if (status == -1) return -1;
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+std::string shellQuote(const std::string& s) {
+  std::string q = "'";
+  for (char c : s) q += (c == '\'') ? std::string("'\\''") : std::string(1, c);
+  return q + "'";
+}
+
+std::string formatNumber(double v) {
+  if (std::isnan(v)) return "nan";
+  if (std::isinf(v)) return v > 0 ? "inf" : "-inf";
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.6g", v);
+  return buf;
+}
+
+struct PointResult {
+  uint32_t rays = 0, bounces = 0;
+  double secondsMedian = 0;
+  std::array<double, an::kMetricCount> jnd{};  ///< mean |JND| over bands, averaged over repeats
+  double maxJnd = 0;
+};
+
+/** Mean |JND| per metric over the 250 Hz .. 4 kHz bands. A metric n/a in the
+ *  reference is skipped in that band; n/a in the test (with a reference value)
+ *  is skipped too and counted in `naCount`. No band compared gives NaN. */
+Result<std::array<double, an::kMetricCount>> errorPerMetric(const std::vector<an::BandMetrics>& test,
+                                                             const std::vector<an::BandMetrics>& reference,
+                                                             int& naCount) {
+  an::CompareOptions co;
+  for (int b = 0; b < kNumBands; ++b)
+    if (kBandCentersHz[size_t(b)] >= kLowestBandHz && kBandCentersHz[size_t(b)] <= kHighestBandHz)
+      co.bands.push_back(b);
+  auto cmp = an::compareMetrics(test, reference, co);
+  if (!cmp.isOk()) return cmp.status();
+  std::array<double, an::kMetricCount> sum{}, count{};
+  for (const auto& row : cmp->rows) {
+    if (std::isnan(row.referenceValue)) continue;
+    if (std::isnan(row.differenceJnd)) {
+      ++naCount;
+      continue;
+    }
+    sum[size_t(row.metric)] += std::fabs(row.differenceJnd);
+    count[size_t(row.metric)] += 1;
+  }
+  std::array<double, an::kMetricCount> mean{};
+  for (int m = 0; m < an::kMetricCount; ++m) mean[size_t(m)] = count[size_t(m)] > 0 ? sum[size_t(m)] / count[size_t(m)] : an::kNaN;
+  return mean;
+}
+
+int run(const TradeoffOptions& o) {
+  // Everything that can be checked before the (long) sweep is checked first,
+  // so an error never leaves a CSV or plot behind.
+  auto rays = parseList("--rays", o.rays, 1);
+  if (!check(rays.status())) return 2;
+  auto bounces = parseList("--bounces", o.bounces, 0);
+  if (!check(bounces.status())) return 2;
+  auto air = readAir(o.air);
+  if (!check(air.status())) return 2;
+  std::string python;
+  if (!o.plot.empty()) {
+    if (!std::filesystem::is_regular_file(o.plotScript)) {
+      printError("--plot-script: " + o.plotScript + ": no such file (run from the source tree or give --plot-script)");
+      return 2;
+    }
+    // "python3" first; a python3 earlier in PATH (pyenv, venv) may lack
+    // matplotlib while Debian's /usr/bin/python3 has python3-matplotlib.
+    std::vector<std::string> candidates{o.python};
+    if (o.python == "python3") candidates.push_back("/usr/bin/python3");
+    bool anyPython = false;
+    for (const auto& py : candidates) {
+      if (runQuiet(shellQuote(py) + " -c 'import sys'") != 0) continue;
+      anyPython = true;
+      if (runQuiet(shellQuote(py) + " -c 'import matplotlib'") == 0) {
+        python = py;
+        break;
+      }
+    }
+    if (!anyPython) {
+      printError("--plot: " + o.python + " not found (install python3 and python3-matplotlib, or leave out --plot)");
+      return 2;
+    }
+    if (python.empty()) {
+      printError("--plot: " + o.python +
+                 " cannot import matplotlib (install python3-matplotlib, give --python, or leave out --plot)");
+      return 2;
+    }
+  }
+
+  MaterialTable materials = defaultMaterials();
+  if (!o.materials.empty()) {
+    auto m = loadMaterials(o.materials);
+    if (!check(m.status())) return 2;
+    materials = std::move(m.value());
+  }
+  std::map<std::string, std::string> materialMap;
+  if (!o.materialMap.empty()) {
+    auto m = readMaterialMap(o.materialMap);
+    if (!check(m.status())) return 2;
+    materialMap = std::move(m.value());
+  }
+  auto g = loadGltf(o.geometry, materials, materialMap);
+  if (!check(g.status())) return 2;
+  for (const auto& w : g->warnings) std::cerr << "earshot: warning: " << w << "\n";
+  auto tracer = RayTracer::create(g->mesh);
+  if (!tracer.isOk()) {
+    printError(o.geometry + ": " + tracer.status().message());
+    return 2;
+  }
+
+  ThreadPool pool(o.threads);
+  const Vec3d source{o.source[0], o.source[1], o.source[2]};
+  const Vec3d listener{o.listener[0], o.listener[1], o.listener[2]};
+
+  OmniIrSettings base;  // the balanced preset's defaults; rays and bounces are swept
+  base.air = *air;
+
+  // Reference IR: a file, or the 'reference' quality preset.
+  std::vector<float> referenceIr;
+  double rateHz = base.sampleRateHz;
+  if (!o.reference.empty()) {
+    auto ref = readAudioFile(o.reference);
+    if (!ref.isOk()) {
+      printError("--reference: " + ref.status().message());
+      return 2;
+    }
+    if (ref->channels.size() != 1) {
+      printError("--reference: " + o.reference + " has " + std::to_string(ref->channels.size()) +
+                 " channels, expected 1 (an omni IR)");
+      return 2;
+    }
+    rateHz = ref->sampleRateHz;
+    referenceIr = std::move(ref->channels[0]);
+  } else {
+    OmniIrSettings s = base;
+    auto preset = qualityPreset("reference");
+    if (!check(preset.status())) return 2;
+    apply(*preset, s);
+    s.seed = kReferenceSeed;
+    std::cerr << "earshot: tradeoff: reference run (" << s.rays << " rays x " << s.bounces << " bounces)...\n";
+    auto r = computeOmniIr(**tracer, materials, source, listener, s, pool);
+    if (!check(r.status())) return 2;
+    referenceIr = std::move(r->ir.channels[0]);
+  }
+  base.sampleRateHz = rateHz;
+  auto refMetrics = an::analyzeIr(referenceIr, rateHz);
+  if (!refMetrics.isOk()) {
+    printError("reference: " + refMetrics.status().message());
+    return 2;
+  }
+
+  std::vector<PointResult> points;
+  int naCount = 0;
+  for (uint32_t b : *bounces) {
+    for (uint32_t n : *rays) {
+      PointResult p;
+      p.rays = n;
+      p.bounces = b;
+      std::vector<double> seconds;
+      std::array<double, an::kMetricCount> sum{};
+      for (int i = 0; i < o.repeats; ++i) {
+        OmniIrSettings s = base;
+        s.rays = n;
+        s.bounces = b;
+        s.seed = uint64_t(i + 1);
+        const auto t0 = std::chrono::steady_clock::now();
+        auto r = computeOmniIr(**tracer, materials, source, listener, s, pool);
+        seconds.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+        if (!check(r.status())) return 2;
+        auto m = an::analyzeIr(r->ir.channels[0], rateHz);
+        if (!m.isOk()) {
+          printError("IR at " + std::to_string(n) + " rays x " + std::to_string(b) + " bounces: " +
+                     m.status().message());
+          return 2;
+        }
+        auto e = errorPerMetric(*m, *refMetrics, naCount);
+        if (!check(e.status())) return 2;
+        for (int k = 0; k < an::kMetricCount; ++k) sum[size_t(k)] += (*e)[size_t(k)];
+      }
+      p.secondsMedian = median(seconds);
+      p.maxJnd = 0;
+      for (int k = 0; k < an::kMetricCount; ++k) {
+        p.jnd[size_t(k)] = sum[size_t(k)] / o.repeats;
+        if (!std::isnan(p.jnd[size_t(k)])) p.maxJnd = std::max(p.maxJnd, p.jnd[size_t(k)]);
+      }
+      std::cerr << "earshot: tradeoff: " << n << " rays x " << b << " bounces: " << formatNumber(p.secondsMedian)
+                << " s, max " << formatNumber(p.maxJnd) << " JND\n";
+      points.push_back(p);
+    }
+  }
+  if (naCount > 0)
+    std::cerr << "earshot: warning: " << naCount
+              << " metric/band value(s) were n/a in a sweep IR but not in the reference; left out of the means\n";
+
+  std::string csv = "rays,bounces,seconds_median,edt_jnd,t20_jnd,t30_jnd,c50_jnd,c80_jnd,d50_jnd,ts_jnd,max_jnd\n";
+  for (const auto& p : points) {
+    csv += std::to_string(p.rays) + "," + std::to_string(p.bounces) + "," + formatNumber(p.secondsMedian);
+    for (double v : p.jnd) csv += "," + formatNumber(v);
+    csv += "," + formatNumber(p.maxJnd) + "\n";
+  }
+  if (!check(writeTextFileAtomically(o.output, csv))) return 2;
+
+  if (!o.plot.empty()) {
+    const std::string cmd = shellQuote(python) + " " + shellQuote(o.plotScript) + " " + shellQuote(o.output) + " " + shellQuote(o.plot);
+    int status = std::system(cmd.c_str());
+    if (status != 0) {
+      printError("--plot: '" + cmd + "' failed (the CSV " + o.output + " was written)");
+      return 2;
+    }
+  }
+  return 0;
+}
+
+const Registrar registrar([](CLI::App& root) {
+  auto o = std::make_shared<TradeoffOptions>();
+  CLI::App* cmd = root.add_subcommand(
+      "tradeoff", "Error (JND vs a reference IR) against compute time over a grid of rays x bounces");
+  cmd->add_option("geometry", o->geometry, "Scene geometry (glTF 2.0, .gltf or .glb)")->required()->check(CLI::ExistingFile);
+  addVec3Option(*cmd, "--source", o->source, "Source position in metres")->required();
+  addVec3Option(*cmd, "--listener", o->listener, "Listener position in metres")->required();
+  cmd->add_option("-o,--output", o->output, "Output CSV (rays,bounces,seconds_median,<metric>_jnd...,max_jnd)")->required();
+  cmd->add_option("--materials", o->materials, "Materials JSON (default: the built-in materials/default.json)");
+  cmd->add_option("--material-map", o->materialMap, "JSON object mapping glTF material names to acoustic materials");
+  cmd->add_option("--rays", o->rays, "Comma-separated ray counts")->capture_default_str();
+  cmd->add_option("--bounces", o->bounces, "Comma-separated bounce limits")->capture_default_str();
+  cmd->add_option("--reference", o->reference,
+                  "Reference IR (mono WAV; its rate is used for the sweep); default: a run of the 'reference' preset")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--repeats", o->repeats, "Runs per point (seeds 1..N); time is their median")
+      ->check(CLI::Range(1, 1000))->capture_default_str();
+  cmd->add_option("--threads", o->threads, "Threads (0 = all cores)")->check(CLI::Range(0u, 256u))->capture_default_str();
+  cmd->add_option("--air", o->air, "Air absorption: TEMP_C,HUMIDITY_PCT or off (ISO 9613-1)")->capture_default_str();
+  cmd->add_option("--plot", o->plot, "Also draw error vs time to this SVG (python3 + matplotlib)");
+  cmd->add_option("--plot-script", o->plotScript, "The plotting script, relative to the current directory")
+      ->capture_default_str();
+  cmd->add_option("--python", o->python, "Python interpreter for --plot (needs matplotlib)")->capture_default_str();
+  cmd->callback([o] { setExitCode(run(*o)); });
+});
+
+}  // namespace
+}  // namespace earshot::cli
