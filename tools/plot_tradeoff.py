@@ -73,6 +73,9 @@ def main():
         # A fixed hash salt and no date keep the SVG the same for the same CSV.
         plt.rcParams["svg.hashsalt"] = "earshot"
         fig.savefig(tmp, format="svg", metadata={"Date": None})
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes it 0600; give it a normal file's mode
         os.replace(tmp, dst)
     except OSError as e:
         os.unlink(tmp)

@@ -163,7 +163,10 @@ Result<std::array<double, an::kMetricCount>> errorPerMetric(const std::vector<an
   std::array<double, an::kMetricCount> sum{}, count{};
   for (const auto& row : cmp->rows) {
     if (std::isnan(row.referenceValue)) continue;
-    if (std::isnan(row.differenceJnd)) {
+    // compareMetrics scores "n/a in the test only" as +inf JND; one such band
+    // would make the mean inf and the point unplottable, so it is left out
+    // and counted (the command warns with the count).
+    if (std::isnan(row.testValue) || std::isnan(row.differenceJnd)) {
       ++naCount;
       continue;
     }
@@ -284,6 +287,7 @@ int run(const TradeoffOptions& o) {
       p.rays = n;
       p.bounces = b;
       std::vector<double> seconds;
+      const int naBefore = naCount;
       std::array<double, an::kMetricCount> sum{};
       for (int i = 0; i < o.repeats; ++i) {
         OmniIrSettings s = base;
@@ -311,13 +315,16 @@ int run(const TradeoffOptions& o) {
         if (!std::isnan(p.jnd[size_t(k)])) p.maxJnd = std::max(p.maxJnd, p.jnd[size_t(k)]);
       }
       std::cerr << "earshot: tradeoff: " << n << " rays x " << b << " bounces: " << formatNumber(p.secondsMedian)
-                << " s, max " << formatNumber(p.maxJnd) << " JND\n";
+                << " s, max " << formatNumber(p.maxJnd) << " JND";
+      if (naCount > naBefore) std::cerr << " (" << naCount - naBefore << " metric/band values n/a, left out)";
+      std::cerr << "\n";
       points.push_back(p);
     }
   }
   if (naCount > 0)
     std::cerr << "earshot: warning: " << naCount
-              << " metric/band value(s) were n/a in a sweep IR but not in the reference; left out of the means\n";
+              << " metric/band value(s) in all were n/a in a sweep IR but not in the reference (e.g. decay range too "
+                 "short for T30); left out of the means\n";
 
   std::string csv = "rays,bounces,seconds_median,edt_jnd,t20_jnd,t30_jnd,c50_jnd,c80_jnd,d50_jnd,ts_jnd,max_jnd\n";
   for (const auto& p : points) {
