@@ -43,18 +43,38 @@ def main():
         fail(f"{src}: {e}")
     if not rows:
         fail(f"{src}: no data rows")
-    rows.sort(key=lambda r: r["seconds_median"])
+    # One line per metric and bounce limit, joining the ray counts in order:
+    # colour = metric, line style and marker = bounce limit.
+    from matplotlib.lines import Line2D
+    styles = [("-", "o"), ("--", "s"), (":", "^"), ("-.", "D")]
+    bounce_values = sorted({int(r["bounces"]) for r in rows})
+    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    fig, ax = plt.subplots(figsize=(10, 6.5))
 
-    fig, ax = plt.subplots(figsize=(9, 6))
-    xs = [max(r["seconds_median"], 1e-6) for r in rows]
-    for key, name in METRICS:
-        ys = [max(r[key], FLOOR) if math.isfinite(r[key]) else float("nan") for r in rows]
-        ax.plot(xs, ys, marker="o", markersize=3, linewidth=1, alpha=0.8, label=name)
-    ys = [max(r["max_jnd"], FLOOR) for r in rows]
-    ax.plot(xs, ys, marker="s", color="black", linewidth=2, label="max (worst metric)")
-    for x, y, r in zip(xs, ys, rows):
-        ax.annotate(f"{int(r['rays'])}x{int(r['bounces'])}", (x, y), textcoords="offset points",
-                    xytext=(4, 4), fontsize=7)
+    def y_of(value):
+        return max(value, FLOOR) if math.isfinite(value) else float("nan")
+
+    xs_all = []
+    for bi, b in enumerate(bounce_values):
+        group = sorted((r for r in rows if int(r["bounces"]) == b), key=lambda r: r["rays"])
+        ls, mk = styles[bi % len(styles)]
+        xs = [max(r["seconds_median"], 1e-6) for r in group]
+        xs_all += xs
+        for mi, (key, _) in enumerate(METRICS):
+            ax.plot(xs, [y_of(r[key]) for r in group], linestyle=ls, marker=mk, markersize=3, linewidth=1,
+                    alpha=0.7, color=colors[mi % len(colors)])
+        ys = [y_of(r["max_jnd"]) for r in group]
+        ax.plot(xs, ys, linestyle=ls, marker=mk, markersize=6, linewidth=2.2, color="black")
+        for x, y, r in zip(xs, ys, group):
+            ax.annotate(f"{int(r['rays'])}x{int(r['bounces'])}", (x, y), textcoords="offset points",
+                        xytext=(4, 4), fontsize=7)
+    handles = [Line2D([], [], color=colors[mi % len(colors)], label=name) for mi, (_, name) in enumerate(METRICS)]
+    handles.append(Line2D([], [], color="black", linewidth=2.2, label="max (worst metric)"))
+    for bi, b in enumerate(bounce_values):
+        ls, mk = styles[bi % len(styles)]
+        handles.append(Line2D([], [], color="grey", linestyle=ls, marker=mk, label=f"{b} bounces"))
+    ax.legend(handles=handles, fontsize=8, loc="best")
+    xs = sorted(xs_all)
     ax.axhline(1.0, color="grey", linestyle="--", linewidth=1)
     ax.text(xs[0], 1.05, "1 JND", color="grey", fontsize=8)
     ax.set_xscale("log")
@@ -63,7 +83,6 @@ def main():
     ax.set_ylabel("error vs reference: mean |JND| over 250 Hz - 4 kHz")
     ax.set_title(f"earshot tradeoff: {os.path.basename(src)} (points: rays x bounces)")
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
     fig.tight_layout()
 
     folder = os.path.dirname(os.path.abspath(dst))
