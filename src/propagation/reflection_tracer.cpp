@@ -213,20 +213,19 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
   // Per-material factors, precomputed.
   struct MatFactors {
     float reflect[kNumBands], transmit[kNumBands], scatter[kNumBands];
-    float meanReflect, meanTransmit, meanScatter;
+    float meanReflect, meanTransmit;
   };
   std::vector<MatFactors> mats(materials.size());
   for (size_t i = 0; i < materials.size(); ++i) {
     const Material& m = materials[uint32_t(i)];
     MatFactors& f = mats[i];
-    f.meanReflect = f.meanTransmit = f.meanScatter = 0;
+    f.meanReflect = f.meanTransmit = 0;
     for (int b = 0; b < kNumBands; ++b) {
       f.reflect[b] = std::clamp(1.0f - m.absorption[b], 0.0f, 1.0f);
       f.transmit[b] = std::clamp(std::min(m.transmission[b], m.absorption[b]), 0.0f, 1.0f);
       f.scatter[b] = std::clamp(m.scattering[b], 0.0f, 1.0f);
       f.meanReflect += f.reflect[b] / kNumBands;
       f.meanTransmit += f.transmit[b] / kNumBands;
-      f.meanScatter += f.scatter[b] / kNumBands;
     }
   }
 
@@ -241,10 +240,6 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
     a.pathRetained.assign(kFreePathBins * kNumBands, 0);
   }
   const uint32_t lossFromOrder = std::max(1u, maxOrder / 2);  // the later half of the bounces
-  // A ray's own decay rate is measured from its first reflection on: a
-  // specular ray keeps its direction class, and six bounces are too few to
-  // see the rarely hit walls of a flat room (its rate would be a lucky draw).
-  const uint32_t ownRateFromOrder = 1;
   const float rouletteThreshold = rayEnergy * 1e-6f;          // 60 dB down
   constexpr float kSurvival = 0.1f;
 
@@ -302,7 +297,6 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
       bool pureSpecular = true;    // every event so far a specular reflection
       PlaneSequence planes;
       planes.fill(0xFFFFFFFFu);
-      float halfEnergy[kNumBands] = {}, halfPath = 0, scatterSum = 0;  // state at the later half's start
       for (uint32_t order = 0;; ++order) {
         Hit hit;
         ++a.segments;
@@ -337,10 +331,6 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
         }
         alive(a, pathLength, pathLength + hit.t, energy);
         const MatFactors& m = mats[tracer.materialOf(hit.triangle)];
-        if (order == ownRateFromOrder) {
-          for (int b = 0; b < kNumBands; ++b) halfEnergy[b] = energy[b];
-          halfPath = pathLength;
-        }
         if (order >= lossFromOrder) {
           const size_t fb = freePathBin(hit.t) * kNumBands;
           for (int b = 0; b < kNumBands; ++b) {
@@ -350,30 +340,14 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
         }
         pathLength += hit.t;
         if (order == maxOrder) {
-          // Stopped by the bounce limit: what it would have carried on with,
-          // and its own decay rate over the later bounces.
+          // Stopped by the bounce limit: what it would have carried on with.
           ++a.raysCut;
           CutRay& c = cutRays[rayIndex];
           wasCut[rayIndex] = 1;
           c.pathMeters = pathLength;
-          const uint32_t hits = maxOrder - ownRateFromOrder + 1;
-          c.scattering = (scatterSum + m.meanScatter) / float(hits);
-          const float seconds = (pathLength - halfPath) * invC;
-          c.historySeconds = seconds;
-          {
-            Vec3f nn = hit.normal;
-            if (dot(nn, ray.direction) > 0) nn = -nn;
-            c.direction = normalize(ray.direction - nn * (2.0f * dot(ray.direction, nn)));
-          }
-          for (int b = 0; b < kNumBands; ++b) {
-            c.energy[b] = energy[b] * std::min(1.0f, m.reflect[b] + m.transmit[b]);
-            c.decayRate[b] = (seconds > 0 && c.energy[b] > 0 && halfEnergy[b] > 0)
-                                 ? std::max(0.0f, std::log(halfEnergy[b] / c.energy[b]) / seconds)
-                                 : 0.0f;
-          }
+          for (int b = 0; b < kNumBands; ++b) c.energy[b] = energy[b] * std::min(1.0f, m.reflect[b] + m.transmit[b]);
           break;
         }
-        if (order >= ownRateFromOrder) scatterSum += m.meanScatter;
         const Vec3f p = ray.origin + ray.direction * hit.t;
         Vec3f n = hit.normal;
         if (dot(n, ray.direction) > 0) n = -n;  // face the incoming ray

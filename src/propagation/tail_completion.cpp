@@ -75,18 +75,16 @@ Result<EnergyHistogram> completeTail(const EnergyHistogram& h, const TailData& t
     return std::min(kRateBuckets - 1, int(x * kRateBuckets));
   };
   auto bucketRate = [&](int j) { return kMinRate * std::pow(kMaxRate / kMinRate, (j + 0.5) / kRateBuckets); };
-  // A cut ray's future rate: its own loss rate since its first reflection
-  // (a specular ray keeps its direction class), relaxed toward the
-  // population's rate by the scattering it meets. NOTE: with few bounces a
-  // near-axial ray in a flat room may miss a rarely hit absorbing wall by
-  // chance, and such lucky rays lengthen the late tail (pooling rays by
-  // direction instead shortens it: see tests/regression, known gaps).
-  // Rates here exclude air (applied to the virtual energy as exp(-m c t)); the
-  // renewal root delta includes it.
-  auto rateOf = [&](const CutRay& c, int b) {
-    const double own = c.decayRate[b];
-    const double population = haveRates ? std::max(0.0, delta[b] - m[b] * settings.speedOfSound) : own;
-    return (1.0 - c.scattering) * own + c.scattering * population;
+  // Every cut ray carries on at the population's rate (the renewal root
+  // delta, which includes air; air is applied to the virtual energy
+  // separately, as exp(-m c t)). NOTE: between parallel walls a specular ray
+  // keeps its direction class and its own rate, and a flat room's specular
+  // decay is a mixture of exponentials slower than this (tests/regression,
+  // known gaps); per-ray rates fit that case but lengthen the tail of
+  // furnished rooms absurdly (T30 5 s at 125 Hz in the furnished sample),
+  // where furniture scrambles directions.
+  auto rateOf = [&](const CutRay&, int b) {
+    return haveRates ? std::max(0.0, delta[b] - m[b] * settings.speedOfSound) : 0.0;
   };
   double slowest = 1e30, lastCut = 0;
   for (const CutRay& c : tail.cutRays) {

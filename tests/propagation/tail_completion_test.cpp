@@ -76,7 +76,9 @@ TEST(TailCompletion, TwelveBouncesPlusCompletionMatchAFullTrace) {
       const double want20 = edcCrossing(full->histogram, b, -20), got20 = edcCrossing(*completed, b, -20);
       EXPECT_NEAR(got20, want20, 0.05 * want20) << "alpha " << alpha << " band " << b;
       // Without completion the 12-bounce trace is badly truncated (the test can fail).
-      if (alpha < 0.2f) EXPECT_LT(t30(cut->histogram, b), 0.8 * want) << "band " << b;
+      if (alpha < 0.2f) {
+        EXPECT_LT(t30(cut->histogram, b), 0.8 * want) << "band " << b;
+      }
     }
     // The automatic length reaches 60 dB down the Schroeder decay: for an
     // exponential tail at least T60 minus the time to the tail's start.

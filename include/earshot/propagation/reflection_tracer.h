@@ -64,11 +64,7 @@ struct ReflectionSettings {
 /** A ray stopped by the bounce limit: what it would have carried on with. */
 struct CutRay {
   float pathMeters = 0;               ///< path length at the stop
-  float historySeconds = 0;           ///< time over which decayRate was measured
-  float scattering = 0;               ///< mean scattering coefficient met over its reflections
-  Vec3f direction;                    ///< direction it would have left in (after the last reflection, specular)
   BandArray energy{};                 ///< energy after the last reflection (no air)
-  BandArray decayRate{};              ///< its own loss rate since its first reflection, nepers per second (no air)
 };
 
 /** What tail completion needs from a trace (energies in the histogram's units). */

@@ -3,23 +3,23 @@
  *
  *  12 bounces cover ~0.15 s of a 1.4 s reverb in a 10x7x3 m room; a tracer
  *  that stops there truncates the IR. Instead, every ray stopped by the
- *  bounce limit carries on "virtually", decaying at
- *    rate = (1 - s) * (its own loss rate over its later bounces)
- *         + s * (the population's rate) + air,
- *  s being the mean scattering it met: a specular ray keeps its direction, so
- *  its own rate is its future (in a flat room grazing rays decay slowly and
- *  dominate the late tail: pure-specular decay is a mixture of exponentials,
- *  not Eyring's); a scattered ray forgets it and decays at the population's
- *  rate. The population's rate is the root delta of the renewal (Lotka)
- *  equation sum_k w_k rho_k exp(delta l_k / c) = sum_k w_k over the later
- *  reflections (energy w, free path l, fraction kept rho): with the real
- *  spread of free paths it is the slower decay Kuttruff derives (Room
- *  Acoustics, 5th ed., sec. 5.5), ~7 % slower than Eyring's at alpha 0.3.
- *  The virtual energy in flight V(t) is detected as the traced energy in
- *  flight A(t) is: the completed histogram is H(t) + kappa V(t), kappa being
- *  the detections per unit energy in flight measured in the traced part
- *  (after the image-source paths). The completed part carries no direction
- *  (a late diffuse field). */
+ *  bounce limit carries on "virtually", decaying at the population's rate:
+ *  the root delta of the renewal (Lotka) equation
+ *  sum_k w_k rho_k exp(-m l_k) exp(delta l_k / c) = sum_k w_k over the later
+ *  reflections (energy w, free path l, fraction kept rho, air m). With one
+ *  free path length this is Eyring's law; with the real spread of free paths
+ *  it is the slower decay Kuttruff derives (Room Acoustics, 5th ed., sec.
+ *  5.5), ~7 % slower than Eyring's at alpha 0.3 in a flat 10x7x3 m room, as a
+ *  full trace shows. The virtual energy in flight V(t) is detected as the
+ *  traced energy in flight A(t) is: the completed histogram is
+ *  H(t) + kappa V(t), kappa being the detections per unit energy in flight
+ *  measured in the traced part (after the image-source paths). The completed
+ *  part carries no direction (a late diffuse field).
+ *
+ *  Known limit: between parallel walls specular rays keep their direction
+ *  and their own decay rate, and a specular flat room decays as a mixture of
+ *  exponentials, slower late than one rate says (T30 -2.5 JND against exact
+ *  image sources at alpha 0.3; tests/regression). */
 #include "earshot/core/status.h"
 #include "earshot/propagation/air_absorption.h"
 #include "earshot/propagation/energy_histogram.h"
@@ -46,6 +46,7 @@ struct TailInfo {
   BandArrayD decayRatePerSecond{};   ///< the population's rate delta (energy, nepers per second, air included)
   BandArrayD t60Seconds{};           ///< 13.8155 / delta
   BandArrayD kappa{};                ///< detections per unit energy in flight
+  BandArrayD rateMemory{};           ///< rho: how much a ray's past loss rate predicts its future, [0, 1]
   BandArrayD meanLoss{};             ///< energy-weighted loss per reflection
   BandArrayD meanFreePathMeters{};   ///< energy-weighted mean free path
   double lengthSeconds = 0.0;        ///< of the returned histogram
