@@ -73,12 +73,15 @@ def main():
     for bi, b in enumerate(bounce_values):
         ls, mk = styles[bi % len(styles)]
         handles.append(Line2D([], [], color="grey", linestyle=ls, marker=mk, label=f"{b} bounces"))
-    ax.legend(handles=handles, fontsize=8, loc="best")
+    ax.legend(handles=handles, fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     xs = sorted(xs_all)
     ax.axhline(1.0, color="grey", linestyle="--", linewidth=1)
     ax.text(xs[0], 1.05, "1 JND", color="grey", fontsize=8)
     ax.set_xscale("log")
     ax.set_yscale("log")
+    from matplotlib.ticker import FormatStrFormatter
+    ax.xaxis.set_minor_formatter(FormatStrFormatter("%g"))  # a sweep often spans less than a decade
+    ax.tick_params(axis="x", which="minor", labelsize=7)
     ax.set_xlabel("wall time per IR, median (s)")
     ax.set_ylabel("error vs reference: mean |JND| over 250 Hz - 4 kHz")
     ax.set_title(f"earshot tradeoff: {os.path.basename(src)} (points: rays x bounces)")
