@@ -8,28 +8,12 @@
 #include "earshot/core/thread_pool.h"
 #include "earshot/propagation/reflection_tracer.h"
 #include "earshot/scene/ray_tracer.h"
+#include "shoebox_fixture.h"
 
 namespace earshot {
 namespace {
 
-// The 10 x 7 x 3 m shoebox of the reference data, one uniform material.
-struct Shoebox {
-  MaterialTable materials;
-  std::unique_ptr<RayTracer> tracer;
-  static constexpr double kVolume = 10.0 * 7.0 * 3.0;
-  static constexpr double kSurface = 2.0 * (10.0 * 7.0 + 10.0 * 3.0 + 7.0 * 3.0);
-  Shoebox(float absorption, float scattering) {
-    Material m;
-    m.name = "wall";
-    m.absorption = filledBands(absorption);
-    m.scattering = filledBands(scattering);
-    m.transmission = filledBands(0.0f);
-    uint32_t id = materials.add(m);
-    auto rt = RayTracer::create(makeBox({0, 0, 0}, {10, 7, 3}, id));
-    EXPECT_TRUE(rt.isOk());
-    tracer = std::move(rt.value());
-  }
-};
+using testing::Shoebox;
 
 const Vec3d kSource{2, 3.5, 1.5}, kListener{7, 3.5, 1.5};
 

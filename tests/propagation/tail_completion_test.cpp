@@ -6,23 +6,12 @@
 #include "earshot/core/thread_pool.h"
 #include "earshot/propagation/tail_completion.h"
 #include "earshot/scene/ray_tracer.h"
+#include "shoebox_fixture.h"
 
 namespace earshot {
 namespace {
 
-struct Room {
-  MaterialTable materials;
-  std::unique_ptr<RayTracer> tracer;
-  Room(float absorption, float scattering) {
-    Material m;
-    m.name = "wall";
-    m.absorption = filledBands(absorption);
-    m.scattering = filledBands(scattering);
-    m.transmission = filledBands(0.0f);
-    auto rt = RayTracer::create(makeBox({0, 0, 0}, {10, 7, 3}, materials.add(m)));
-    tracer = std::move(rt.value());
-  }
-};
+using Room = testing::Shoebox;
 
 // Schroeder decay: time (s) at which the EDC falls to `db` below its start.
 double edcCrossing(const EnergyHistogram& h, int band, double db) {
