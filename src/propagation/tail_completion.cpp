@@ -4,7 +4,6 @@
 #include <algorithm>
 #include <cmath>
 #include <string>
-#include <utility>
 #include <vector>
 
 namespace earshot {
@@ -66,41 +65,28 @@ Result<EnergyHistogram> completeTail(const EnergyHistogram& h, const TailData& t
     info.t60Seconds[b] = kNepersPer60Db / delta[b];
   }
 
-  // 2. Virtual energy in flight of the cut rays, per band: rays bucketed by
-  // their effective rate (log-spaced), each bucket a one-pole recursion.
-  constexpr int kRateBuckets = 96;
-  constexpr double kMinRate = 0.05, kMaxRate = 2e4;  // nepers per second
-  auto bucketOf = [&](double rate) {
-    const double x = std::log(std::max(rate, kMinRate) / kMinRate) / std::log(kMaxRate / kMinRate);
-    return std::min(kRateBuckets - 1, int(x * kRateBuckets));
-  };
-  auto bucketRate = [&](int j) { return kMinRate * std::pow(kMaxRate / kMinRate, (j + 0.5) / kRateBuckets); };
-  // Every cut ray carries on at the population's rate (the renewal root
-  // delta, which includes air; air is applied to the virtual energy
-  // separately, as exp(-m c t)). NOTE: between parallel walls a specular ray
-  // keeps its direction class and its own rate, and a flat room's specular
-  // decay is a mixture of exponentials slower than this (tests/regression,
-  // known gaps); per-ray rates fit that case but lengthen the tail of
-  // furnished rooms absurdly (T30 5 s at 125 Hz in the furnished sample),
-  // where furniture scrambles directions.
-  auto rateOf = [&](const CutRay&, int b) {
-    return haveRates ? std::max(0.0, delta[b] - m[b] * settings.speedOfSound) : 0.0;
-  };
-  double slowest = 1e30, lastCut = 0;
-  for (const CutRay& c : tail.cutRays) {
-    lastCut = std::max(lastCut, double(c.pathMeters) / settings.speedOfSound);
-    for (int b = 0; b < kNumBands; ++b)
-      if (c.energy[b] > 0) slowest = std::min(slowest, rateOf(c, b) + m[b] * settings.speedOfSound);
-  }
-  const bool anyCut = !tail.cutRays.empty() && slowest < 1e29;
+  // 2. Virtual energy in flight of the cut rays, per band. Every cut ray
+  // carries on at the population's rate delta (air included; the energy it
+  // was cut with lacks the air of its path so far, applied when it joins).
+  // NOTE: between parallel walls a specular ray keeps its direction class
+  // and its own rate, and a flat room's specular decay is a mixture of
+  // exponentials slower than this (tests/regression, known gaps); per-ray
+  // rates fit that case but lengthen the tail of furnished rooms absurdly
+  // (T30 5 s at 125 Hz in the furnished sample), where furniture scrambles
+  // directions.
+  double lastCut = 0;
+  for (const CutRay& c : tail.cutRays) lastCut = std::max(lastCut, double(c.pathMeters) / settings.speedOfSound);
+  const bool anyCut = !tail.cutRays.empty() && haveRates;
+  double slowest = 1e30;
+  for (int b = 0; b < kNumBands; ++b) slowest = std::min(slowest, delta[b]);
 
   // Length of the histogram to fill.
   size_t bins = traced;
   if (settings.lengthSeconds > 0) {
     bins = std::max<size_t>(1, size_t(std::ceil(settings.lengthSeconds / dt)));
   } else if (anyCut) {
-    const double end = std::min(settings.maxAutoSeconds,
-                                lastCut + settings.dynamicRangeDb / 10.0 * std::log(10.0) / std::max(slowest, 1e-3));
+    const double end =
+        std::min(settings.maxAutoSeconds, lastCut + settings.dynamicRangeDb / 10.0 * std::log(10.0) / slowest);
     bins = std::max(bins, size_t(std::ceil(end / dt)));
   } else {
     bins = size_t(std::max(1L, h.lastNonEmptyBin() + 1));
@@ -108,36 +94,19 @@ Result<EnergyHistogram> completeTail(const EnergyHistogram& h, const TailData& t
 
   std::vector<BandArrayD> virtualEnergy(bins, BandArrayD{});
   if (anyCut) {
+    std::vector<BandArrayD> joining(bins, BandArrayD{});  // energy cut in each bin, air applied
+    for (const CutRay& c : tail.cutRays) {
+      const size_t bin = size_t(double(c.pathMeters) / settings.speedOfSound / dt);
+      if (bin >= bins) continue;
+      for (int b = 0; b < kNumBands; ++b) joining[bin][b] += double(c.energy[b]) * std::exp(-m[b] * c.pathMeters);
+    }
     for (int b = 0; b < kNumBands; ++b) {
-      // cuts[i][j]: energy cut in bin i with rate bucket j.
-      std::vector<std::vector<double>> cuts(bins, std::vector<double>());
-      std::vector<double> bucket(kRateBuckets, 0.0);
-      std::vector<std::pair<size_t, std::pair<int, double>>> events;
-      for (const CutRay& c : tail.cutRays) {
-        if (!(c.energy[b] > 0)) continue;
-        const double rate = rateOf(c, b);
-        const size_t bin = size_t(double(c.pathMeters) / settings.speedOfSound / dt);
-        if (bin >= bins) continue;
-        events.push_back({bin, {bucketOf(rate), double(c.energy[b])}});
-      }
-      std::sort(events.begin(), events.end());
-      std::vector<double> stepDecay(kRateBuckets);
-      for (int j = 0; j < kRateBuckets; ++j) stepDecay[j] = std::exp(-bucketRate(j) * dt);
-      const double airPerBin = std::exp(-m[b] * settings.speedOfSound * dt);
-      size_t next = 0;
-      double airFactor = 1.0;  // exp(-m c t) at bin i
+      const double step = std::exp(-delta[b] * dt);
+      double v = 0;
       for (size_t i = 0; i < bins; ++i) {
-        double sum = 0;
-        for (int j = 0; j < kRateBuckets; ++j) {
-          bucket[j] *= stepDecay[j];
-          sum += bucket[j];
-        }
-        while (next < events.size() && events[next].first == i) {
-          bucket[events[next].second.first] += events[next].second.second;
-          ++next;
-        }
-        virtualEnergy[i][b] = sum * airFactor;
-        airFactor *= airPerBin;
+        v *= step;
+        virtualEnergy[i][b] = v;  // a ray cut in bin i is in flight from bin i + 1
+        v += joining[i][b];
       }
     }
   }
