@@ -27,7 +27,21 @@ namespace {
 
 namespace fs = std::filesystem;
 
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+#define EARSHOT_EXTREMES_SANITIZED 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer)
+#define EARSHOT_EXTREMES_SANITIZED 1
+#endif
+#endif
+#ifdef EARSHOT_EXTREMES_SANITIZED
+// Sanitizers keep freed blocks in a quarantine (ASan: 256 MB by default) and
+// pad every allocation, so honest parses of the ~8 MB texts below peak near
+// 300 MB; 1 GiB is still 8x under the smallest claimed size.
+constexpr long long kRssBudgetBytes = 1024ll << 20;
+#else
 constexpr long long kRssBudgetBytes = 256ll << 20;
+#endif
 
 long long peakRssBytes() {
   rusage u{};
@@ -260,7 +274,9 @@ TEST_F(HostileFiles, DISABLED_FlacHeaderClaiming2To31FramesDoesNotAllocateThem) 
   RssWatch rss;
   auto r = readAudioFile(path);
   show(r);
-  if (r.isOk()) EXPECT_EQ(r.value().frameCount(), 0u);  // no audio frames in the file
+  if (r.isOk()) {
+    EXPECT_EQ(r.value().frameCount(), 0u);  // no audio frames in the file
+  }
   EXPECT_LT(rss.growth(), kRssBudgetBytes);
 }
 
