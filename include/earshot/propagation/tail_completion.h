@@ -46,7 +46,6 @@ struct TailInfo {
   BandArrayD decayRatePerSecond{};   ///< the population's rate delta (energy, nepers per second, air included)
   BandArrayD t60Seconds{};           ///< 13.8155 / delta
   BandArrayD kappa{};                ///< detections per unit energy in flight
-  BandArrayD rateMemory{};           ///< rho: how much a ray's past loss rate predicts its future, [0, 1]
   BandArrayD meanLoss{};             ///< energy-weighted loss per reflection
   BandArrayD meanFreePathMeters{};   ///< energy-weighted mean free path
   double lengthSeconds = 0.0;        ///< of the returned histogram
