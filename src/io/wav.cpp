@@ -27,18 +27,30 @@ Result<AudioBuffer> readAudioFile(const std::string& path, size_t maxSamples) {
     return outOfRange(path + ": header claims " + std::to_string(info.frames) + " frames x " +
                       std::to_string(info.channels) + " channels, over the limit of " +
                       std::to_string(maxSamples) + " samples");
-  const size_t frames = size_t(info.frames), ch = size_t(info.channels);
-  std::vector<float> interleaved(frames * ch);
-  sf_count_t got = sf_readf_float(f.get(), interleaved.data(), sf_count_t(frames));
-  if (got < 0) return ioError(path + ": read failed");
-  AudioBuffer out(ch, size_t(got), double(info.samplerate));
-  for (size_t i = 0; i < size_t(got); ++i)
-    for (size_t c = 0; c < ch; ++c) {
-      float v = interleaved[i * ch + c];
-      if (!std::isfinite(v))
-        return parseError(path + ": sample " + std::to_string(i) + " of channel " + std::to_string(c) + " is not finite");
-      out.channels[c][i] = v;
-    }
+  // Read in blocks and keep what arrives: a header may claim far more frames
+  // than the file holds, and must not make us allocate them.
+  const size_t ch = size_t(info.channels);
+  constexpr size_t kBlockFrames = 65536;
+  std::vector<float> block(kBlockFrames * ch);
+  AudioBuffer out(ch, 0, double(info.samplerate));
+  for (;;) {
+    const sf_count_t got = sf_readf_float(f.get(), block.data(), sf_count_t(kBlockFrames));
+    if (got < 0) return ioError(path + ": read failed");
+    if (got == 0) break;
+    const size_t start = out.frameCount();
+    if ((start + size_t(got)) * ch > maxSamples)
+      return outOfRange(path + ": more than " + std::to_string(maxSamples) + " samples, over the limit");
+    for (size_t c = 0; c < ch; ++c) out.channels[c].resize(start + size_t(got));
+    for (size_t i = 0; i < size_t(got); ++i)
+      for (size_t c = 0; c < ch; ++c) {
+        const float v = block[i * ch + c];
+        if (!std::isfinite(v))
+          return parseError(path + ": sample " + std::to_string(start + i) + " of channel " + std::to_string(c) +
+                            " is not finite");
+        out.channels[c][start + i] = v;
+      }
+    if (size_t(got) < kBlockFrames) break;
+  }
   return out;
 }
 

@@ -381,13 +381,14 @@ class Loader {
       for (size_t v = 0; v < vertexCount; ++v) {
         const Vec3d local{p[3 * v], p[3 * v + 1], p[3 * v + 2]};
         const Vec3d w = transformPoint(world, local);
-        if (!isFinite(local) || !isFinite(w)) {
+        const Vec3f stored(w);  // the engine's precision: a finite double may overflow float
+        if (!isFinite(local) || !isFinite(w) || !isFinite(stored)) {
           std::ostringstream s;
           s << where << ": vertex " << v << " = (" << local.x << ", " << local.y << ", " << local.z
-            << ") is not finite";
+            << ") is not finite after the node transform (" << w.x << ", " << w.y << ", " << w.z << ")";
           return invalidArgument(mPath + ": " + s.str());
         }
-        out.positions.push_back(Vec3f(w));
+        out.positions.push_back(stored);
       }
       for (size_t t = 0; t + 2 < indexCount; t += 3) {
         std::array<uint32_t, 3> tri;

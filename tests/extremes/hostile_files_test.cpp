@@ -174,10 +174,10 @@ TEST_F(HostileFiles, GltfOverflowingNumberIsAParseError) {
   EXPECT_TRUE(contains(r.status().message(), path)) << r.status().message();
 }
 
-// DISABLED until src/scene/gltf_loader.cpp checks the float it stores (see
-// tests/fuzz/found/README.md, gltf-float-overflow-after-transform.glb): today
-// the double-precision point is finite, Vec3f(w) is +inf, and it is accepted.
-TEST_F(HostileFiles, DISABLED_GltfFiniteTransformThatOverflowsToInfinityIsAnError) {
+// Found by fuzzing (tests/fuzz/found/README.md,
+// gltf-float-overflow-after-transform.glb): the double-precision point was
+// finite, Vec3f(w) +inf, and it was accepted.
+TEST_F(HostileFiles, GltfFiniteTransformThatOverflowsToInfinityIsAnError) {
   // Each number is a finite double, but 1e300 * 1e300 overflows: the vertices
   // come out infinite and must be refused, naming the mesh.
   const std::string path =
@@ -264,12 +264,10 @@ TEST_F(HostileFiles, FlacHeaderClaiming2To36FramesIsRefusedByName) {
   EXPECT_LT(rss.growth(), kRssBudgetBytes);
 }
 
-// DISABLED: today this allocates 8 GiB (std::vector<float>(2^31 - 1) in
-// src/io/wav.cpp readAudioFile, value-initialised, so every page is touched)
-// and ends in std::bad_alloc / the OOM killer; 42 bytes of file claim 2^31 - 1
-// frames, just under kDefaultMaxReadSamples. See tests/fuzz/found/README.md.
-// Enable once the reader grows its buffer with what it actually reads.
-TEST_F(HostileFiles, DISABLED_FlacHeaderClaiming2To31FramesDoesNotAllocateThem) {
+// Found by fuzzing: this used to allocate 8 GiB (42 bytes of file claiming
+// 2^31 - 1 frames, just under kDefaultMaxReadSamples); the reader now grows
+// its buffer with what it actually reads. See tests/fuzz/found/README.md.
+TEST_F(HostileFiles, FlacHeaderClaiming2To31FramesDoesNotAllocateThem) {
   const std::string path = write("liar.flac", flacClaiming((uint64_t(1) << 31) - 1));
   RssWatch rss;
   auto r = readAudioFile(path);
