@@ -8,6 +8,7 @@
 #include "earshot/propagation/air_absorption.h"
 
 #include <cmath>
+#include <sstream>
 #include <string>
 
 namespace earshot {
@@ -21,6 +22,23 @@ Status validate(const AirConditions& air) {
   if (!(air.pressureKpa >= 50.0 && air.pressureKpa <= 120.0))
     return invalidArgument("air pressure " + std::to_string(air.pressureKpa) + " kPa is outside [50, 120]");
   return Status::ok();
+}
+
+Result<AirConditions> parseAirConditions(const std::string& text) {
+  AirConditions air;
+  if (text == "off") {
+    air.enabled = false;
+    return air;
+  }
+  double t = 0, h = 0;
+  char comma = 0, extra = 0;
+  std::istringstream ss(text);
+  if (!(ss >> t >> comma >> h) || comma != ',' || (ss >> extra))
+    return invalidArgument("air '" + text + "' is not TEMP_C,HUMIDITY_PCT or 'off'");
+  air.temperatureC = t;
+  air.humidityPercent = h;
+  EARSHOT_RETURN_IF_ERROR(validate(air));
+  return air;
 }
 
 double airAttenuationDbPerMeter(double f, const AirConditions& air) {

@@ -14,6 +14,8 @@
 #include <cmath>
 #include <cstring>
 #include <fstream>
+
+#include <nlohmann/json.hpp>
 #include <iterator>
 #include <limits>
 #include <set>
@@ -459,6 +461,20 @@ Result<GltfLoadResult> loadGltf(const std::string& path, const MaterialTable& ma
   Loader loader(path, model, materials, materialMap);
   EARSHOT_RETURN_IF_ERROR(loader.run(&result));
   return result;
+}
+
+Result<std::map<std::string, std::string>> loadMaterialMap(const std::string& path) {
+  std::ifstream f(path);
+  if (!f) return notFound(path + ": cannot open material map");
+  nlohmann::json j = nlohmann::json::parse(f, nullptr, false);
+  if (j.is_discarded()) return parseError(path + ": not valid JSON");
+  if (!j.is_object()) return parseError(path + ": material map must be an object {\"gltf name\": \"acoustic name\"}");
+  std::map<std::string, std::string> map;
+  for (auto& [k, v] : j.items()) {
+    if (!v.is_string()) return parseError(path + ": \"" + k + "\" must map to a material name (string)");
+    map[k] = v.get<std::string>();
+  }
+  return map;
 }
 
 }  // namespace earshot

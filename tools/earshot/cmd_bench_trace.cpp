@@ -28,22 +28,12 @@ struct BenchTraceOptions {
   int runs = 15;
 };
 
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
-}
-
 int run(const BenchTraceOptions& o) {
   std::map<std::string, std::string> map;
   if (!o.materialMap.empty()) {
-    std::ifstream f(o.materialMap);
-    nlohmann::json j = nlohmann::json::parse(f, nullptr, false);
-    if (j.is_discarded() || !j.is_object()) {
-      printError(o.materialMap + ": not a JSON object of material names");
-      return 2;
-    }
-    for (auto& [k, v] : j.items())
-      if (v.is_string()) map[k] = v.get<std::string>();
+    auto m = loadMaterialMap(o.materialMap);
+    if (!check(m.status())) return 2;
+    map = std::move(m.value());
   }
   const MaterialTable& materials = defaultMaterials();
   auto g = loadGltf(o.geometry, materials, map);

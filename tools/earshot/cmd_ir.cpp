@@ -45,38 +45,6 @@ double msSince(std::chrono::steady_clock::time_point t) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count();
 }
 
-Result<std::map<std::string, std::string>> loadMaterialMap(const std::string& path) {
-  std::ifstream f(path);
-  if (!f) return notFound(path + ": cannot open material map");
-  nlohmann::json j = nlohmann::json::parse(f, nullptr, false);
-  if (j.is_discarded()) return parseError(path + ": not valid JSON");
-  if (!j.is_object()) return parseError(path + ": material map must be an object {\"gltf name\": \"acoustic name\"}");
-  std::map<std::string, std::string> map;
-  for (auto& [k, v] : j.items()) {
-    if (!v.is_string()) return parseError(path + ": \"" + k + "\" must map to a material name (string)");
-    map[k] = v.get<std::string>();
-  }
-  return map;
-}
-
-Result<AirConditions> parseAir(const std::string& text) {
-  AirConditions air;
-  if (text == "off") {
-    air.enabled = false;
-    return air;
-  }
-  double t = 0, h = 0;
-  char comma = 0, extra = 0;
-  std::istringstream ss(text);
-  if (!(ss >> t >> comma >> h) || comma != ',' || (ss >> extra))
-    return invalidArgument("--air: '" + text + "' is not TEMP_C,HUMIDITY_PCT or 'off'");
-  air.temperatureC = t;
-  air.humidityPercent = h;
-  Status s = validate(air);
-  if (!s.isOk()) return invalidArgument("--air: " + s.message());
-  return air;
-}
-
 int run(const IrOptions& o, const CLI::App& cmd) {
   const auto t0 = std::chrono::steady_clock::now();
   nlohmann::json stats;
@@ -84,7 +52,7 @@ int run(const IrOptions& o, const CLI::App& cmd) {
     printError("--receiver " + o.receiver + ": only 'omni' is available in this version");
     return 2;
   }
-  auto air = parseAir(o.air);
+  auto air = parseCliAir(o.air);
   if (!check(air.status())) return 2;
 
   // Settings: the preset, then any explicit option over it.
@@ -114,44 +82,21 @@ int run(const IrOptions& o, const CLI::App& cmd) {
     }
   }
 
-  // Materials.
-  MaterialTable materials = defaultMaterials();
-  if (!o.materials.empty()) {
-    auto m = loadMaterials(o.materials);
-    if (!check(m.status())) return 2;
-    materials = std::move(m.value());
-  }
-  std::map<std::string, std::string> materialMap;
-  if (!o.materialMap.empty()) {
-    auto m = loadMaterialMap(o.materialMap);
-    if (!check(m.status())) return 2;
-    materialMap = std::move(m.value());
-  }
-
-  // Geometry.
+  // Materials and geometry.
   auto tLoad = std::chrono::steady_clock::now();
-  TriangleMesh mesh;
-  if (!o.geometry.empty()) {
-    auto g = loadGltf(o.geometry, materials, materialMap);
-    if (!check(g.status())) return 2;
-    for (const auto& w : g->warnings) std::cerr << "earshot: warning: " << w << "\n";
-    mesh = std::move(g->mesh);
-  }
-  stats["load_ms"] = msSince(tLoad);
-  auto tBuild = std::chrono::steady_clock::now();
-  auto tracer = RayTracer::create(mesh);
-  if (!tracer.isOk()) {
-    printError(o.geometry + ": " + tracer.status().message());
-    return 2;
-  }
-  stats["bvh_build_ms"] = msSince(tBuild);
+  auto scene = loadSceneInputs(o.geometry, o.materials, o.materialMap);
+  if (!check(scene.status())) return 2;
+  const MaterialTable& materials = scene->materials;
+  const TriangleMesh& mesh = scene->mesh;
+  auto& tracer = scene->tracer;
+  stats["load_and_bvh_ms"] = msSince(tLoad);
   stats["triangles"] = mesh.triangleCount();
-  stats["planes"] = (*tracer)->planes().planes.size();
+  stats["planes"] = tracer->planes().planes.size();
 
   ThreadPool pool(o.threads);
   const Vec3d source{o.source[0], o.source[1], o.source[2]};
   const Vec3d listener{o.listener[0], o.listener[1], o.listener[2]};
-  auto result = computeOmniIr(**tracer, materials, source, listener, settings, pool);
+  auto result = computeOmniIr(*tracer, materials, source, listener, settings, pool);
   if (!check(result.status())) return 2;
   const OmniIrResult& r = *result;
 
@@ -166,7 +111,7 @@ int run(const IrOptions& o, const CLI::App& cmd) {
                                 {"candidates", r.imageSourceCandidates},
                                 {"exhaustive", r.imageSourcesExhaustive}};
   const auto& st = r.traceStats;
-  stats["rays_traced"] = (*tracer)->empty() ? 0 : st.raysTraced;
+  stats["rays_traced"] = tracer->empty() ? 0 : st.raysTraced;
   stats["rays_escaped"] = st.raysEscaped;
   stats["rays_cut_by_bounce_limit"] = st.raysCut;
   stats["rays_ended_by_roulette"] = st.raysRouletted;

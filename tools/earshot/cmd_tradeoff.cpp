@@ -83,43 +83,6 @@ Result<std::vector<uint32_t>> parseList(const std::string& option, const std::st
   return out;
 }
 
-Result<std::map<std::string, std::string>> readMaterialMap(const std::string& path) {
-  std::ifstream f(path);
-  if (!f) return notFound(path + ": cannot open material map");
-  nlohmann::json j = nlohmann::json::parse(f, nullptr, false);
-  if (j.is_discarded()) return parseError(path + ": not valid JSON");
-  if (!j.is_object()) return parseError(path + ": material map must be an object {\"gltf name\": \"acoustic name\"}");
-  std::map<std::string, std::string> map;
-  for (auto& [k, v] : j.items()) {
-    if (!v.is_string()) return parseError(path + ": \"" + k + "\" must map to a material name (string)");
-    map[k] = v.get<std::string>();
-  }
-  return map;
-}
-
-Result<AirConditions> readAir(const std::string& text) {
-  AirConditions air;
-  if (text == "off") {
-    air.enabled = false;
-    return air;
-  }
-  double t = 0, h = 0;
-  char comma = 0, extra = 0;
-  std::istringstream ss(text);
-  if (!(ss >> t >> comma >> h) || comma != ',' || (ss >> extra))
-    return invalidArgument("--air: '" + text + "' is not TEMP_C,HUMIDITY_PCT or 'off'");
-  air.temperatureC = t;
-  air.humidityPercent = h;
-  Status s = validate(air);
-  if (!s.isOk()) return invalidArgument("--air: " + s.message());
-  return air;
-}
-
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
-}
-
 /** Runs a shell command quietly; returns its exit status (-1 if it did not run). */
 int runQuiet(const std::string& command) {
   int status = std::system((command + " >/dev/null 2>&1").c_str());
@@ -185,7 +148,7 @@ int run(const TradeoffOptions& o) {
   if (!check(rays.status())) return 2;
   auto bounces = parseList("--bounces", o.bounces, 0);
   if (!check(bounces.status())) return 2;
-  auto air = readAir(o.air);
+  auto air = parseCliAir(o.air);
   if (!check(air.status())) return 2;
   std::string python;
   if (!o.plot.empty()) {
@@ -217,26 +180,10 @@ int run(const TradeoffOptions& o) {
     }
   }
 
-  MaterialTable materials = defaultMaterials();
-  if (!o.materials.empty()) {
-    auto m = loadMaterials(o.materials);
-    if (!check(m.status())) return 2;
-    materials = std::move(m.value());
-  }
-  std::map<std::string, std::string> materialMap;
-  if (!o.materialMap.empty()) {
-    auto m = readMaterialMap(o.materialMap);
-    if (!check(m.status())) return 2;
-    materialMap = std::move(m.value());
-  }
-  auto g = loadGltf(o.geometry, materials, materialMap);
-  if (!check(g.status())) return 2;
-  for (const auto& w : g->warnings) std::cerr << "earshot: warning: " << w << "\n";
-  auto tracer = RayTracer::create(g->mesh);
-  if (!tracer.isOk()) {
-    printError(o.geometry + ": " + tracer.status().message());
-    return 2;
-  }
+  auto scene = loadSceneInputs(o.geometry, o.materials, o.materialMap);
+  if (!check(scene.status())) return 2;
+  const MaterialTable& materials = scene->materials;
+  auto& tracer = scene->tracer;
 
   ThreadPool pool(o.threads);
   const Vec3d source{o.source[0], o.source[1], o.source[2]};
@@ -268,7 +215,7 @@ int run(const TradeoffOptions& o) {
     apply(*preset, s);
     s.seed = kReferenceSeed;
     std::cerr << "earshot: tradeoff: reference run (" << s.rays << " rays x " << s.bounces << " bounces)...\n";
-    auto r = computeOmniIr(**tracer, materials, source, listener, s, pool);
+    auto r = computeOmniIr(*tracer, materials, source, listener, s, pool);
     if (!check(r.status())) return 2;
     referenceIr = std::move(r->ir.channels[0]);
   }
@@ -295,7 +242,7 @@ int run(const TradeoffOptions& o) {
         s.bounces = b;
         s.seed = uint64_t(i + 1);
         const auto t0 = std::chrono::steady_clock::now();
-        auto r = computeOmniIr(**tracer, materials, source, listener, s, pool);
+        auto r = computeOmniIr(*tracer, materials, source, listener, s, pool);
         seconds.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
         if (!check(r.status())) return 2;
         auto m = an::analyzeIr(r->ir.channels[0], rateHz);

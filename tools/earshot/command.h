@@ -8,9 +8,14 @@
 #include <CLI/CLI.hpp>
 
 #include <functional>
+#include <memory>
 #include <string>
+#include <vector>
 
 #include "earshot/core/status.h"
+#include "earshot/materials/material.h"
+#include "earshot/propagation/air_absorption.h"
+#include "earshot/scene/ray_tracer.h"
 
 namespace earshot::cli {
 
@@ -28,6 +33,25 @@ void setExitCode(int code);
 void printError(const std::string& message);
 /** printError(status.message()) unless ok; returns status.isOk(). */
 bool check(const Status& status);
+
+/** --air TEMP_C,HUMIDITY_PCT|off, the error naming the option. */
+Result<AirConditions> parseCliAir(const std::string& text);
+
+/** What a command needs of a scene: materials, and geometry in a tracer. */
+struct SceneInputs {
+  MaterialTable materials;
+  TriangleMesh mesh;
+  std::unique_ptr<RayTracer> tracer;
+};
+
+/** Loads the materials (a file, or the built-in default set), the material
+ *  map (optional) and the glTF geometry (empty path: free field), prints the
+ *  loader's warnings and builds the tracer. */
+Result<SceneInputs> loadSceneInputs(const std::string& geometryPath, const std::string& materialsPath,
+                                    const std::string& materialMapPath);
+
+/** Median of a non-empty set (benchmarks report medians: shared machines). */
+double median(std::vector<double> values);
 
 /** Parses "X,Y,Z" (three finite numbers) for an option; a CLI11 validator
  *  rejects NaN/Inf and wrong counts with a message naming the option. */

@@ -1,10 +1,13 @@
 // earshot: command-line front end. Subcommands register themselves; see command.h.
+#include <algorithm>
 #include <cmath>
 #include <iostream>
+#include <map>
 #include <sstream>
 #include <vector>
 
 #include "command.h"
+#include "earshot/scene/gltf_loader.h"
 
 namespace earshot::cli {
 namespace {
@@ -36,6 +39,44 @@ bool check(const Status& status) {
   if (status.isOk()) return true;
   printError(status.message());
   return false;
+}
+
+Result<AirConditions> parseCliAir(const std::string& text) {
+  auto air = parseAirConditions(text);
+  if (!air.isOk()) return invalidArgument("--air: " + air.status().message());
+  return air;
+}
+
+Result<SceneInputs> loadSceneInputs(const std::string& geometryPath, const std::string& materialsPath,
+                                    const std::string& materialMapPath) {
+  SceneInputs in;
+  in.materials = defaultMaterials();
+  if (!materialsPath.empty()) {
+    auto m = loadMaterials(materialsPath);
+    if (!m.isOk()) return m.status();
+    in.materials = std::move(m.value());
+  }
+  std::map<std::string, std::string> materialMap;
+  if (!materialMapPath.empty()) {
+    auto m = loadMaterialMap(materialMapPath);
+    if (!m.isOk()) return m.status();
+    materialMap = std::move(m.value());
+  }
+  if (!geometryPath.empty()) {
+    auto g = loadGltf(geometryPath, in.materials, materialMap);
+    if (!g.isOk()) return g.status();
+    for (const auto& w : g->warnings) std::cerr << "earshot: warning: " << w << "\n";
+    in.mesh = std::move(g->mesh);
+  }
+  auto tracer = RayTracer::create(in.mesh);
+  if (!tracer.isOk()) return Status(tracer.status().code(), geometryPath + ": " + tracer.status().message());
+  in.tracer = std::move(tracer.value());
+  return in;
+}
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
 }
 
 CLI::Option* addVec3Option(CLI::App& app, const std::string& name, std::array<double, 3>& out,

@@ -1,6 +1,8 @@
 #pragma once
 /** @file Atmospheric absorption of sound, ISO 9613-1:1993 (pure-tone formula,
  *  eqs. 3-5 and annex B for the saturation vapour pressure). */
+#include <string>
+
 #include "earshot/core/bands.h"
 #include "earshot/core/status.h"
 
@@ -12,6 +14,9 @@ struct AirConditions {
   double pressureKpa = 101.325;   ///< [50, 120] kPa
   bool enabled = true;            ///< false: no air absorption
 };
+
+/** Parses "TEMP_C,HUMIDITY_PCT" (e.g. "20,50") or "off"; checks ranges. */
+Result<AirConditions> parseAirConditions(const std::string& text);
 
 /** Checks ranges; the message names the field. */
 Status validate(const AirConditions& air);

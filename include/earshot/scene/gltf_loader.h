@@ -39,6 +39,10 @@ struct GltfLoadResult {
  *  cycles, non-finite vertices (kInvalidArgument, naming mesh and vertex).
  *  `materials` is only read (not owned, not kept). Thread-safe: no shared
  *  state; call from any thread. */
+/** Reads a material map file: a JSON object {"glTF material name":
+ *  "acoustic material name", ...}. Errors name the file and the entry. */
+Result<std::map<std::string, std::string>> loadMaterialMap(const std::string& path);
+
 Result<GltfLoadResult> loadGltf(const std::string& path, const MaterialTable& materials,
                                 const std::map<std::string, std::string>& materialMap = {});
 
