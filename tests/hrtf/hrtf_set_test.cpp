@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <complex>
 #include <cstdlib>
 #include <map>
@@ -216,7 +217,12 @@ TEST(HrtfSet, Ku100SourceAtLeftLeadsLeftEarByTheSetsOwnItdAndIld) {
   EXPECT_NEAR(ild, rawIld, 0.5);
 }
 
-TEST(HrtfSet, InterpolatedMagnitudeBetweenNeighboursIsTheirAverage) {
+enum class EarSide { kFacingTheSource, kShadowed };
+
+// Issue 4: for a direction midway between two measurements, the interpolated
+// HRIR's one-third-octave band levels below 8 kHz are within 1 dB of the two
+// measurements' average, for the ears on `side`.
+void expectMidpointMagnitudesWithinOneDb(EarSide side) {
   auto set = loadOrDie(kKu100, 48000.0);
   ASSERT_TRUE(set);
   const RawSofa& r = raw(kKu100);
@@ -262,21 +268,28 @@ TEST(HrtfSet, InterpolatedMagnitudeBetweenNeighboursIsTheirAverage) {
         double got = energyToDb(eg);
         const bool ipsilateral = energy(r.hrir(i, ear), r.n) >= energy(r.hrir(i, 1 - ear), r.n);
         (ipsilateral ? worstIpsi : worst) = std::max(ipsilateral ? worstIpsi : worst, std::fabs(got - avgDb));
-        // Issue 4: within 1 dB of the neighbours' average below 8 kHz. Held
-        // for the ear facing the source. The shadowed ear's response above
-        // ~3 kHz is an interference pattern of paths around the head that
-        // changes faster than the 4.5-degree grid resolves: interpolating two
-        // such minimum-phase HRIRs loses up to ~2.5 dB in a band (measured),
-        // so that ear gets a 3 dB regression bound instead.
-        EXPECT_NEAR(got, avgDb, ipsilateral ? 1.0 : 3.0)
-            << "measurements " << i << " and " << j << ", ear " << ear << ", " << fc << " Hz band";
+        if (ipsilateral != (side == EarSide::kFacingTheSource)) continue;
+        EXPECT_NEAR(got, avgDb, 1.0) << "measurements " << i << " and " << j << ", ear " << ear << ", " << fc
+                                     << " Hz band";
       }
     }
     ++checked;
   }
-  RecordProperty("worst_ipsilateral_db", std::to_string(worstIpsi));
-  RecordProperty("worst_contralateral_db", std::to_string(worst));
+  std::printf("midpoint magnitude: worst %.2f dB (ear facing the source), %.2f dB (shadowed ear)\n", worstIpsi, worst);
   EXPECT_GE(checked, 50);
+}
+
+TEST(HrtfSet, InterpolatedMagnitudeBetweenNeighboursIsTheirAverageForTheEarFacingTheSource) {
+  expectMidpointMagnitudesWithinOneDb(EarSide::kFacingTheSource);
+}
+
+// KNOWN GAP (disabled; --gtest_also_run_disabled_tests): the shadowed ear's
+// response above ~3 kHz is an interference pattern of paths around the head
+// that changes faster than the 4.5-degree grid resolves; interpolating two
+// such minimum-phase HRIRs in the time domain loses up to 2.45 dB in a band
+// (measured). Interpolating magnitudes in the frequency domain would fix it.
+TEST(HrtfSet, DISABLED_KnownGap_InterpolatedMagnitudeForTheShadowedEar) {
+  expectMidpointMagnitudesWithinOneDb(EarSide::kShadowed);
 }
 
 // Woodworth's spherical-head ITD, (a / c)(theta + sin theta), changes at most
