@@ -73,6 +73,9 @@ Status writeWavFloat(const std::string& path, const AudioBuffer& audio) {
     info.format = SF_FORMAT_WAV | SF_FORMAT_FLOAT;
     SndPtr f(sf_open(tmp.c_str(), SFM_WRITE, &info));
     if (!f) return ioError(path + ": cannot open for writing (" + sf_strerror(nullptr) + ")");
+    // No PEAK chunk: it carries a timestamp, and identical audio must give
+    // identical files (same inputs and seed, same bytes).
+    sf_command(f.get(), SFC_SET_ADD_PEAK_CHUNK, nullptr, SF_FALSE);
     std::vector<float> block(4096 * ch);
     for (size_t start = 0; start < frames; start += 4096) {
       size_t n = std::min<size_t>(4096, frames - start);

@@ -114,10 +114,13 @@ Result<EnergyHistogram> completeTail(const EnergyHistogram& h, const TailData& t
   // 3. kappa: detections per unit energy in flight, where the trace is
   // complete (virtual energy under 10 % of the traced) and after the
   // image-source part.
-  const size_t calib0 = std::min(traced, size_t(settings.calibrationStartSeconds / dt));
+  // Bins where the traced histogram, the energy in flight and the virtual
+  // energy all exist (an open scene's filled length can be shorter).
+  const size_t usable = std::min({traced, bins, tail.alive.size()});
+  const size_t calib0 = std::min(usable, size_t(settings.calibrationStartSeconds / dt));
   for (int b = 0; b < kNumBands; ++b) {
     size_t end = calib0;
-    while (end < traced && end < tail.alive.size() && tail.alive[end][b] > 0 &&
+    while (end < usable && tail.alive[end][b] > 0 &&
            virtualEnergy[end][b] < 0.1 * tail.alive[end][b])
       ++end;
     size_t begin = calib0;
@@ -129,7 +132,7 @@ Result<EnergyHistogram> completeTail(const EnergyHistogram& h, const TailData& t
     }
     info.kappa[b] = inFlight > 0 ? detected / inFlight : 0.0;
     size_t start = traced;
-    for (size_t i = 0; i < traced && i < tail.alive.size(); ++i)
+    for (size_t i = 0; i < usable; ++i)
       if (virtualEnergy[i][b] > tail.alive[i][b] && virtualEnergy[i][b] > 0) {
         start = i;
         break;

@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include "earshot/core/bands.h"
@@ -46,6 +47,7 @@ class MaterialTable {
 
  private:
   std::vector<Material> mMaterials;
+  std::unordered_map<std::string, uint32_t> mIndex;  // name -> lowest id with that name
 };
 
 /** Parses a materials JSON text; `sourceName` (a file name) prefixes errors:
