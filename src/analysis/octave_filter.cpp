@@ -56,15 +56,17 @@ std::array<Biquad, 4> designBand(double rateHz, double centerHz) {
 // One pass of the cascade over y[0..n), in place, forward or backward. All
 // four sections advance per sample (transposed direct form II) so the CPU can
 // overlap their dependency chains across samples.
+// One transposed direct-form II biquad step.
+inline double step(const Biquad& s, double in, double& z1, double& z2) {
+  const double out = s.b0 * in + z1;
+  z1 = s.b1 * in - s.a1 * out + z2;
+  z2 = s.b2 * in - s.a2 * out;
+  return out;
+}
+
 void runCascade(const std::array<Biquad, 4>& sections, double* y, size_t n, bool backward) {
   const Biquad s0 = sections[0], s1 = sections[1], s2 = sections[2], s3 = sections[3];
   double a1 = 0, a2 = 0, b1 = 0, b2 = 0, c1 = 0, c2 = 0, d1 = 0, d2 = 0;
-  auto step = [](const Biquad& s, double in, double& z1, double& z2) {
-    const double out = s.b0 * in + z1;
-    z1 = s.b1 * in - s.a1 * out + z2;
-    z2 = s.b2 * in - s.a2 * out;
-    return out;
-  };
   for (size_t k = 0; k < n; ++k) {
     double& v = y[backward ? n - 1 - k : k];
     v = step(s3, step(s2, step(s1, step(s0, v, a1, a2), b1, b2), c1, c2), d1, d2);
@@ -79,12 +81,6 @@ void runCascadePair(const std::array<Biquad, 4>& sa, const std::array<Biquad, 4>
   const Biquad b0 = sb[0], b1 = sb[1], b2 = sb[2], b3 = sb[3];
   double p0 = 0, p1 = 0, q0 = 0, q1 = 0, r0 = 0, r1 = 0, s0 = 0, s1 = 0;  // band a states
   double t0 = 0, t1 = 0, u0 = 0, u1 = 0, v0 = 0, v1 = 0, w0 = 0, w1 = 0;  // band b states
-  auto step = [](const Biquad& s, double in, double& z1, double& z2) {
-    const double out = s.b0 * in + z1;
-    z1 = s.b1 * in - s.a1 * out + z2;
-    z2 = s.b2 * in - s.a2 * out;
-    return out;
-  };
   for (size_t k = 0; k < n; ++k) {
     const size_t i = backward ? n - 1 - k : k;
     ya[i] = step(a3, step(a2, step(a1, step(a0, ya[i], p0, p1), q0, q1), r0, r1), s0, s1);

@@ -106,6 +106,17 @@ double angleBetween(const Vec3d& a, const Vec3d& b) {
   return std::acos(std::clamp(dot(a, b), -1.0, 1.0));
 }
 
+// A cube-map cell's centre direction and angular radius (the largest angle
+// from the centre to a corner).
+std::pair<Vec3d, double> gridCell(int face, int i, int j, int n) {
+  const double u0 = -1.0 + 2.0 * i / n, u1 = -1.0 + 2.0 * (i + 1) / n;
+  const double v0 = -1.0 + 2.0 * j / n, v1 = -1.0 + 2.0 * (j + 1) / n;
+  const Vec3d centre = cubePoint(face, 0.5 * (u0 + u1), 0.5 * (v0 + v1));
+  const double r = std::max({angleBetween(centre, cubePoint(face, u0, v0)), angleBetween(centre, cubePoint(face, u1, v0)),
+                             angleBetween(centre, cubePoint(face, u0, v1)), angleBetween(centre, cubePoint(face, u1, v1))});
+  return {centre, r};
+}
+
 }  // namespace
 
 Result<std::shared_ptr<const HrtfSet>> HrtfSet::load(const std::string& sofaPath, double sampleRateHz,
@@ -268,11 +279,7 @@ void HrtfSet::buildTriangulation() {
   for (int face = 0; face < 6; ++face) {
     for (int j = 0; j < kGridN; ++j) {
       for (int i = 0; i < kGridN; ++i) {
-        double u0 = -1.0 + 2.0 * i / kGridN, u1 = -1.0 + 2.0 * (i + 1) / kGridN;
-        double v0 = -1.0 + 2.0 * j / kGridN, v1 = -1.0 + 2.0 * (j + 1) / kGridN;
-        Vec3d centre = cubePoint(face, 0.5 * (u0 + u1), 0.5 * (v0 + v1));
-        double r = std::max({angleBetween(centre, cubePoint(face, u0, v0)), angleBetween(centre, cubePoint(face, u1, v0)),
-                             angleBetween(centre, cubePoint(face, u0, v1)), angleBetween(centre, cubePoint(face, u1, v1))});
+        const auto [centre, r] = gridCell(face, i, j, kGridN);
         auto& list = lists[(face * kGridN + j) * kGridN + i];
         const double cr = std::cos(r), sr = std::sin(r);
         for (uint32_t t = 0; t < caps.size(); ++t) {
@@ -303,11 +310,7 @@ void HrtfSet::buildNearestGrid() {
   for (int face = 0; face < 6; ++face) {
     for (int j = 0; j < kGridN; ++j) {
       for (int i = 0; i < kGridN; ++i) {
-        double u0 = -1.0 + 2.0 * i / kGridN, u1 = -1.0 + 2.0 * (i + 1) / kGridN;
-        double v0 = -1.0 + 2.0 * j / kGridN, v1 = -1.0 + 2.0 * (j + 1) / kGridN;
-        Vec3d centre = cubePoint(face, 0.5 * (u0 + u1), 0.5 * (v0 + v1));
-        double r = std::max({angleBetween(centre, cubePoint(face, u0, v0)), angleBetween(centre, cubePoint(face, u1, v0)),
-                             angleBetween(centre, cubePoint(face, u0, v1)), angleBetween(centre, cubePoint(face, u1, v1))});
+        const auto [centre, r] = gridCell(face, i, j, kGridN);
         double bestDot = -2.0;
         for (const Vec3f& d : mDirections) bestDot = std::max(bestDot, dot(centre, Vec3d(d)));
         double limit = std::acos(std::clamp(bestDot, -1.0, 1.0)) + 2.0 * r + 1e-4;
