@@ -88,7 +88,11 @@ inline Vec3f cosineDirection(const Vec3f& n, Pcg32& rng) {
   return normalize(t * u + b * v + n * w);
 }
 
-struct Accumulator {
+// One per worker thread. NOTE: cache-line aligned: side by side in a vector,
+// one thread's counters (written every segment) shared a line with the other
+// thread's buffer pointers (read every detection), and the line bounced
+// between cores (perf: 64 % of the detection code's time on that load).
+struct alignas(64) Accumulator {
   std::vector<int64_t> hist;                 // [bin][kStride]
   std::vector<int64_t> perOrder;             // [order][band]
   std::vector<int64_t> aliveDiff;            // [bin + 1][band]: difference array of energy in flight
@@ -446,6 +450,7 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
       stats.detectedPerOrder[o][b] = double(total.perOrder[size_t(o) * kNumBands + b]) / kFixedScale;
   TailData& tail = result.tail;
   tail.alive.assign(bins, BandArrayD{});
+  tail.cutRays.reserve(total.raysCut);
   for (uint32_t i = 0; i < settings.rays; ++i)
     if (wasCut[i]) tail.cutRays.push_back(cutRays[i]);
   int64_t running[kNumBands] = {};
