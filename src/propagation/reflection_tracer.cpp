@@ -10,6 +10,7 @@
 #include <chrono>
 #include <cmath>
 #include <array>
+#include <cstdint>
 #include <cstring>
 #include <string>
 
@@ -27,6 +28,15 @@ namespace {
 // value is 2^13 = 8192 (a reflection 1 cm away is 1e4; saturates there).
 constexpr double kFixedScale = 1125899906842624.0;  // 2^50
 constexpr double kFixedMax = 9.2e18;
+
+// Saturating add: a bin of an absurd scene (a 1 cm room, 1000 bounces) can
+// exceed the format's 2^13 range; it then stays at the limit instead of
+// overflowing. For non-negative sums (energies) saturation is associative,
+// so results stay thread-count independent; only a saturated signed
+// direction sum could depend on the order.
+inline void addSat(int64_t& acc, int64_t v) {
+  if (__builtin_add_overflow(acc, v, &acc)) acc = v > 0 ? INT64_MAX : INT64_MIN;
+}
 
 // Round to nearest (ties away from zero) by truncation: no libm call.
 inline int64_t toFixed(double v) {
@@ -252,7 +262,7 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
                      uint32_t order) {
     const size_t bin = size_t(pathLength * invC * invBin);
     if (bin >= bins) {
-      for (int b = 0; b < kNumBands; ++b) a.late[b] += toFixed(double(energy[b]) * weight);
+      for (int b = 0; b < kNumBands; ++b) addSat(a.late[b], toFixed(double(energy[b]) * weight));
       return;
     }
     float f[kNumBands];
@@ -263,14 +273,14 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
     for (int b = 0; b < kNumBands; ++b) {
       const double e = double(energy[b]) * weight * f[b];
       const int64_t q = toFixed(e);
-      h[b] += q;
-      po[b] += q;
+      addSat(h[b], q);
+      addSat(po[b], q);
       mean += e;
     }
     mean *= 1.0 / kNumBands;
-    h[kNumBands] += toFixed(mean * doa.x);
-    h[kNumBands + 1] += toFixed(mean * doa.y);
-    h[kNumBands + 2] += toFixed(mean * doa.z);
+    addSat(h[kNumBands], toFixed(mean * doa.x));
+    addSat(h[kNumBands + 1], toFixed(mean * doa.y));
+    addSat(h[kNumBands + 2], toFixed(mean * doa.z));
   };
   // Energy in flight over [from, to) bins (air applied at the segment's start).
   auto alive = [&](Accumulator& a, float fromLength, float toLength, const float* energy) {
@@ -280,8 +290,8 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
     air.factors(fromLength, f);
     for (int b = 0; b < kNumBands; ++b) {
       const int64_t q = toFixed(double(energy[b]) * f[b]);
-      a.aliveDiff[b0 * kNumBands + b] += q;
-      a.aliveDiff[b1 * kNumBands + b] -= q;
+      addSat(a.aliveDiff[b0 * kNumBands + b], q);
+      addSat(a.aliveDiff[b1 * kNumBands + b], -q);
     }
   };
 
@@ -328,8 +338,8 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
         if (!hasHit) {
           ++a.raysEscaped;
           for (int b = 0; b < kNumBands; ++b) {
-            a.escaped[b] += toFixed(energy[b] / (4.0 * kPi));
-            if (order >= lossFromOrder) a.pathEnergy[(kFreePathBins - 1) * kNumBands + b] += toFixed(energy[b]);
+            addSat(a.escaped[b], toFixed(energy[b] / (4.0 * kPi)));
+            if (order >= lossFromOrder) addSat(a.pathEnergy[(kFreePathBins - 1) * kNumBands + b], toFixed(energy[b]));
           }
           break;
         }
@@ -338,8 +348,8 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
         if (order >= lossFromOrder) {
           const size_t fb = freePathBin(hit.t) * kNumBands;
           for (int b = 0; b < kNumBands; ++b) {
-            a.pathEnergy[fb + b] += toFixed(energy[b]);
-            a.pathRetained[fb + b] += toFixed(energy[b] * std::min(1.0f, m.reflect[b] + m.transmit[b]));
+            addSat(a.pathEnergy[fb + b], toFixed(energy[b]));
+            addSat(a.pathRetained[fb + b], toFixed(energy[b] * std::min(1.0f, m.reflect[b] + m.transmit[b])));
           }
         }
         pathLength += hit.t;
@@ -425,16 +435,16 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
   // Reduce in fixed point (exact, order-independent), then convert.
   Accumulator& total = acc[0];
   for (size_t w = 1; w < acc.size(); ++w) {
-    for (size_t i = 0; i < total.hist.size(); ++i) total.hist[i] += acc[w].hist[i];
-    for (size_t i = 0; i < total.perOrder.size(); ++i) total.perOrder[i] += acc[w].perOrder[i];
-    for (size_t i = 0; i < total.aliveDiff.size(); ++i) total.aliveDiff[i] += acc[w].aliveDiff[i];
+    for (size_t i = 0; i < total.hist.size(); ++i) addSat(total.hist[i], acc[w].hist[i]);
+    for (size_t i = 0; i < total.perOrder.size(); ++i) addSat(total.perOrder[i], acc[w].perOrder[i]);
+    for (size_t i = 0; i < total.aliveDiff.size(); ++i) addSat(total.aliveDiff[i], acc[w].aliveDiff[i]);
     for (size_t i = 0; i < total.pathEnergy.size(); ++i) {
-      total.pathEnergy[i] += acc[w].pathEnergy[i];
-      total.pathRetained[i] += acc[w].pathRetained[i];
+      addSat(total.pathEnergy[i], acc[w].pathEnergy[i]);
+      addSat(total.pathRetained[i], acc[w].pathRetained[i]);
     }
     for (int b = 0; b < kNumBands; ++b) {
-      total.escaped[b] += acc[w].escaped[b];
-      total.late[b] += acc[w].late[b];
+      addSat(total.escaped[b], acc[w].escaped[b]);
+      addSat(total.late[b], acc[w].late[b]);
     }
     total.raysEscaped += acc[w].raysEscaped;
     total.segments += acc[w].segments;
@@ -456,7 +466,7 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
   int64_t running[kNumBands] = {};
   for (size_t i = 0; i < bins; ++i)
     for (int b = 0; b < kNumBands; ++b) {
-      running[b] += total.aliveDiff[i * kNumBands + b];
+      addSat(running[b], total.aliveDiff[i * kNumBands + b]);
       tail.alive[i][b] = double(running[b]) / kFixedScale;
     }
   for (int b = 0; b < kNumBands; ++b) {
