@@ -136,6 +136,16 @@ void resampleShifted(const float* x, std::size_t n, double fsIn, double fsOut, d
     out[m] = static_cast<float>(gain * sum);
   }
 }
+// Folds a real cepstrum (length n, even) onto positive quefrencies: the
+// cepstrum of the minimum-phase signal with the same magnitude.
+static void foldToMinimumPhaseCepstrum(std::vector<std::complex<double>>& c) {
+  const std::size_t n = c.size();
+  for (std::size_t i = 1; i < n / 2; ++i) c[i] = 2.0 * c[i].real();
+  c[0] = c[0].real();
+  c[n / 2] = c[n / 2].real();
+  for (std::size_t i = n / 2 + 1; i < n; ++i) c[i] = 0.0;
+}
+
 
 MinimumPhase::MinimumPhase(std::size_t irLength)
     : mLength(irLength), mFft(std::max<std::size_t>(256, 4 * nextPow2(irLength))), mWork(mFft.size()) {}
@@ -154,10 +164,7 @@ void MinimumPhase::compute(const float* x, float* out, std::size_t outLength) {
   const double floorMag = peak * 1e-5;  // -100 dB: keeps log finite at spectral zeros
   for (auto& v : mWork) v = std::log(std::max(std::abs(v), floorMag));
   mFft.inverse(mWork);
-  for (std::size_t i = 1; i < n / 2; ++i) mWork[i] = 2.0 * mWork[i].real();
-  mWork[0] = mWork[0].real();
-  mWork[n / 2] = mWork[n / 2].real();
-  for (std::size_t i = n / 2 + 1; i < n; ++i) mWork[i] = 0.0;
+  foldToMinimumPhaseCepstrum(mWork);
   mFft.forward(mWork);
   for (auto& v : mWork) v = std::exp(v);
   mFft.inverse(mWork);
@@ -190,11 +197,7 @@ double OnsetEstimator::onsetSamples(const float* x) {
   const double floorMag = peak * 1e-6;
   for (std::size_t i = 0; i < n; ++i) mWork[i] = std::log(std::max(std::abs(mSpec[i]), floorMag));
   mFft.inverse(mWork);
-  // Fold onto positive quefrencies: the minimum-phase cepstrum.
-  for (std::size_t i = 1; i < n / 2; ++i) mWork[i] = 2.0 * mWork[i].real();
-  mWork[0] = mWork[0].real();
-  mWork[n / 2] = mWork[n / 2].real();
-  for (std::size_t i = n / 2 + 1; i < n; ++i) mWork[i] = 0.0;
+  foldToMinimumPhaseCepstrum(mWork);
   mFft.forward(mWork);
   // Cross-spectrum X * conj(Hmin) = |X|^2 e^{i(excess phase)}.
   // A Gaussian low-pass weight favours the low-frequency excess-phase delay,
