@@ -1,0 +1,152 @@
+// Frequency-domain IR synthesis shared by the omni and binaural paths: see
+// spectral_synth.h and ir_synthesis.h for the method.
+#include "spectral_synth.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "earshot/core/math.h"
+#include "earshot/core/random.h"
+#include "earshot/ir/band_filter_bank.h"
+
+namespace earshot::detail {
+
+namespace {
+// Samples appended beyond the IR before the circular FFT, so that what the
+// zero-phase band filters spread before time 0 (the 125 Hz band's response
+// lasts ~0.1 s each way) wraps into the margin and not onto the IR's end, and
+// the direct sound's sinc tail stays below 1 / (pi * margin).
+constexpr double kMarginSeconds = 0.35;
+}  // namespace
+
+size_t fastFftSize(size_t minimum) {
+  size_t best = size_t(1) << 62;
+  for (size_t p2 = 2; p2 < 2 * minimum + 2; p2 *= 2)
+    for (size_t p3 = p2; p3 < 2 * minimum + 2; p3 *= 3)
+      for (size_t p5 = p3; p5 < 2 * minimum + 2; p5 *= 5)
+        if (p5 >= minimum && p5 < best) best = p5;
+  return best;
+}
+
+Result<SpectralSynth> SpectralSynth::create(size_t length, double fs) {
+  SpectralSynth s;
+  s.mFs = fs;
+  s.mLength = length;
+  s.mN = fastFftSize(length + size_t(kMarginSeconds * fs));
+  s.mBins = s.mN / 2 + 1;
+  s.mForward.reset(kiss_fftr_alloc(int(s.mN), 0, nullptr, nullptr));
+  s.mInverse.reset(kiss_fftr_alloc(int(s.mN), 1, nullptr, nullptr));
+  if (!s.mForward || !s.mInverse) return Status(StatusCode::kInternal, "FFT allocation failed");
+  s.mWeights.assign(kNumBands, std::vector<float>(s.mBins));
+  s.mLowerBand.resize(s.mBins);
+  s.mLowerWeight.resize(s.mBins);
+  for (size_t k = 0; k < s.mBins; ++k) {
+    BandArrayD w = bandWeights(double(k) * fs / double(s.mN));
+    for (int b = 0; b < kNumBands; ++b) s.mWeights[b][k] = float(w[b]);
+    // At most two band weights are non-zero at any frequency: keep the lower one.
+    int lb = kNumBands - 1;
+    for (int b = 0; b < kNumBands; ++b)
+      if (s.mWeights[b][k] > 0) {
+        lb = b;
+        break;
+      }
+    s.mLowerBand[k] = uint8_t(lb);
+    s.mLowerWeight[k] = s.mWeights[lb][k];
+  }
+  s.mScratch.resize(s.mBins);
+  return s;
+}
+
+std::complex<double> SpectralSynth::filterAt(const GridFilter& h, size_t k) const {
+  const double pos = double(k) * double(h.gridSize) / double(mN);
+  const size_t last = h.gridSize / 2;
+  size_t i = std::min(size_t(pos), last);
+  if (i == last) return std::complex<double>(h.values[last]);
+  const double f = pos - double(i);
+  return std::complex<double>(h.values[i]) * (1.0 - f) + std::complex<double>(h.values[i + 1]) * f;
+}
+
+void SpectralSynth::addArrival(const Arrival& a, double delaySeconds, const GridFilter& h,
+                               std::complex<double>* spectrum) const {
+  if (a.gain == 0) return;
+  const double tau = delaySeconds * mFs;  // samples
+  // exp(-j 2 pi k tau / n) by recurrence: one complex multiply per bin.
+  const std::complex<double> step = std::polar(1.0, -2.0 * kPi * tau / double(mN));
+  std::complex<double> phase = 1.0;
+  for (size_t k = 0; k < mBins; ++k) {
+    const int lb = mLowerBand[k];
+    const double w = mLowerWeight[k];
+    const double g = a.bandGain[lb] * w + (lb + 1 < kNumBands ? a.bandGain[lb + 1] * (1.0 - w) : 0.0);
+    if (h.values)
+      spectrum[k] += a.gain * g * phase * filterAt(h, k);
+    else
+      spectrum[k] += a.gain * g * phase;
+    phase *= step;
+    if ((k & 1023) == 1023) phase /= std::abs(phase);  // keep |phase| = 1 over long recurrences
+  }
+  // The Nyquist bin of a real signal must be real.
+  if (mN % 2 == 0) spectrum[mBins - 1] = spectrum[mBins - 1].real();
+}
+
+std::vector<float> SpectralSynth::noise(uint64_t seed, uint64_t stream) const {
+  std::vector<float> out(mLength);
+  Pcg32 rng(seed, stream);
+  for (size_t i = 0; i < mLength; i += 2) {  // Box-Muller, two at a time
+    double u1 = std::max(rng.uniformDouble(), 1e-300), u2 = rng.uniformDouble();
+    double r = std::sqrt(-2.0 * std::log(u1));
+    out[i] = float(r * std::cos(2 * kPi * u2));
+    if (i + 1 < mLength) out[i + 1] = float(r * std::sin(2 * kPi * u2));
+  }
+  return out;
+}
+
+bool SpectralSynth::shapeBand(const float* noise, const EnergyHistogram& h, int band, const float* gain,
+                              std::vector<float>& shaped) const {
+  const double binSamples = h.binSeconds() * mFs;
+  const size_t histBins = h.binCount();
+  bool any = false;
+  std::fill(shaped.begin(), shaped.end(), 0.0f);
+  auto densityAt = [&](long bin) {
+    if (bin < 0 || size_t(bin) >= histBins) return 0.0;
+    const double d = h.energy(size_t(bin), band) / binSamples;
+    return gain ? d * double(gain[bin]) : d;
+  };
+  for (size_t i = 0; i < mLength; ++i) {
+    // Energy density per sample, linear between bin centres.
+    const double x = (double(i) + 0.5) / binSamples - 0.5;
+    const double xf = std::floor(x);
+    const long j = long(xf);
+    const double frac = x - xf;
+    const double density = (1.0 - frac) * densityAt(j) + frac * densityAt(j + 1);
+    if (density > 0) {
+      shaped[i] = float(noise[i] * std::sqrt(density));
+      any = true;
+    }
+  }
+  return any;
+}
+
+void SpectralSynth::addBand(int band, const std::vector<float>& shaped, const GridFilter& h,
+                            std::complex<double>* spectrum) {
+  kiss_fftr(mForward.get(), shaped.data(), mScratch.data());
+  const std::vector<float>& w = mWeights[band];
+  for (size_t k = 0; k < mBins; ++k) {
+    if (w[k] == 0.0f) continue;
+    const std::complex<double> x(mScratch[k].r, mScratch[k].i);
+    if (h.values)
+      spectrum[k] += double(w[k]) * filterAt(h, k) * x;
+    else
+      spectrum[k] += double(w[k]) * x;
+  }
+}
+
+void SpectralSynth::inverse(std::vector<std::complex<double>>& spectrum, std::vector<float>& out) {
+  for (size_t k = 0; k < mBins; ++k) mScratch[k] = {float(spectrum[k].real()), float(spectrum[k].imag())};
+  std::vector<float> time(mN);
+  kiss_fftri(mInverse.get(), mScratch.data(), time.data());
+  out.resize(mLength);
+  const float scale = 1.0f / float(mN);  // KissFFT's inverse is unnormalised
+  for (size_t i = 0; i < mLength; ++i) out[i] = time[i] * scale;
+}
+
+}  // namespace earshot::detail

@@ -1,0 +1,83 @@
+#pragma once
+// Internal: the frequency-domain synthesis shared by the omnidirectional and
+// the binaural IR (ir_synthesis.cpp, binaural_synthesis.cpp). One FFT frame
+// of n samples holds the IR plus a margin; discrete arrivals are added as
+// exact fractional delays, late reflections as band-shaped noise, each
+// optionally through a filter given on a coarse frequency grid (an HRTF or a
+// diffuse-field filter) and interpolated to the frame's bins. With no filter
+// the arithmetic is exactly the omnidirectional synthesis, so an identity
+// HRTF gives the omni IR in both ears.
+#include <kiss_fftr.h>
+
+#include <complex>
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "earshot/core/status.h"
+#include "earshot/ir/ir_synthesis.h"
+
+namespace earshot::detail {
+
+struct FftrDeleter {
+  void operator()(kiss_fftr_cfg c) const { kiss_fftr_free(c); }
+};
+using FftrPtr = std::unique_ptr<std::remove_pointer_t<kiss_fftr_cfg>, FftrDeleter>;
+
+/** A filter sampled at k * fs / gridSize for k = 0 .. gridSize / 2
+ *  (gridSize / 2 + 1 values), linearly interpolated in between. */
+struct GridFilter {
+  const std::complex<float>* values = nullptr;  ///< null: the identity filter
+  size_t gridSize = 0;
+};
+
+class SpectralSynth {
+ public:
+  /** Plans an IR of `length` samples at `fs`; fails on FFT allocation. */
+  static Result<SpectralSynth> create(size_t length, double fs);
+
+  size_t length() const { return mLength; }
+  size_t bins() const { return mBins; }
+
+  /** spectrum += gain * G_a(f) * H(f) * exp(-j 2 pi f delay), where G_a is the
+   *  arrival's band gains through the complementary band weights. */
+  void addArrival(const Arrival& a, double delaySeconds, const GridFilter& h, std::complex<double>* spectrum) const;
+
+  /** `length` samples of white Gaussian noise (unit variance) from a seed and stream. */
+  std::vector<float> noise(uint64_t seed, uint64_t stream) const;
+
+  /** shaped[i] = noise[i] * sqrt(density_band(i) * gain(bin of i)), the
+   *  density the histogram's energy per sample, linear between bin centres;
+   *  gainPerHistogramBin may be null (1). Returns false if all zero. */
+  bool shapeBand(const float* noise, const EnergyHistogram& h, int band, const float* gainPerHistogramBin,
+                 std::vector<float>& shaped) const;
+
+  /** spectrum += W_band(f) * H(f) * FFT(shaped); shaped has n samples (the
+   *  tail beyond length() zero). */
+  void addBand(int band, const std::vector<float>& shaped, const GridFilter& h, std::complex<double>* spectrum);
+
+  /** A zeroed spectrum of bins() values. */
+  std::vector<std::complex<double>> emptySpectrum() const { return std::vector<std::complex<double>>(mBins, 0.0); }
+
+  /** The first length() samples of the inverse transform of `spectrum`. */
+  void inverse(std::vector<std::complex<double>>& spectrum, std::vector<float>& out);
+
+  /** Buffer for shapeBand (n samples). */
+  std::vector<float> shapedBuffer() const { return std::vector<float>(mN, 0.0f); }
+
+ private:
+  std::complex<double> filterAt(const GridFilter& h, size_t k) const;
+
+  double mFs = 48000.0;
+  size_t mLength = 0, mN = 0, mBins = 0;
+  FftrPtr mForward, mInverse;
+  std::vector<std::vector<float>> mWeights;  // [band][bin]
+  std::vector<uint8_t> mLowerBand;           // per bin: the lower of the (at most two) non-zero bands
+  std::vector<double> mLowerWeight;
+  std::vector<kiss_fft_cpx> mScratch;
+};
+
+/** Smallest even n >= minimum with only factors 2, 3, 5 (fast for KissFFT). */
+size_t fastFftSize(size_t minimum);
+
+}  // namespace earshot::detail
