@@ -1,10 +1,7 @@
 // HRIR preparation numerics.
 //
-// Resampling and fractional interpolation: band-limited (Whittaker-Shannon)
-// interpolation with a Kaiser-windowed sinc, tabulated and linearly
-// interpolated (J. O. Smith and P. Gossett, "A flexible sampling-rate
-// conversion method", ICASSP 1984; Kaiser & Schafer 1980 for the window). When
-// downsampling, the sinc is stretched to a cutoff of 0.95 * fsOut / 2.
+// Resampling and fractional interpolation: earshot/dsp/resample.h (a
+// tabulated Kaiser-windowed sinc, shared with dry-audio loading).
 //
 // Onset (time-of-arrival) estimation: the lag that maximises the
 // cross-correlation between an HRIR and its minimum-phase version, i.e. the
@@ -33,34 +30,10 @@ namespace earshot::hrtf::detail {
 
 namespace {
 
-double besselI0(double x) {
-  // Power series; converges quickly for the arguments used (<= 9).
-  double sum = 1.0, term = 1.0, q = x * x / 4.0;
-  for (int k = 1; k < 60; ++k) {
-    term *= q / (double(k) * double(k));
-    sum += term;
-    if (term < sum * 1e-17) break;
-  }
-  return sum;
-}
-
 std::size_t nextPow2(std::size_t n) {
   std::size_t p = 1;
   while (p < n) p <<= 1;
   return p;
-}
-
-template <class T>
-double interpolateImpl(const T* x, std::size_t n, double t) {
-  const SincKernel& k = SincKernel::instance();
-  const double z = SincKernel::kZeroCrossings;
-  long lo = static_cast<long>(std::ceil(t - z));
-  long hi = static_cast<long>(std::floor(t + z));
-  lo = std::max(lo, 0L);
-  hi = std::min(hi, static_cast<long>(n) - 1);
-  double sum = 0.0;
-  for (long i = lo; i <= hi; ++i) sum += double(x[i]) * k.value(t - double(i));
-  return sum;
 }
 
 }  // namespace
@@ -100,42 +73,6 @@ void Fft::inverse(std::vector<std::complex<double>>& x) const {
   for (auto& v : x) v *= s;
 }
 
-SincKernel::SincKernel() : mTable(std::size_t(kZeroCrossings) * kPhases + 2, 0.0) {
-  double i0b = besselI0(kBeta);
-  for (std::size_t i = 0; i <= std::size_t(kZeroCrossings) * kPhases; ++i) {
-    double x = double(i) / kPhases;
-    double u = x / kZeroCrossings;
-    double sinc = i == 0 ? 1.0 : std::sin(kPi * x) / (kPi * x);
-    if (i % kPhases == 0 && i != 0) sinc = 0.0;  // exact zeros at integers
-    double w = besselI0(kBeta * std::sqrt(std::max(0.0, 1.0 - u * u))) / i0b;
-    mTable[i] = sinc * w;
-  }
-}
-
-const SincKernel& SincKernel::instance() {
-  static const SincKernel kernel;
-  return kernel;
-}
-
-double interpolateAt(const float* x, std::size_t n, double t) { return interpolateImpl(x, n, t); }
-double interpolateAt(const double* x, std::size_t n, double t) { return interpolateImpl(x, n, t); }
-
-void resampleShifted(const float* x, std::size_t n, double fsIn, double fsOut, double startIn, float* out,
-                     std::size_t outLength) {
-  const SincKernel& k = SincKernel::instance();
-  const double ratio = fsIn / fsOut;  // input samples per output sample
-  const double kappa = fsOut < fsIn ? 0.95 * fsOut / fsIn : 1.0;
-  const double gain = kappa * ratio;
-  const double half = SincKernel::kZeroCrossings / kappa;
-  for (std::size_t m = 0; m < outLength; ++m) {
-    double t = double(m) * ratio + startIn;
-    long lo = std::max(0L, static_cast<long>(std::ceil(t - half)));
-    long hi = std::min(static_cast<long>(n) - 1, static_cast<long>(std::floor(t + half)));
-    double sum = 0.0;
-    for (long i = lo; i <= hi; ++i) sum += double(x[i]) * k.value(kappa * (t - double(i)));
-    out[m] = static_cast<float>(gain * sum);
-  }
-}
 // Folds a real cepstrum (length n, even) onto positive quefrencies: the
 // cepstrum of the minimum-phase signal with the same magnitude.
 static void foldToMinimumPhaseCepstrum(std::vector<std::complex<double>>& c) {

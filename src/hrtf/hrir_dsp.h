@@ -1,10 +1,12 @@
 #pragma once
-// Internal DSP for HRIR preparation: a radix-2 FFT, a Kaiser-windowed sinc
-// kernel (resampling and band-limited interpolation) and the onset (excess
-// phase delay) estimator. See hrir_dsp.cpp for methods and references.
+// Internal DSP for HRIR preparation: a radix-2 FFT, minimum phase and the
+// onset (excess phase delay) estimator. See hrir_dsp.cpp for methods and
+// references; resampling is earshot/dsp/resample.h.
 #include <complex>
 #include <cstddef>
 #include <vector>
+
+#include "earshot/dsp/resample.h"
 
 namespace earshot::hrtf::detail {
 
@@ -23,38 +25,12 @@ class Fft {
   std::vector<std::size_t> mBitReverse;
 };
 
-/** Kaiser-windowed sinc, tabulated: value(x) = sinc(x) * kaiser(x / kZeroCrossings)
- *  for |x| < kZeroCrossings (x in zero-crossing units), 0 outside. */
-class SincKernel {
- public:
-  static constexpr int kZeroCrossings = 32;
-  static constexpr int kPhases = 512;  // table entries per zero crossing
-  static constexpr double kBeta = 9.0; // Kaiser beta: ~ -90 dB stop band
-  SincKernel();
-  double value(double x) const {
-    double a = x < 0 ? -x : x;
-    if (a >= kZeroCrossings) return 0.0;
-    double p = a * kPhases;
-    auto i = static_cast<std::size_t>(p);
-    double f = p - double(i);
-    return mTable[i] + f * (mTable[i + 1] - mTable[i]);
-  }
-  static const SincKernel& instance();
-
- private:
-  std::vector<double> mTable;
-};
-
-/** Band-limited value of the sequence x at fractional index t (sinc interpolation). */
-double interpolateAt(const float* x, std::size_t n, double t);
-double interpolateAt(const double* x, std::size_t n, double t);
-
-/** Resamples the HRIR x (length n, rate fsIn) to rate fsOut, shifted so that
- *  input time `startIn` (in input samples, fractional) lands on output tap 0:
- *  out[m] = g * lowpass(x)((m * fsIn / fsOut) + startIn). The gain g keeps the
- *  filter's frequency response (taps scale with fsIn / fsOut). */
-void resampleShifted(const float* x, std::size_t n, double fsIn, double fsOut, double startIn, float* out,
-                     std::size_t outLength);
+// The Kaiser-windowed sinc, band-limited interpolation and resampling live in
+// the dsp module (earshot/dsp/resample.h); these names keep the HRIR code's
+// spelling.
+using ::earshot::interpolateAt;
+using ::earshot::resampleShifted;
+using ::earshot::SincKernel;
 
 /** Minimum-phase version of an impulse response with the same magnitude
  *  response (folded real cepstrum). Reusable scratch; not thread-safe. */
