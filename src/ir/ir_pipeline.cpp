@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <string>
 
 #include "earshot/core/thread_pool.h"
 #include "earshot/scene/ray_tracer.h"
@@ -39,6 +40,12 @@ void apply(const QualityPreset& p, OmniIrSettings& s) {
 
 Result<OmniIrResult> computeOmniIr(const RayTracer& tracer, const MaterialTable& materials, const Vec3d& source,
                                    const Vec3d& listener, const OmniIrSettings& s, ThreadPool& pool) {
+  return computeIr(tracer, materials, source, listener, s, pool, nullptr);
+}
+
+Result<OmniIrResult> computeIr(const RayTracer& tracer, const MaterialTable& materials, const Vec3d& source,
+                               const Vec3d& listener, const OmniIrSettings& s, ThreadPool& pool,
+                               const BinauralReceiver* binaural) {
   const auto t0 = std::chrono::steady_clock::now();
   if (!isFinite(source) || !isFinite(listener)) return invalidArgument("source or listener position is not finite");
   OmniIrResult out;
@@ -47,6 +54,13 @@ Result<OmniIrResult> computeOmniIr(const RayTracer& tracer, const MaterialTable&
   synth.lengthSeconds = s.lengthSeconds;
   synth.seed = s.seed;
   EARSHOT_RETURN_IF_ERROR(validate(synth));
+  if (binaural) {
+    if (!binaural->model) return invalidArgument("binaural receiver without an HRTF model");
+    EARSHOT_RETURN_IF_ERROR(validate(binaural->orientation));
+    if (binaural->model->sampleRateHz() != s.sampleRateHz)
+      return invalidArgument("sample rate " + std::to_string(s.sampleRateHz) + " Hz differs from the HRTF set's " +
+                             std::to_string(binaural->model->sampleRateHz()) + " Hz");
+  }
 
   // Direct sound.
   auto t = std::chrono::steady_clock::now();
@@ -57,7 +71,7 @@ Result<OmniIrResult> computeOmniIr(const RayTracer& tracer, const MaterialTable&
   out.direct = computeDirectPath(&tracer, materials, source, listener, ds);
   out.timings.directMs = msSince(t);
   std::vector<Arrival> arrivals;
-  if (out.direct.audible) arrivals.push_back(toArrival(out.direct));
+  if (out.direct.audible && s.includeDirect) arrivals.push_back(toArrival(out.direct));
   if (tracer.empty()) out.skipped.push_back("reflections: no geometry");
   if (out.direct.surfacesCrossed == 0 && !tracer.empty()) out.skipped.push_back("transmission: nothing between source and listener");
 
@@ -127,7 +141,8 @@ Result<OmniIrResult> computeOmniIr(const RayTracer& tracer, const MaterialTable&
   }
 
   t = std::chrono::steady_clock::now();
-  auto ir = synthesizeOmniIr(arrivals, late, synth);
+  auto ir = binaural ? synthesizeBinauralIr(arrivals, late, synth, *binaural->model, binaural->orientation)
+                     : synthesizeOmniIr(arrivals, late, synth);
   if (!ir.isOk()) return ir.status();
   out.ir = std::move(ir.value());
   out.timings.synthesisMs = msSince(t);

@@ -13,13 +13,6 @@
 
 namespace earshot {
 
-namespace {
-// IRs longer than this are refused (10 minutes at 48 kHz).
-constexpr size_t kMaxSamples = size_t(48000) * 600;
-// Noise stream of the late reflections (the binaural path's first ear noise
-// uses the same stream, so an identity HRTF reproduces the omni IR).
-constexpr uint64_t kLateNoiseStream = 0x1F2E3D4CULL;
-}  // namespace
 
 Status validate(const IrSynthesisSettings& s) {
   if (!(s.sampleRateHz >= 8000.0 && s.sampleRateHz <= 384000.0))
@@ -60,21 +53,15 @@ Result<AudioBuffer> synthesizeOmniIr(const DirectPath* direct, const EnergyHisto
 
 Result<AudioBuffer> synthesizeOmniIr(const std::vector<Arrival>& arrivals, const EnergyHistogram* reflections,
                                      const IrSynthesisSettings& settings) {
-  EARSHOT_RETURN_IF_ERROR(validate(settings));
-  for (const Arrival& a : arrivals)
-    if (!std::isfinite(a.delaySeconds) || a.delaySeconds < 0 || !std::isfinite(a.gain))
-      return invalidArgument("arrival with delay " + std::to_string(a.delaySeconds) + " s, gain " + std::to_string(a.gain));
-  const double fs = settings.sampleRateHz;
-  const size_t length = irLengthSamples(arrivals, reflections, settings);
-  if (length > kMaxSamples) return outOfRange("IR of " + std::to_string(length) + " samples is over the limit");
-  auto synth = detail::SpectralSynth::create(length, fs);
+  auto synth = detail::SpectralSynth::plan(arrivals, reflections, settings);
   if (!synth.isOk()) return synth.status();
+  const double fs = settings.sampleRateHz;
   detail::SpectralSynth& plan = synth.value();
   auto spectrum = plan.emptySpectrum();
   for (const Arrival& a : arrivals) plan.addArrival(a, a.delaySeconds, {}, spectrum.data());
   // Reflections: per band, noise x sqrt(energy density), then W_b.
   if (reflections && reflections->lastNonEmptyBin() >= 0) {
-    const std::vector<float> noise = plan.noise(settings.seed, kLateNoiseStream);
+    const std::vector<float> noise = plan.noise(settings.seed, detail::kLateNoiseStream);
     std::vector<float> shaped = plan.shapedBuffer();
     for (int b = 0; b < kNumBands; ++b)
       if (plan.shapeBand(noise.data(), *reflections, b, nullptr, shaped)) plan.addBand(b, shaped, {}, spectrum.data());

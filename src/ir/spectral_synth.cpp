@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <string>
 
 #include "earshot/core/math.h"
 #include "earshot/core/random.h"
@@ -55,6 +56,17 @@ Result<SpectralSynth> SpectralSynth::create(size_t length, double fs) {
   }
   s.mScratch.resize(s.mBins);
   return s;
+}
+
+Result<SpectralSynth> SpectralSynth::plan(const std::vector<Arrival>& arrivals, const EnergyHistogram* reflections,
+                                          const IrSynthesisSettings& settings) {
+  EARSHOT_RETURN_IF_ERROR(validate(settings));
+  for (const Arrival& a : arrivals)
+    if (!std::isfinite(a.delaySeconds) || a.delaySeconds < 0 || !std::isfinite(a.gain))
+      return invalidArgument("arrival with delay " + std::to_string(a.delaySeconds) + " s, gain " + std::to_string(a.gain));
+  const size_t length = irLengthSamples(arrivals, reflections, settings);
+  if (length > kMaxIrSamples) return outOfRange("IR of " + std::to_string(length) + " samples is over the limit");
+  return create(length, settings.sampleRateHz);
 }
 
 std::complex<double> SpectralSynth::filterAt(const GridFilter& h, size_t k) const {

@@ -35,6 +35,10 @@ class SpectralSynth {
  public:
   /** Plans an IR of `length` samples at `fs`; fails on FFT allocation. */
   static Result<SpectralSynth> create(size_t length, double fs);
+  /** Validates the settings and arrivals (finite, delay >= 0) and plans the
+   *  IR of irLengthSamples() samples (at most kMaxIrSamples). */
+  static Result<SpectralSynth> plan(const std::vector<Arrival>& arrivals, const EnergyHistogram* reflections,
+                                    const IrSynthesisSettings& settings);
 
   size_t length() const { return mLength; }
   size_t bins() const { return mBins; }
@@ -76,6 +80,15 @@ class SpectralSynth {
   std::vector<double> mLowerWeight;
   std::vector<kiss_fft_cpx> mScratch;
 };
+
+/** Noise stream of the late reflections. The binaural path's first noise (U)
+ *  uses it too, so an identity HRTF reproduces the omni IR of the same seed. */
+constexpr uint64_t kLateNoiseStream = 0x1F2E3D4CULL;
+/** The binaural path's second, independent noise (V). */
+constexpr uint64_t kLateNoiseStreamIndependent = 0x5A6B7C8DULL;
+
+/** IRs longer than this are refused (10 minutes at 48 kHz). */
+constexpr size_t kMaxIrSamples = size_t(48000) * 600;
 
 /** Smallest even n >= minimum with only factors 2, 3, 5 (fast for KissFFT). */
 size_t fastFftSize(size_t minimum);

@@ -68,7 +68,7 @@ std::vector<std::vector<std::string>> readCsv(const std::string& path, std::stri
 
 TEST(TradeoffCli, TinySweepAgainstAGivenReference) {
   TempDir dir("sweep");
-  auto ref = runEarshot("ir " + kScene + " --rays 20000 -o '" + dir / "ref.wav'");
+  auto ref = runEarshot("ir " + kScene + " --receiver omni --rays 20000 -o '" + dir / "ref.wav'");
   ASSERT_EQ(ref.exitCode, 0) << ref.output;
   auto r = runEarshot("tradeoff " + kScene + " --rays 500,2000 --bounces 4 --repeats 1 --reference '" +
                       dir / "ref.wav' -o '" + dir / "out.csv'");

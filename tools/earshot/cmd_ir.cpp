@@ -26,7 +26,9 @@ struct IrOptions {
   std::string output;
   std::string materials;
   std::string materialMap;
-  std::string receiver = "omni";
+  std::string receiver = "binaural";
+  std::string hrtf;
+  std::array<double, 3> forward{0.0, 0.0, -1.0}, up{0.0, 1.0, 0.0};
   double rate = 48000;
   uint32_t rays = 16384;
   uint32_t bounces = 12;
@@ -48,8 +50,8 @@ double msSince(std::chrono::steady_clock::time_point t) {
 int run(const IrOptions& o, const CLI::App& cmd) {
   const auto t0 = std::chrono::steady_clock::now();
   nlohmann::json stats;
-  if (o.receiver != "omni") {
-    printError("--receiver " + o.receiver + ": only 'omni' is available in this version");
+  if (o.receiver == "omni" && !o.hrtf.empty()) {
+    printError("--hrtf: an HRTF applies only to --receiver binaural");
     return 2;
   }
   auto air = parseCliAir(o.air);
@@ -93,14 +95,29 @@ int run(const IrOptions& o, const CLI::App& cmd) {
   stats["triangles"] = mesh.triangleCount();
   stats["planes"] = tracer->planes().planes.size();
 
+  // Binaural receiver: the HRTF set (never a silent fallback to the default
+  // when a file is named) and the listener's orientation.
+  std::unique_ptr<BinauralReceiver> binaural;
+  if (o.receiver == "binaural") {
+    binaural = std::make_unique<BinauralReceiver>();
+    binaural->orientation.forward = {o.forward[0], o.forward[1], o.forward[2]};
+    binaural->orientation.up = {o.up[0], o.up[1], o.up[2]};
+    if (!check(validate(binaural->orientation))) return 2;
+    auto model = loadBinauralModel(o.hrtf, o.rate);
+    if (!check(model.status())) return 2;
+    binaural->model = *model;
+    stats["hrtf"] = binaural->model->hrtf().path();
+  }
+
   ThreadPool pool(o.threads);
   const Vec3d source{o.source[0], o.source[1], o.source[2]};
   const Vec3d listener{o.listener[0], o.listener[1], o.listener[2]};
-  auto result = computeOmniIr(*tracer, materials, source, listener, settings, pool);
+  auto result = computeIr(*tracer, materials, source, listener, settings, pool, binaural.get());
   if (!check(result.status())) return 2;
   const OmniIrResult& r = *result;
 
   stats["quality"] = o.quality;
+  stats["receiver"] = o.receiver;
   stats["settings"] = {{"rays", settings.rays},           {"bounces", settings.bounces},
                        {"ism_order", settings.imageSourceOrder}, {"bin_ms", settings.binSeconds * 1000.0},
                        {"seed", settings.seed},           {"sample_rate_hz", settings.sampleRateHz}};
@@ -145,12 +162,17 @@ const Registrar registrar([](CLI::App& root) {
       ->check(CLI::ExistingFile);
   addVec3Option(*cmd, "--source", o->source, "Source position in metres")->required();
   addVec3Option(*cmd, "--listener", o->listener, "Listener position in metres")->required();
-  cmd->add_option("-o,--output", o->output, "Output WAV (32-bit float; 1 channel for omni)")->required();
+  cmd->add_option("-o,--output", o->output, "Output WAV (32-bit float; binaural: 2 channels left, right; omni: 1)")
+      ->required();
   cmd->add_option("--materials", o->materials, "Materials JSON (default: the built-in materials/default.json)");
   cmd->add_option("--material-map", o->materialMap, "JSON object mapping glTF material names to acoustic materials");
-  cmd->add_option("--receiver", o->receiver, "Receiver: omni (binaural comes with HRTF support)")
+  cmd->add_option("--receiver", o->receiver, "Receiver: binaural (HRTF, 2 channels) or omni (1 channel)")
       ->check(CLI::IsMember({"omni", "binaural"}))
       ->capture_default_str();
+  cmd->add_option("--hrtf", o->hrtf, "HRTF set (SOFA SimpleFreeFieldHRIR); default: the shipped Neumann KU100 set")
+      ->check(CLI::ExistingFile);
+  addVec3Option(*cmd, "--forward", o->forward, "Listener forward vector (default 0,0,-1)");
+  addVec3Option(*cmd, "--up", o->up, "Listener up vector (default 0,1,0)");
   cmd->add_option("--rate", o->rate, "Sample rate in Hz")->check(CLI::Range(8000.0, 384000.0))->capture_default_str();
   cmd->add_option("--rays", o->rays, "Rays traced (balanced: 16384)")->check(CLI::Range(1u, 100000000u));
   cmd->add_option("--bounces", o->bounces, "Reflections per ray (balanced: 12)")->check(CLI::Range(0u, 100000u));

@@ -1,13 +1,16 @@
 #pragma once
-/** @file One source/listener pair to an omnidirectional IR: the direct path,
- *  early specular reflections (image sources), stochastic late reflections
- *  (with the image-source paths excluded), tail completion, synthesis. The
- *  one implementation behind `earshot ir`, `earshot tradeoff` and rendering. */
+/** @file One source/listener pair to an impulse response, omnidirectional or
+ *  binaural: the direct path, early specular reflections (image sources),
+ *  stochastic late reflections (with the image-source paths excluded), tail
+ *  completion, synthesis. The one implementation behind `earshot ir`,
+ *  `earshot tradeoff`, rendering and the runtime. */
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "earshot/core/audio_buffer.h"
 #include "earshot/core/status.h"
+#include "earshot/ir/binaural_synthesis.h"
 #include "earshot/ir/ir_synthesis.h"
 #include "earshot/propagation/direct_path.h"
 #include "earshot/propagation/image_sources.h"
@@ -31,6 +34,13 @@ struct OmniIrSettings {
   double binSeconds = 0.001;
   double receiverRadiusMeters = 0.0;  ///< 0: automatic
   bool completeTail = true;
+  bool includeDirect = true;       ///< false: reflections only (the runtime renders the direct path per block)
+};
+
+/** A binaural receiver: the HRTF model and the listener's orientation. */
+struct BinauralReceiver {
+  std::shared_ptr<const BinauralModel> model;
+  ListenerOrientation orientation;
 };
 
 /** Named quality presets: rays, bounces, image-source order, histogram bin. */
@@ -49,7 +59,7 @@ struct OmniIrTimings {
 };
 
 struct OmniIrResult {
-  AudioBuffer ir;                      ///< 1 channel
+  AudioBuffer ir;                      ///< 1 channel (omni) or 2 (binaural: left, right)
   DirectPath direct;
   std::vector<SpecularPath> early;     ///< image-source paths rendered
   EnergyHistogram late;                ///< completed stochastic histogram
@@ -61,6 +71,13 @@ struct OmniIrResult {
   std::vector<std::string> skipped;    ///< work not needed for this scene, with why
 };
 
+/** The IR of one source/listener pair: binaural when `binaural` is given (its
+ *  model's rate must equal settings.sampleRateHz), else omnidirectional. */
+Result<OmniIrResult> computeIr(const RayTracer& tracer, const MaterialTable& materials, const Vec3d& source,
+                               const Vec3d& listener, const OmniIrSettings& settings, ThreadPool& pool,
+                               const BinauralReceiver* binaural);
+
+/** computeIr without a binaural receiver. */
 Result<OmniIrResult> computeOmniIr(const RayTracer& tracer, const MaterialTable& materials, const Vec3d& source,
                                    const Vec3d& listener, const OmniIrSettings& settings, ThreadPool& pool);
 
