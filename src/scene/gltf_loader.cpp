@@ -169,7 +169,16 @@ class Loader {
     Mat4 local;
     EARSHOT_RETURN_IF_ERROR(localTransform(node, index, &local));
     const Mat4 world = multiply(parent, local);
-    if (node.mesh >= 0) EARSHOT_RETURN_IF_ERROR(addMesh(node.mesh, world));
+    if (node.mesh >= 0) {
+      GltfNodeTriangles range;
+      range.node = index;
+      range.name = node.name;
+      range.worldMatrix = world;
+      range.firstTriangle = static_cast<uint32_t>(mOut->mesh.triangles.size());
+      EARSHOT_RETURN_IF_ERROR(addMesh(node.mesh, world));
+      range.triangleCount = static_cast<uint32_t>(mOut->mesh.triangles.size()) - range.firstTriangle;
+      mOut->nodes.push_back(std::move(range));
+    }
     onPath[index] = 1;
     for (int c : node.children) EARSHOT_RETURN_IF_ERROR(visit(c, world, depth + 1, onPath));
     onPath[index] = 0;

@@ -1,5 +1,7 @@
 #pragma once
 /** @file glTF 2.0 (.gltf, .glb) to a TriangleMesh, with material mapping. */
+#include <array>
+#include <cstdint>
 #include <map>
 #include <string>
 #include <vector>
@@ -10,9 +12,22 @@
 
 namespace earshot {
 
+/** The triangles one node placed: mesh.triangles[firstTriangle,
+ *  firstTriangle + triangleCount), contiguous (their vertices too). */
+struct GltfNodeTriangles {
+  int node = -1;                      ///< index into the file's nodes
+  std::string name;                   ///< the node's name, "" if it has none
+  std::array<double, 16> worldMatrix{};  ///< node frame -> world, column-major 4x4 as in glTF
+  uint32_t firstTriangle = 0;
+  uint32_t triangleCount = 0;
+};
+
 struct GltfLoadResult {
   TriangleMesh mesh;
   std::vector<std::string> warnings;  ///< e.g. unmapped materials, skipped primitive modes
+  /** One entry per visit of a node that has a mesh, in load order (the
+   *  order of its triangles in `mesh`). */
+  std::vector<GltfNodeTriangles> nodes;
 };
 
 /** Loads every TRIANGLES primitive of the default scene (node transforms

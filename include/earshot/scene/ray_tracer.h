@@ -32,7 +32,13 @@ struct Hit {
 };
 
 /** Immutable acceleration structure over one TriangleMesh. All queries are
- *  const and thread-safe: call them from any number of threads at once. */
+ *  const and thread-safe: call them from any number of threads at once.
+ *
+ *  Made either by create() (one BVH over the mesh) or by
+ *  DynamicScene::commit() (a snapshot: a top-level BVH over instances of
+ *  BVHs shared with other snapshots). Both answer the same way: triangle
+ *  indices, materials, planes and normals refer to mesh(), the scene's
+ *  world-space triangles. */
 class RayTracer {
  public:
   /** Builds the BVH. Degenerate (zero-area) triangles are dropped from the
@@ -48,6 +54,7 @@ class RayTracer {
   /** True when anything lies on the ray within [tNear, tFar]. */
   bool occluded(const Ray& ray) const;
 
+  /** The world-space triangles every hit's index refers to. */
   const TriangleMesh& mesh() const { return mMesh; }
   /** Material id of a triangle. */
   uint32_t materialOf(uint32_t triangle) const { return mMesh.materialIds[triangle]; }
@@ -63,7 +70,8 @@ class RayTracer {
   float surfaceEpsilon() const { return mEpsilon; }
 
  private:
-  RayTracer() = default;
+  friend class DynamicScene;  // builds snapshots over shared BVHs
+  RayTracer();
 
  public:
   struct Impl;  // Embree state; defined in ray_tracer.cpp only
