@@ -19,6 +19,7 @@
 #include "earshot/scene/gltf_loader.h"
 #include "earshot/scene/planes.h"
 #include "embree_bvh.h"
+#include "planes_internal.h"
 
 namespace earshot {
 
@@ -164,7 +165,20 @@ struct MeshEntry {
 struct StaticPart {
   TriangleMesh world;  // materialIds are taken from the entries at each commit
   std::shared_ptr<const detail::TriangleBvh> bvh;
+  std::vector<detail::PlaneEntry> planeEntries;  // of `world`, sorted by offset
+  std::vector<Vec3f> normals;                    // per triangle of `world` (instance hits)
 };
+
+/** Unit (v1-v0) x (v2-v0) of triangles [first, end) of `mesh`, appended to `out`
+ *  (the formula of the BVHs' own normals). */
+void appendNormals(const TriangleMesh& mesh, size_t first, std::vector<Vec3f>& out) {
+  out.reserve(mesh.triangles.size());
+  for (size_t t = first; t < mesh.triangles.size(); ++t) {
+    const auto& tri = mesh.triangles[t];
+    out.push_back(normalize(cross(mesh.positions[tri[1]] - mesh.positions[tri[0]],
+                                  mesh.positions[tri[2]] - mesh.positions[tri[0]])));
+  }
+}
 
 }  // namespace
 
@@ -297,6 +311,8 @@ Result<std::shared_ptr<const RayTracer>> DynamicScene::commit() {
     auto bvh = detail::buildTriangleBvh(device, part->world);
     if (!bvh) return Status(bvh.status().code(), "commit: static meshes: " + bvh.status().message());
     part->bvh = std::move(bvh).value();
+    part->planeEntries = detail::sortedPlaneEntries(part->world);
+    appendNormals(part->world, 0, part->normals);
     s.staticPart = std::move(part);
     s.staticDirty = false;
     ++s.stats.staticBvhBuilds;
@@ -329,7 +345,12 @@ Result<std::shared_ptr<const RayTracer>> DynamicScene::commit() {
   }
   world.materialIds = s.materialIds();  // the entries' current materials (setMaterial)
   detail::meshBounds(world, &rt->mMin, &rt->mMax, &rt->mEpsilon);
-  rt->mPlanes = groupCoplanarTriangles(world);
+  // groupCoplanarTriangles(world), with the static triangles' entries sorted once.
+  const std::vector<detail::PlaneEntry> movableEntries = detail::sortedPlaneEntries(world, sp.world.triangles.size());
+  std::vector<detail::PlaneEntry> planeEntries(sp.planeEntries.size() + movableEntries.size());
+  std::merge(sp.planeEntries.begin(), sp.planeEntries.end(), movableEntries.begin(), movableEntries.end(),
+             planeEntries.begin(), detail::byOffset);
+  rt->mPlanes = detail::groupSortedPlaneEntries(planeEntries, world.triangles.size());
 
   auto impl = std::make_unique<RayTracer::Impl>();
   impl->device = device;
@@ -369,14 +390,9 @@ Result<std::shared_ptr<const RayTracer>> DynamicScene::commit() {
     const std::string error = device->takeError();
     if (!error.empty()) return Status(StatusCode::kInternal, "commit: " + error);
     ++s.stats.topLevelBuilds;
-    // Hit normals in the world frame, from the world-space triangles (the
-    // same formula as the BVHs' own normals).
-    impl->worldNormals.resize(world.triangles.size());
-    for (size_t t = 0; t < world.triangles.size(); ++t) {
-      const auto& tri = world.triangles[t];
-      impl->worldNormals[t] = normalize(cross(world.positions[tri[1]] - world.positions[tri[0]],
-                                              world.positions[tri[2]] - world.positions[tri[0]]));
-    }
+    // Hit normals in the world frame, from the world-space triangles.
+    impl->worldNormals = sp.normals;
+    appendNormals(world, sp.world.triangles.size(), impl->worldNormals);
   }
   rt->mImpl = std::move(impl);
   return finish(std::move(rt));

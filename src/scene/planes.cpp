@@ -1,5 +1,7 @@
 #include "earshot/scene/planes.h"
 
+#include "planes_internal.h"
+
 #include <algorithm>
 #include <cmath>
 #include <numeric>
@@ -26,17 +28,12 @@ bool pointOnTriangle(const TriangleMesh& mesh, uint32_t t, const Vec3d& p, doubl
   return true;
 }
 
-PlaneSet groupCoplanarTriangles(const TriangleMesh& mesh, double angleTol, double offsetTol) {
-  PlaneSet set;
-  const size_t n = mesh.triangles.size();
-  set.triangleToPlane.assign(n, PlaneSet::kNoPlane);
-  struct Entry {
-    Plane plane;
-    uint32_t triangle;
-  };
-  std::vector<Entry> entries;
-  entries.reserve(n);
-  for (size_t t = 0; t < n; ++t) {
+namespace detail {
+
+std::vector<PlaneEntry> sortedPlaneEntries(const TriangleMesh& mesh, size_t firstTriangle) {
+  std::vector<PlaneEntry> entries;
+  entries.reserve(mesh.triangles.size() - std::min(firstTriangle, mesh.triangles.size()));
+  for (size_t t = firstTriangle; t < mesh.triangles.size(); ++t) {
     const auto& tri = mesh.triangles[t];
     const Vec3d a(mesh.positions[tri[0]]), b(mesh.positions[tri[1]]), c(mesh.positions[tri[2]]);
     Vec3d nrm = cross(b - a, c - a);
@@ -50,12 +47,19 @@ PlaneSet groupCoplanarTriangles(const TriangleMesh& mesh, double angleTol, doubl
     const Vec3d centroid = (a + b + c) / 3.0;
     entries.push_back({Plane{nrm, dot(nrm, centroid)}, uint32_t(t)});
   }
-  // Sort by offset, then sweep: a triangle joins an existing plane within the
-  // offset window whose normal agrees.
-  std::sort(entries.begin(), entries.end(), [](const Entry& x, const Entry& y) { return x.plane.offset < y.plane.offset; });
+  std::sort(entries.begin(), entries.end(), byOffset);
+  return entries;
+}
+
+PlaneSet groupSortedPlaneEntries(const std::vector<PlaneEntry>& entries, size_t triangleCount, double angleTol,
+                                 double offsetTol) {
+  PlaneSet set;
+  set.triangleToPlane.assign(triangleCount, PlaneSet::kNoPlane);
+  // Sweep by offset: a triangle joins an existing plane within the offset
+  // window whose normal agrees.
   const double cosTol = std::cos(angleTol);
   std::vector<uint32_t> open;  // plane ids whose offset is within the window
-  for (const Entry& e : entries) {
+  for (const PlaneEntry& e : entries) {
     open.erase(std::remove_if(open.begin(), open.end(),
                               [&](uint32_t id) { return e.plane.offset - set.planes[id].offset > offsetTol; }),
                open.end());
@@ -73,9 +77,15 @@ PlaneSet groupCoplanarTriangles(const TriangleMesh& mesh, double angleTol, doubl
     set.triangleToPlane[e.triangle] = found;
   }
   set.trianglesOfPlane.resize(set.planes.size());
-  for (size_t t = 0; t < n; ++t)
+  for (size_t t = 0; t < triangleCount; ++t)
     if (set.triangleToPlane[t] != PlaneSet::kNoPlane) set.trianglesOfPlane[set.triangleToPlane[t]].push_back(uint32_t(t));
   return set;
+}
+
+}  // namespace detail
+
+PlaneSet groupCoplanarTriangles(const TriangleMesh& mesh, double angleTol, double offsetTol) {
+  return detail::groupSortedPlaneEntries(detail::sortedPlaneEntries(mesh), mesh.triangles.size(), angleTol, offsetTol);
 }
 
 }  // namespace earshot

@@ -15,6 +15,7 @@
 #include "earshot/propagation/image_sources.h"
 #include "earshot/propagation/reflection_tracer.h"
 #include "earshot/scene/gltf_loader.h"
+#include "earshot/scene/planes.h"
 
 namespace earshot {
 namespace {
@@ -211,6 +212,16 @@ TEST(DynamicScene, MovedMeshIsHitWhereItIsAndItsPlanesAndNormalsFollow) {
         EXPECT_GE(m.positions[v].x, 6.1f - 1e-4f);
         EXPECT_LE(m.positions[v].x, 7.1f + 1e-4f);
       }
+
+  // The planes group the triangles as groupCoplanarTriangles would from scratch.
+  const PlaneSet fresh = groupCoplanarTriangles(m);
+  ASSERT_EQ(open->planes().planes.size(), fresh.planes.size());
+  for (size_t t = 0; t < m.triangleCount(); ++t) {
+    const uint32_t p = open->planeOf(uint32_t(t)), q = fresh.triangleToPlane[t];
+    ASSERT_NE(p, PlaneSet::kNoPlane);
+    EXPECT_EQ(open->planes().trianglesOfPlane[p], fresh.trianglesOfPlane[q]) << "triangle " << t;
+    EXPECT_NEAR(open->planes().planes[p].offset, fresh.planes[q].offset, 1e-4);
+  }
 
   // Image sources mirror in the door's plane: a first-order reflection off
   // the open door between two points of room B, absent while it is closed.
