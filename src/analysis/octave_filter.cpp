@@ -9,6 +9,8 @@
 #include <cmath>
 #include <limits>
 
+#include "analysis_internal.h"
+
 namespace earshot::analysis {
 namespace {
 
@@ -51,6 +53,16 @@ std::array<Biquad, 4> designBand(double rateHz, double centerHz) {
   const double hp = unwarp(warp(lowEdge) * kEdgeFactor), lp = unwarp(warp(highEdge) / kEdgeFactor);
   return {makeSection(hp, rateHz, kButterworthQ[0], true), makeSection(hp, rateHz, kButterworthQ[1], true),
           makeSection(lp, rateHz, kButterworthQ[0], false), makeSection(lp, rateHz, kButterworthQ[1], false)};
+}
+
+// A low-pass alone, in the same four-section form (the last two sections pass
+// the signal through), with the same cut-off widening: the forward-backward
+// response is -3 dB at cutoffHz.
+std::array<Biquad, 4> designLowPass(double rateHz, double cutoffHz) {
+  const double lp = std::atan(std::tan(kPi * cutoffHz / rateHz) / kEdgeFactor) * rateHz / kPi;
+  const Biquad identity{1.0, 0.0, 0.0, 0.0, 0.0};
+  return {makeSection(lp, rateHz, kButterworthQ[0], false), makeSection(lp, rateHz, kButterworthQ[1], false),
+          identity, identity};
 }
 
 // One pass of the cascade over y[0..n), in place, forward or backward. All
@@ -106,15 +118,19 @@ bool octaveBandAvailable(double rateHz, double centerHz) {
   return centerHz > 0.0 && rateHz > 0.0 && centerHz * std::sqrt(2.0) < 0.45 * rateHz;
 }
 
-size_t octaveBandGuardSamples(double rateHz, double centerHz) {
+namespace {
+
+// See octaveBandGuardSamples; the convergence test runs over periods of
+// `slowestHz`, about the lowest cut-off of the cascade (which rings longest);
+// `outside` is the energy fraction left beyond the guard.
+size_t guardSamples(const std::array<Biquad, 4>& sections, double rateHz, double slowestHz, double outside) {
   // The zero-phase kernel is the autocorrelation of the causal response h, so
   // it spans +-len(h); len(h) is where h's remaining energy drops below -50 dB.
   // h rings at ~centerHz and decays exponentially: its total is reached (to
-  // 1e-9) once a whole period of the high-pass cut-off adds < 1e-9 of the
+  // 1e-9) once a whole period of the slowest cut-off adds < 1e-9 of the
   // energy so far. Then a second pass finds the -50 dB point. No allocation.
-  const auto sections = designBand(rateHz, centerHz);
   const size_t maxLen = size_t(std::ceil(rateHz * 0.5)) + 1;
-  const size_t period = std::max<size_t>(8, size_t(rateHz / (0.5 * centerHz)));
+  const size_t period = std::max<size_t>(8, size_t(rateHz / slowestHz));
   auto run = [&](double stopAt, bool findTotal, size_t* reached) {
     std::array<double, 4> z1{}, z2{};
     double energy = 0.0, blockEnergy = 0.0;
@@ -143,20 +159,45 @@ size_t octaveBandGuardSamples(double rateHz, double centerHz) {
   };
   size_t reached = 0;
   const double total = run(0.0, true, &reached);
-  run((1.0 - 1e-5) * total, false, &reached);
+  run((1.0 - outside) * total, false, &reached);
   return reached;
+}
+
+// signal zero-padded by `guard` on both sides into `out`, then filtered
+// forward and backward.
+void filterZeroPhaseInto(const std::array<Biquad, 4>& sections, size_t guard, const float* signal, size_t count,
+                         std::vector<double>& out) {
+  out.assign(guard + count + guard, 0.0);
+  for (size_t i = 0; i < count; ++i) out[guard + i] = signal[i];
+  runCascade(sections, out.data(), out.size(), false);
+  runCascade(sections, out.data(), out.size(), true);
+}
+
+}  // namespace
+
+size_t octaveBandGuardSamples(double rateHz, double centerHz) {
+  // The high-pass cut-off (below the centre) rings longest.
+  return guardSamples(designBand(rateHz, centerHz), rateHz, 0.5 * centerHz, 1e-5);
 }
 
 void octaveBandFilterInto(const float* signal, size_t count, double rateHz, double centerHz,
                           std::vector<double>& out, size_t* preGuardSamples) {
   const size_t guard = octaveBandGuardSamples(rateHz, centerHz);
   if (preGuardSamples) *preGuardSamples = guard;
-  out.assign(guard + count + guard, 0.0);
-  for (size_t i = 0; i < count; ++i) out[guard + i] = signal[i];
-  const auto sections = designBand(rateHz, centerHz);
-  runCascade(sections, out.data(), out.size(), false);
-  runCascade(sections, out.data(), out.size(), true);
+  filterZeroPhaseInto(designBand(rateHz, centerHz), guard, signal, count, out);
 }
+
+namespace detail {
+
+size_t zeroPhaseLowPassInto(const float* signal, size_t count, double rateHz, double cutoffHz,
+                            std::vector<double>& out) {
+  const auto sections = designLowPass(rateHz, cutoffHz);
+  const size_t guard = guardSamples(sections, rateHz, cutoffHz, 1e-12);
+  filterZeroPhaseInto(sections, guard, signal, count, out);
+  return guard;
+}
+
+}  // namespace detail
 
 std::vector<double> octaveBandFilter(const float* signal, size_t count, double rateHz, double centerHz,
                                      size_t* preGuardSamples) {

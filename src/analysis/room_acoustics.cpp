@@ -23,6 +23,7 @@
 #include <cstdio>
 #include <cmath>
 
+#include "analysis_internal.h"
 #include "earshot/analysis/octave_filter.h"
 
 namespace earshot::analysis {
@@ -350,16 +351,28 @@ BandMetrics analyzeEnergy(const double* e, size_t n, double fs, long long onsetI
   return m;
 }
 
-bool finiteAll(const std::vector<float>& v, size_t* bad) {
-  for (size_t i = 0; i < v.size(); ++i)
-    if (!std::isfinite(v[i])) {
-      *bad = i;
-      return false;
-    }
-  return true;
+}  // namespace
+
+namespace detail {
+
+size_t firstNonFinite(const float* x, size_t count) {
+  for (size_t i = 0; i < count; ++i)
+    if (!std::isfinite(x[i])) return i;
+  return count;
 }
 
-}  // namespace
+size_t isoOnsetFrame(const float* const* channels, size_t channelCount, size_t frames) {
+  float maxAbs = 0.0f;
+  for (size_t c = 0; c < channelCount; ++c)
+    for (size_t k = 0; k < frames; ++k) maxAbs = std::max(maxAbs, std::abs(channels[c][k]));
+  const double threshold = 0.01 * double(maxAbs) * double(maxAbs);  // within 20 dB of the maximum
+  for (size_t k = 0; k < frames; ++k)
+    for (size_t c = 0; c < channelCount; ++c)
+      if (maxAbs > 0.0f && double(channels[c][k]) * double(channels[c][k]) >= threshold) return k;
+  return frames;
+}
+
+}  // namespace detail
 
 const char* metricName(Metric metric) {
   switch (metric) {
@@ -420,18 +433,15 @@ Result<std::vector<BandMetrics>> analyzeIr(const std::vector<float>& ir, double 
   if (ir.empty()) return invalidArgument("impulse response is empty");
   if (!(rateHz >= 1000.0 && rateHz <= 1e6))
     return invalidArgument("sample rate " + std::to_string(rateHz) + " Hz is outside [1000, 1e6]");
-  size_t bad = 0;
-  if (!finiteAll(ir, &bad)) return invalidArgument("impulse response sample " + std::to_string(bad) + " is not finite");
+  const size_t bad = detail::firstNonFinite(ir.data(), ir.size());
+  if (bad < ir.size()) return invalidArgument("impulse response sample " + std::to_string(bad) + " is not finite");
   if (!(options.windowEndS > options.windowStartS))
     return invalidArgument("window [" + std::to_string(options.windowStartS) + ", " +
                            std::to_string(options.windowEndS) + ") s is empty");
   const size_t n = ir.size();
-  float maxAbs = 0.0f;
-  for (float v : ir) maxAbs = std::max(maxAbs, std::abs(v));
-  if (!(maxAbs > 0.0f)) return invalidArgument("impulse response is silent (all samples are zero)");
-  const double maxE = double(maxAbs) * double(maxAbs);
-  size_t onset = 0;
-  while (double(ir[onset]) * double(ir[onset]) < 0.01 * maxE) ++onset;
+  const float* channel = ir.data();
+  const size_t onset = detail::isoOnsetFrame(&channel, 1, n);
+  if (onset >= n) return invalidArgument("impulse response is silent (all samples are zero)");
 
   std::vector<float> src = ir;
   if (options.direct == DirectSound::kExclude) {
