@@ -301,6 +301,12 @@ Result<std::shared_ptr<const RayTracer>> DynamicScene::commit() {
     rt->mImpl = std::make_unique<RayTracer::Impl>(*prev.mImpl);
     return finish(std::move(rt));
   }
+  // Hit::triangle and the vertex indices are 32-bit.
+  uint64_t triangles = 0, vertices = 0;
+  for (const auto& [id, e] : s.meshes) triangles += e.mesh.triangles.size(), vertices += e.mesh.positions.size();
+  if (triangles > std::numeric_limits<uint32_t>::max() || vertices > std::numeric_limits<uint32_t>::max())
+    return outOfRange("commit: the scene's " + std::to_string(triangles) + " triangles and " +
+                      std::to_string(vertices) + " vertices exceed 2^32 - 1");
   const std::shared_ptr<detail::EmbreeDevice>& device = s.device;
 
   // The static BVH, only when the static meshes changed.

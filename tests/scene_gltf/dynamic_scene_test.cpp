@@ -478,6 +478,25 @@ TEST(DynamicScene, BadInputsGiveErrorsNamingTheMeshAndTheProblem) {
   EXPECT_EQ(r10.status().code(), StatusCode::kNotFound);
 }
 
+TEST(GltfLoad, NodesReportTheirTriangleRangesAndWorldTransforms) {
+  auto g = loadGltf(kTwoRooms, defaultMaterials());
+  ASSERT_TRUE(g.isOk()) << g.status().message();
+  ASSERT_EQ(g->nodes.size(), 2u);
+  EXPECT_EQ(g->nodes[0].name, "rooms");
+  EXPECT_EQ(g->nodes[1].name, "door");
+  EXPECT_EQ(g->nodes[1].node, 1);
+  EXPECT_EQ(g->nodes[0].firstTriangle, 0u);
+  EXPECT_EQ(g->nodes[1].firstTriangle, g->nodes[0].triangleCount);
+  EXPECT_EQ(g->nodes[1].firstTriangle + g->nodes[1].triangleCount, g->mesh.triangleCount());
+  EXPECT_EQ(g->nodes[1].triangleCount, 12u);
+  const std::array<double, 16>& w = g->nodes[1].worldMatrix;  // column-major: translation in 12..14
+  EXPECT_NEAR(w[12], 6.1, 1e-12);
+  EXPECT_NEAR(w[13], 2.0, 1e-12);
+  EXPECT_NEAR(w[14], 0.0, 1e-12);
+  EXPECT_EQ(w[0], 1.0);
+  EXPECT_EQ(w[15], 1.0);
+}
+
 TEST(AffineTransform, RotationAboutAPivotComposesAndKeepsThePivot) {
   const Vec3d hinge{6.1, 2.0, 0.0};
   const AffineTransform r = AffineTransform::rotation({0, 0, 2}, kPi / 2, hinge);
