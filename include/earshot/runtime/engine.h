@@ -1,0 +1,136 @@
+#pragma once
+/** @file The runtime: sources and a listener in a scene, simulated on worker
+ *  threads, heard through the audio thread. The one update path behind the
+ *  C/C++ API (earshot.h) and `earshot render`.
+ *
+ *  Per source, the output (binaural: left, right) is
+ *    - the reflections: the source's binaural IR without the direct sound
+ *      (image sources, late field; ir_pipeline.h), simulated by simulate()
+ *      and convolved in one ConvolutionMixer for all sources; new IRs reach
+ *      the audio thread lock-free and are crossfaded;
+ *    - the direct sound, rendered every audio block from the latest poses by
+ *      a DirectVoice (delay line with Doppler, distance, occlusion from the
+ *      last simulation, HRTF of the current head direction);
+ *  or, for a source marked DirectMode::kInImpulseResponse (a static source),
+ *  the complete IR including the direct sound, convolved exactly: the output
+ *  is then the dry signal convolved with the IR `earshot ir` computes for the
+ *  same poses and settings, delayed by latencyFrames().
+ *
+ *  Threads (DESIGN.md): the game thread (sources, listener, scene: the
+ *  set, add and remove calls), one simulation thread at a time (simulate()),
+ *  and the audio thread (process()). Poses and gains cross to the audio thread
+ *  through atomics; IRs through the mixer's lock-free mailbox. process()
+ *  never allocates, locks, logs or throws. */
+#include <atomic>
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <vector>
+
+#include "earshot/core/status.h"
+#include "earshot/core/vec3.h"
+#include "earshot/ir/binaural_synthesis.h"
+#include "earshot/ir/ir_pipeline.h"
+#include "earshot/materials/material.h"
+
+namespace earshot {
+class RayTracer;
+class ThreadPool;
+class ConvolutionMixer;
+}  // namespace earshot
+
+namespace earshot::runtime {
+
+class DirectVoice;
+
+struct EngineSettings {
+  double sampleRateHz = 48000.0;  ///< must equal the HRTF model's rate
+  /** Convolver latency and smallest partition (frames, even, [8, 65536]); the
+   *  output lags the input by exactly this. Host blocks may be any size. */
+  size_t blockFrames = 256;
+  size_t maxSources = 32;         ///< [1, 4096] source slots, allocated up front
+  double maxIrSeconds = 3.0;      ///< IRs are cut here with a 10 ms fade, (0, 60]
+  size_t fadeFrames = 0;          ///< IR crossfade (frames); 0: one block
+  OmniIrSettings simulation;      ///< rays, bounces, ISM order, air, seed... (rate taken from sampleRateHz)
+  unsigned threads = 0;           ///< simulation worker threads (0: all cores)
+  double maxDistanceMeters = 343.0;  ///< direct-path delay line capacity
+};
+
+enum class DirectMode {
+  kPerBlock,           ///< direct sound rendered every block (moving sources)
+  kInImpulseResponse,  ///< direct sound inside the convolved IR (static sources; exact)
+};
+
+struct SourceSettings {
+  double gainDb = 0.0;  ///< [-120, 40]
+  DirectMode direct = DirectMode::kPerBlock;
+};
+
+struct SimulationStats {
+  uint32_t sourcesSimulated = 0;
+  double traceMs = 0, synthesisMs = 0, prepareMs = 0, totalMs = 0;
+};
+
+class Engine {
+ public:
+  /** Allocates everything the audio thread will use. Thread: any but audio. */
+  static Result<std::unique_ptr<Engine>> create(const EngineSettings& settings,
+                                                std::shared_ptr<const BinauralModel> model);
+  ~Engine();
+  Engine(const Engine&) = delete;
+  Engine& operator=(const Engine&) = delete;
+
+  const EngineSettings& settings() const { return mSettings; }
+  size_t latencyFrames() const;
+
+  // ---- game thread ----
+  /** Replaces the scene (an immutable snapshot; null: free field). The next
+   *  simulate() uses it; the previous one is released when no longer used. */
+  void setScene(std::shared_ptr<const RayTracer> tracer, std::shared_ptr<const MaterialTable> materials);
+  /** A source slot, silent until positioned and simulated. Error when all
+   *  maxSources slots are in use or the settings are out of range. */
+  Result<uint32_t> addSource(const SourceSettings& settings);
+  Status removeSource(uint32_t source);
+  Status setSourcePosition(uint32_t source, const Vec3d& position);
+  Status setSourceGainDb(uint32_t source, double gainDb);
+  Status setListener(const Vec3d& position, const ListenerOrientation& orientation);
+
+  // ---- one simulation thread at a time (never the audio thread) ----
+  /** Simulates `count` active sources in round-robin order starting after
+   *  the last one simulated (count 0 or >= active: all), from the poses set
+   *  so far: traces, synthesises and posts their IRs, and updates their
+   *  direct paths' occlusion. */
+  Status simulate(uint32_t count = 0);
+  SimulationStats lastSimulation() const;
+
+  // ---- audio thread ----
+  /** Renders `frames` frames: inputs[s] is source slot s's dry mono input
+   *  (maxSources pointers; nullptr or an inactive slot: silence); left and
+   *  right are overwritten. No allocation, lock, log or exception. */
+  void process(const float* const* inputs, float* left, float* right, size_t frames);
+
+ private:
+  struct Slot;
+  Engine() = default;
+  bool validSource(uint32_t s) const;
+
+  EngineSettings mSettings;
+  std::shared_ptr<const BinauralModel> mModel;
+  std::unique_ptr<ThreadPool> mPool;
+  std::unique_ptr<ConvolutionMixer> mMixer;
+  std::vector<std::unique_ptr<Slot>> mSlots;
+  std::atomic<double> mListener[9];  // position, forward, up
+
+  std::mutex mSceneMutex;  // game and simulation threads only
+  std::shared_ptr<const RayTracer> mTracer;
+  std::shared_ptr<const MaterialTable> mMaterials;
+  std::shared_ptr<const RayTracer> mEmptyTracer;
+  std::mutex mSimulationMutex;  // serialises simulate()
+  uint32_t mNextRoundRobin = 0;
+  SimulationStats mStats;
+
+  std::vector<const float*> mInputs;  // audio thread scratch
+};
+
+}  // namespace earshot::runtime

@@ -1,0 +1,254 @@
+// The direct sound of a moving source: see direct_voice.h.
+#include "earshot/runtime/direct_voice.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <string>
+
+#include "earshot/core/math.h"
+
+namespace earshot::runtime {
+
+namespace {
+
+// Frames per inner chunk: bounds the scratch buffers whatever the host block.
+constexpr size_t kChunk = 256;
+// Shortest delay the interpolator supports (it reads four samples ahead).
+constexpr double kMinDelaySamples = 6.0;
+constexpr int kTaps = 8, kPhases = 512;
+
+}  // namespace
+
+// Fractional-delay interpolator: 8-tap Kaiser-windowed sinc (beta 6), in 512
+// phases, each normalised to unit DC gain. Flatter than a cubic: Catmull-Rom
+// at half a sample loses 1 dB at 12 kHz and 3 dB at 16 kHz; this loses about
+// 0.1 dB at 12 kHz (tested through the HRTF's broadband energy).
+struct SincTable {
+  float taps[kPhases + 1][kTaps];
+  SincTable() {
+    auto bessel0 = [](double x) {
+      double sum = 1, term = 1;
+      for (int k = 1; k < 30; ++k) {
+        term *= (x / (2 * k)) * (x / (2 * k));
+        sum += term;
+      }
+      return sum;
+    };
+    const double beta = 6.0;
+    for (int p = 0; p <= kPhases; ++p) {
+      const double frac = double(p) / kPhases;  // position between tap 3 and tap 4
+      double sum = 0, v[kTaps];
+      for (int k = 0; k < kTaps; ++k) {
+        const double x = double(k - 3) - frac;  // distance from the read position
+        const double sinc = std::fabs(x) < 1e-12 ? 1.0 : std::sin(kPi * x) / (kPi * x);
+        const double w = x / (kTaps / 2.0);
+        const double win = std::fabs(w) >= 1 ? 0.0 : bessel0(beta * std::sqrt(1 - w * w)) / bessel0(beta);
+        v[k] = sinc * win;
+        sum += v[k];
+      }
+      for (int k = 0; k < kTaps; ++k) taps[p][k] = float(v[k] / sum);
+    }
+  }
+};
+
+namespace {
+const SincTable& sincTable() {
+  static const SincTable table;
+  return table;
+}
+// Shelf corners, Hz.
+constexpr double kLowShelfHz = 250.0, kHighShelfHz = 4000.0;
+
+size_t nextPow2(size_t n) {
+  size_t p = 1;
+  while (p < n) p *= 2;
+  return p;
+}
+
+// RBJ Audio EQ Cookbook shelving filters, shelf slope S = 1.
+void setShelf(float& b0, float& b1, float& b2, float& a1, float& a2, double fs, double f0, double gainDb, bool high) {
+  const double A = std::pow(10.0, gainDb / 40.0);
+  const double w0 = 2.0 * kPi * std::min(f0, 0.45 * fs) / fs, cw = std::cos(w0), sw = std::sin(w0);
+  const double alpha = sw / 2.0 * std::sqrt(2.0);
+  const double sq = 2.0 * std::sqrt(A) * alpha;
+  double nb0, nb1, nb2, na0, na1, na2;
+  if (!high) {
+    nb0 = A * ((A + 1) - (A - 1) * cw + sq);
+    nb1 = 2 * A * ((A - 1) - (A + 1) * cw);
+    nb2 = A * ((A + 1) - (A - 1) * cw - sq);
+    na0 = (A + 1) + (A - 1) * cw + sq;
+    na1 = -2 * ((A - 1) + (A + 1) * cw);
+    na2 = (A + 1) + (A - 1) * cw - sq;
+  } else {
+    nb0 = A * ((A + 1) + (A - 1) * cw + sq);
+    nb1 = -2 * A * ((A - 1) + (A + 1) * cw);
+    nb2 = A * ((A + 1) + (A - 1) * cw - sq);
+    na0 = (A + 1) - (A - 1) * cw + sq;
+    na1 = 2 * ((A - 1) - (A + 1) * cw);
+    na2 = (A + 1) - (A - 1) * cw - sq;
+  }
+  b0 = float(nb0 / na0);
+  b1 = float(nb1 / na0);
+  b2 = float(nb2 / na0);
+  a1 = float(na1 / na0);
+  a2 = float(na2 / na0);
+}
+
+// Pressure ratio in dB, with silence clamped to -120 dB.
+double ratioDb(double num, double den) {
+  if (!(den > 0)) return 0.0;
+  return gainToDb(std::max(num / den, 1e-6));
+}
+
+}  // namespace
+
+Result<std::unique_ptr<DirectVoice>> DirectVoice::create(const DirectVoiceSettings& s,
+                                                         std::shared_ptr<const hrtf::HrtfSet> hrtf) {
+  if (!hrtf) return invalidArgument("direct voice: no HRTF set");
+  if (!(s.sampleRateHz >= 8000 && s.sampleRateHz <= 384000))
+    return invalidArgument("direct voice: sample rate " + std::to_string(s.sampleRateHz) + " Hz is outside [8000, 384000]");
+  if (std::fabs(hrtf->sampleRateHz() - s.sampleRateHz) > 1e-6)
+    return invalidArgument("direct voice: the HRTF set is at " + std::to_string(hrtf->sampleRateHz()) + " Hz, not " +
+                           std::to_string(s.sampleRateHz));
+  if (!(s.speedOfSound >= 1 && s.speedOfSound <= 10000)) return invalidArgument("direct voice: speed of sound out of range");
+  if (!(s.maxDelaySeconds > 0 && s.maxDelaySeconds <= 60)) return invalidArgument("direct voice: max delay outside (0, 60] s");
+  if (s.extraDelayFrames > size_t(1) << 20) return invalidArgument("direct voice: extra delay over 2^20 frames");
+  if (!(s.minDistanceMeters > 0)) return invalidArgument("direct voice: min distance must be > 0");
+  EARSHOT_RETURN_IF_ERROR(validate(s.air));
+  std::unique_ptr<DirectVoice> v(new DirectVoice());
+  v->mSettings = s;
+  v->mSincTable = &sincTable();
+  v->mHrtf = std::move(hrtf);
+  v->mAirDbPerMeter = s.air.enabled ? airAttenuationDbPerMeter(s.air) : filledBands(0.0);
+  // Delay plus the HRTF's largest onset (|delay| < 2 ms for any head) plus margins.
+  v->mMaxDelay = s.maxDelaySeconds * s.sampleRateHz + double(s.extraDelayFrames);
+  const size_t needed = size_t(v->mMaxDelay + 0.002 * s.sampleRateHz) + kChunk + 16;
+  v->mRing.assign(nextPow2(needed), 0.0f);
+  v->mRingMask = v->mRing.size() - 1;
+  v->mHrir = std::make_unique<hrtf::HrirPair>();
+  v->mHrirNext = std::make_unique<hrtf::HrirPair>();
+  const size_t taps = v->mHrtf->hrirLength();
+  for (int e = 0; e < 2; ++e) {
+    v->mTaps[e].assign(taps, 0.0f);
+    v->mTapsNext[e].assign(taps, 0.0f);
+    v->mHistory[e].assign(taps - 1 + kChunk, 0.0f);
+  }
+  v->mScratch.assign(kChunk, 0.0f);
+  return v;
+}
+
+void DirectVoice::reset() {
+  std::fill(mRing.begin(), mRing.end(), 0.0f);
+  for (auto& h : mHistory) std::fill(h.begin(), h.end(), 0.0f);
+  mLow.z1 = mLow.z2 = mHigh.z1 = mHigh.z2 = 0;
+  mStarted = false;
+}
+
+DirectVoice::Params DirectVoice::paramsFor(const DirectTarget& t, Vec3f& headDirection) const {
+  Params p;
+  const Vec3d d = t.source - t.listener;
+  const double r = length(d);
+  const Vec3d dir = r > 1e-9 ? d / r : normalize(t.orientation.forward);
+  headDirection = Vec3f(toHeadFrame(dir, t.orientation));
+  mHrtf->lookup(headDirection, *mHrirNext);
+  const double fs = mSettings.sampleRateHz;
+  const double travel = std::min(r / mSettings.speedOfSound, mSettings.maxDelaySeconds);
+  const double ear[2] = {mHrirNext->leftDelaySeconds, mHrirNext->rightDelaySeconds};
+  for (int e = 0; e < 2; ++e)
+    p.delay[e] = std::clamp(std::max(0.0, travel + ear[e]) * fs + double(mSettings.extraDelayFrames), kMinDelaySamples,
+                            mMaxDelay);
+  BandArrayD g;
+  for (int b = 0; b < kNumBands; ++b)
+    g[b] = t.audible ? std::pow(10.0, -mAirDbPerMeter[b] * r / 20.0) * std::max(0.0, t.transmission[b]) : 0.0;
+  const double spreading = 1.0 / std::max(r, mSettings.minDistanceMeters);
+  const double g1k = g[3];
+  p.gain = std::isfinite(t.gain) ? t.gain * spreading * g1k : 0.0;
+  p.lowDb = ratioDb(g[0], g1k);
+  p.highDb = ratioDb(g[kNumBands - 1], g1k);
+  return p;
+}
+
+double DirectVoice::readDelayed(double position) const {
+  // Windowed-sinc interpolation around `position` (absolute sample index,
+  // fractional): taps at i - 3 .. i + 4 for position in [i, i + 1).
+  const double fl = std::floor(position);
+  const size_t i = size_t(fl);
+  const double p = (position - fl) * kPhases;
+  const int phase = int(p);
+  const float f = float(p - phase);
+  const float* a = mSincTable->taps[phase];
+  const float* b = mSincTable->taps[phase + 1];
+  float y = 0.0f;
+  for (int k = 0; k < kTaps; ++k) y += (a[k] + f * (b[k] - a[k])) * mRing[(i + size_t(k) - 3) & mRingMask];
+  return y;
+}
+
+void DirectVoice::processChunk(const float* input, float* left, float* right, size_t frames, const Params& from,
+                               const Params& to, size_t offset, size_t total, bool crossfade) {
+  const size_t base = mWrite;
+  for (size_t i = 0; i < frames; ++i) {
+    const float x = input ? input[i] : 0.0f;
+    mRing[(mWrite++) & mRingMask] = mHigh.run(mLow.run(x));
+  }
+  const size_t taps = mTaps[0].size();
+  float* out[2] = {left, right};
+  for (int e = 0; e < 2; ++e) {
+    float* hist = mHistory[e].data();
+    for (size_t i = 0; i < frames; ++i) {
+      const double a = double(offset + i + 1) / double(total);
+      const double d = from.delay[e] + (to.delay[e] - from.delay[e]) * a;
+      const double g = from.gain + (to.gain - from.gain) * a;
+      hist[taps - 1 + i] = float(g * readDelayed(double(base + i) - d));
+    }
+    const float* h = mTaps[e].data();
+    const float* hn = mTapsNext[e].data();
+    for (size_t i = 0; i < frames; ++i) {
+      float y = 0.0f;
+      for (size_t j = 0; j < taps; ++j) y += h[j] * hist[i + j];
+      if (crossfade) {
+        float yn = 0.0f;
+        for (size_t j = 0; j < taps; ++j) yn += hn[j] * hist[i + j];
+        const float c = float(double(offset + i + 1) / double(total));
+        y += c * (yn - y);
+      }
+      out[e][i] += y;
+    }
+    std::memmove(hist, hist + frames, (taps - 1) * sizeof(float));
+  }
+}
+
+void DirectVoice::process(const float* input, float* left, float* right, size_t frames, const DirectTarget& target) {
+  if (frames == 0) return;
+  Vec3f head;
+  const Params to = paramsFor(target, head);  // looks up mHrirNext
+  const size_t taps = mTaps[0].size();
+  for (size_t j = 0; j < taps; ++j) {
+    mTapsNext[0][j] = mHrirNext->left[taps - 1 - j];
+    mTapsNext[1][j] = mHrirNext->right[taps - 1 - j];
+  }
+  bool crossfade = mStarted && !(head == mHeadDirection);
+  if (!mStarted) {
+    mCurrent = to;
+    mTaps[0] = mTapsNext[0];  // same size: no allocation
+    mTaps[1] = mTapsNext[1];
+    mStarted = true;
+  }
+  const double fs = mSettings.sampleRateHz;
+  setShelf(mLow.b0, mLow.b1, mLow.b2, mLow.a1, mLow.a2, fs, kLowShelfHz, to.lowDb, false);
+  setShelf(mHigh.b0, mHigh.b1, mHigh.b2, mHigh.a1, mHigh.a2, fs, kHighShelfHz, to.highDb, true);
+  for (size_t off = 0; off < frames; off += kChunk) {
+    const size_t n = std::min(kChunk, frames - off);
+    processChunk(input ? input + off : nullptr, left + off, right + off, n, mCurrent, to, off, frames, crossfade);
+  }
+  mCurrent = to;
+  mHeadDirection = head;
+  if (crossfade) {
+    std::swap(mTaps[0], mTapsNext[0]);
+    std::swap(mTaps[1], mTapsNext[1]);
+  }
+  mDelay[0] = to.delay[0];
+  mDelay[1] = to.delay[1];
+}
+
+}  // namespace earshot::runtime

@@ -1,0 +1,281 @@
+// The runtime engine: see engine.h.
+#include "earshot/runtime/engine.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <string>
+
+#include "earshot/core/denormals.h"
+#include "earshot/core/math.h"
+#include "earshot/core/thread_pool.h"
+#include "earshot/dsp/convolution_mixer.h"
+#include "earshot/dsp/prepared_ir.h"
+#include "earshot/runtime/direct_voice.h"
+#include "earshot/scene/ray_tracer.h"
+
+namespace earshot::runtime {
+
+namespace {
+double msSince(std::chrono::steady_clock::time_point t) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count();
+}
+constexpr double kIrFadeSeconds = 0.010;
+// Frames per inner step of process(): bounds the per-source scratch.
+constexpr size_t kProcessChunk = 1024;
+}  // namespace
+
+struct Engine::Slot {
+  std::atomic<bool> active{false};
+  std::atomic<uint32_t> generation{0};           // bumped by add/remove
+  std::atomic<uint32_t> simulatedGeneration{~0u};  // generation of the last simulation posted
+  std::atomic<int> direct{0};
+  std::atomic<double> position[3] = {{0.0}, {0.0}, {0.0}};
+  std::atomic<double> gain{1.0};
+  std::atomic<double> transmission[kNumBands];
+  std::atomic<bool> audible{true};
+  std::unique_ptr<DirectVoice> voice;  // audio thread
+  uint32_t voiceGeneration = ~0u;      // audio thread
+  bool live = false;                   // audio thread: playing in this process() call
+  double appliedGain = 1.0;            // audio thread: gain at the end of the last chunk
+  std::vector<float> scaled;           // audio thread: gained input for the mixer
+  Slot() {
+    for (auto& t : transmission) t.store(1.0);
+  }
+};
+
+Engine::~Engine() = default;
+
+size_t Engine::latencyFrames() const { return mMixer->latencyFrames(); }
+
+Result<std::unique_ptr<Engine>> Engine::create(const EngineSettings& s, std::shared_ptr<const BinauralModel> model) {
+  if (!model) return invalidArgument("engine: no HRTF model");
+  if (std::fabs(model->sampleRateHz() - s.sampleRateHz) > 1e-6)
+    return invalidArgument("engine: sample rate " + std::to_string(s.sampleRateHz) + " Hz differs from the HRTF set's " +
+                           std::to_string(model->sampleRateHz()) + " Hz");
+  if (s.maxSources < 1 || s.maxSources > 4096)
+    return invalidArgument("engine: maxSources " + std::to_string(s.maxSources) + " is outside [1, 4096]");
+  if (!(s.maxIrSeconds > 0 && s.maxIrSeconds <= 60))
+    return invalidArgument("engine: maxIrSeconds " + std::to_string(s.maxIrSeconds) + " is outside (0, 60]");
+  if (!(s.maxDistanceMeters > 0 && s.maxDistanceMeters <= 20000))
+    return invalidArgument("engine: maxDistanceMeters " + std::to_string(s.maxDistanceMeters) + " is outside (0, 20000]");
+  std::unique_ptr<Engine> e(new Engine());
+  e->mSettings = s;
+  e->mSettings.simulation.sampleRateHz = s.sampleRateHz;
+  e->mModel = std::move(model);
+
+  ConvolverSettings cs;
+  cs.latencyFrames = s.blockFrames;
+  cs.maxIrFrames = size_t(std::ceil(s.maxIrSeconds * s.sampleRateHz));
+  cs.channels = 2;
+  cs.fadeFrames = s.fadeFrames;
+  auto mixer = ConvolutionMixer::create(cs, s.maxSources);
+  if (!mixer.isOk()) return Status(mixer.status().code(), "engine: " + mixer.status().message());
+  e->mMixer = std::move(mixer.value());
+
+  DirectVoiceSettings ds;
+  ds.sampleRateHz = s.sampleRateHz;
+  ds.speedOfSound = s.simulation.speedOfSound;
+  ds.air = s.simulation.air;
+  ds.maxDelaySeconds = s.maxDistanceMeters / s.simulation.speedOfSound;
+  ds.extraDelayFrames = e->mMixer->latencyFrames();
+  for (size_t i = 0; i < s.maxSources; ++i) {
+    auto slot = std::make_unique<Slot>();
+    auto voice = DirectVoice::create(ds, e->mModel->hrtfPtr());
+    if (!voice.isOk()) return Status(voice.status().code(), "engine: " + voice.status().message());
+    slot->voice = std::move(voice.value());
+    slot->scaled.assign(kProcessChunk, 0.0f);
+    e->mSlots.push_back(std::move(slot));
+  }
+  const ListenerOrientation o;
+  const double listener[9] = {0, 0, 0, o.forward.x, o.forward.y, o.forward.z, o.up.x, o.up.y, o.up.z};
+  for (int i = 0; i < 9; ++i) e->mListener[i].store(listener[i]);
+  auto empty = RayTracer::create(TriangleMesh{});
+  if (!empty.isOk()) return empty.status();
+  e->mEmptyTracer = std::move(empty.value());
+  e->mTracer = e->mEmptyTracer;
+  e->mMaterials = std::make_shared<const MaterialTable>();
+  e->mPool = std::make_unique<ThreadPool>(s.threads);
+  e->mInputs.assign(s.maxSources, nullptr);
+  return e;
+}
+
+void Engine::setScene(std::shared_ptr<const RayTracer> tracer, std::shared_ptr<const MaterialTable> materials) {
+  std::lock_guard<std::mutex> lock(mSceneMutex);
+  mTracer = tracer ? std::move(tracer) : mEmptyTracer;
+  mMaterials = materials ? std::move(materials) : std::make_shared<const MaterialTable>();
+}
+
+bool Engine::validSource(uint32_t s) const { return s < mSlots.size() && mSlots[s]->active.load(); }
+
+Result<uint32_t> Engine::addSource(const SourceSettings& settings) {
+  if (!(settings.gainDb >= -120.0 && settings.gainDb <= 40.0))
+    return invalidArgument("source gain " + std::to_string(settings.gainDb) + " dB is outside [-120, 40]");
+  for (uint32_t i = 0; i < mSlots.size(); ++i) {
+    Slot& slot = *mSlots[i];
+    if (slot.active.load()) continue;
+    slot.gain.store(std::pow(10.0, settings.gainDb / 20.0));
+    slot.direct.store(int(settings.direct));
+    for (auto& t : slot.transmission) t.store(1.0);
+    slot.audible.store(true);
+    slot.generation.fetch_add(1);
+    slot.active.store(true);
+    return i;
+  }
+  return Status(StatusCode::kOutOfRange, "all " + std::to_string(mSlots.size()) + " source slots are in use");
+}
+
+Status Engine::removeSource(uint32_t s) {
+  if (!validSource(s)) return invalidArgument("source " + std::to_string(s) + " does not exist");
+  mSlots[s]->active.store(false);
+  mSlots[s]->generation.fetch_add(1);
+  return Status::ok();
+}
+
+Status Engine::setSourcePosition(uint32_t s, const Vec3d& p) {
+  if (!validSource(s)) return invalidArgument("source " + std::to_string(s) + " does not exist");
+  if (!isFinite(p)) return invalidArgument("source position is not finite");
+  for (int i = 0; i < 3; ++i) mSlots[s]->position[i].store((&p.x)[i], std::memory_order_relaxed);
+  return Status::ok();
+}
+
+Status Engine::setSourceGainDb(uint32_t s, double gainDb) {
+  if (!validSource(s)) return invalidArgument("source " + std::to_string(s) + " does not exist");
+  if (!(gainDb >= -120.0 && gainDb <= 40.0))
+    return invalidArgument("source gain " + std::to_string(gainDb) + " dB is outside [-120, 40]");
+  mSlots[s]->gain.store(std::pow(10.0, gainDb / 20.0), std::memory_order_relaxed);
+  return Status::ok();
+}
+
+Status Engine::setListener(const Vec3d& position, const ListenerOrientation& o) {
+  if (!isFinite(position)) return invalidArgument("listener position is not finite");
+  EARSHOT_RETURN_IF_ERROR(validate(o));
+  const double v[9] = {position.x, position.y, position.z, o.forward.x, o.forward.y, o.forward.z, o.up.x, o.up.y, o.up.z};
+  for (int i = 0; i < 9; ++i) mListener[i].store(v[i], std::memory_order_relaxed);
+  return Status::ok();
+}
+
+SimulationStats Engine::lastSimulation() const { return mStats; }
+
+Status Engine::simulate(uint32_t count) {
+  std::lock_guard<std::mutex> simLock(mSimulationMutex);
+  const auto t0 = std::chrono::steady_clock::now();
+  std::shared_ptr<const RayTracer> tracer;
+  std::shared_ptr<const MaterialTable> materials;
+  {
+    std::lock_guard<std::mutex> lock(mSceneMutex);
+    tracer = mTracer;
+    materials = mMaterials;
+  }
+  const Vec3d listener{mListener[0].load(), mListener[1].load(), mListener[2].load()};
+  BinauralReceiver receiver;
+  receiver.model = mModel;
+  receiver.orientation.forward = {mListener[3].load(), mListener[4].load(), mListener[5].load()};
+  receiver.orientation.up = {mListener[6].load(), mListener[7].load(), mListener[8].load()};
+
+  std::vector<uint32_t> order;
+  const uint32_t n = uint32_t(mSlots.size());
+  for (uint32_t k = 0; k < n; ++k) {
+    const uint32_t i = (mNextRoundRobin + k) % n;
+    if (mSlots[i]->active.load()) order.push_back(i);
+  }
+  if (count > 0 && count < order.size()) order.resize(count);
+  SimulationStats stats;
+  const size_t maxFrames = size_t(std::ceil(mSettings.maxIrSeconds * mSettings.sampleRateHz));
+  for (uint32_t i : order) {
+    Slot& slot = *mSlots[i];
+    const uint32_t generation = slot.generation.load();
+    const Vec3d source{slot.position[0].load(), slot.position[1].load(), slot.position[2].load()};
+    OmniIrSettings s = mSettings.simulation;
+    s.includeDirect = DirectMode(slot.direct.load()) == DirectMode::kInImpulseResponse;
+    auto r = computeIr(*tracer, *materials, source, listener, s, *mPool, &receiver);
+    if (!r.isOk()) return Status(r.status().code(), "source " + std::to_string(i) + ": " + r.status().message());
+    stats.traceMs += r->timings.traceMs + r->timings.imageSourcesMs;
+    stats.synthesisMs += r->timings.synthesisMs;
+    const auto tPrepare = std::chrono::steady_clock::now();
+    AudioBuffer& ir = r->ir;
+    if (ir.frameCount() > maxFrames) {
+      // Cut with a short fade rather than a step.
+      const size_t fade = std::min(maxFrames, size_t(kIrFadeSeconds * mSettings.sampleRateHz));
+      for (auto& ch : ir.channels) {
+        ch.resize(maxFrames);
+        for (size_t k = 0; k < fade; ++k) ch[maxFrames - 1 - k] *= float(k) / float(fade);
+      }
+    }
+    auto prepared = PreparedIr::create(ir, mMixer->layout());
+    if (!prepared.isOk()) return prepared.status();
+    EARSHOT_RETURN_IF_ERROR(mMixer->setIr(i, *prepared));
+    // Transmission through occluders: the direct path's band gains without air.
+    const DirectPath& d = r->direct;
+    const BandArrayD air = s.air.enabled ? airAttenuationDbPerMeter(s.air) : filledBands(0.0);
+    for (int b = 0; b < kNumBands; ++b) {
+      const double airGain = std::pow(10.0, -air[b] * d.distanceMeters / 20.0);
+      slot.transmission[b].store(airGain > 0 ? d.bandGain[b] / airGain : 0.0);
+    }
+    slot.audible.store(d.audible);
+    slot.simulatedGeneration.store(generation);
+    stats.prepareMs += msSince(tPrepare);
+    ++stats.sourcesSimulated;
+  }
+  if (!order.empty()) mNextRoundRobin = (order.back() + 1) % n;
+  stats.totalMs = msSince(t0);
+  mStats = stats;
+  return Status::ok();
+}
+
+void Engine::process(const float* const* inputs, float* left, float* right, size_t frames) {
+  ScopedFlushDenormals ftz;
+  const size_t n = mSlots.size();
+  DirectTarget target;
+  target.listener = {mListener[0].load(std::memory_order_relaxed), mListener[1].load(std::memory_order_relaxed),
+                     mListener[2].load(std::memory_order_relaxed)};
+  target.orientation.forward = {mListener[3].load(std::memory_order_relaxed),
+                                mListener[4].load(std::memory_order_relaxed),
+                                mListener[5].load(std::memory_order_relaxed)};
+  target.orientation.up = {mListener[6].load(std::memory_order_relaxed), mListener[7].load(std::memory_order_relaxed),
+                           mListener[8].load(std::memory_order_relaxed)};
+  for (size_t i = 0; i < n; ++i) {
+    Slot& slot = *mSlots[i];
+    const uint32_t generation = slot.generation.load(std::memory_order_acquire);
+    const bool live = inputs && inputs[i] && slot.active.load(std::memory_order_acquire) &&
+                      slot.simulatedGeneration.load(std::memory_order_acquire) == generation;
+    slot.live = live;
+    if (live && slot.voiceGeneration != generation) {
+      slot.voice->reset();
+      slot.voiceGeneration = generation;
+      slot.appliedGain = slot.gain.load(std::memory_order_relaxed);
+    }
+  }
+  // Chunks bound the gain scratch buffers whatever the host block size.
+  for (size_t off = 0; off < frames; off += kProcessChunk) {
+    const size_t m = std::min(kProcessChunk, frames - off);
+    for (size_t i = 0; i < n; ++i) {
+      Slot& slot = *mSlots[i];
+      mInputs[i] = nullptr;
+      if (!slot.live) continue;
+      // The source gain, ramped per chunk, on the reflections' input (the
+      // direct voice applies it itself).
+      const float from = float(slot.appliedGain), to = float(slot.gain.load(std::memory_order_relaxed));
+      const float* in = inputs[i] + off;
+      float* g = slot.scaled.data();
+      for (size_t k = 0; k < m; ++k) g[k] = in[k] * (from + (to - from) * float(k + 1) / float(m));
+      slot.appliedGain = to;
+      mInputs[i] = g;
+    }
+    float* outs[2] = {left + off, right + off};
+    mMixer->process(mInputs.data(), outs, m);
+    for (size_t i = 0; i < n; ++i) {
+      Slot& slot = *mSlots[i];
+      if (!slot.live || DirectMode(slot.direct.load(std::memory_order_relaxed)) != DirectMode::kPerBlock) continue;
+      target.source = {slot.position[0].load(std::memory_order_relaxed),
+                       slot.position[1].load(std::memory_order_relaxed),
+                       slot.position[2].load(std::memory_order_relaxed)};
+      target.gain = slot.appliedGain;
+      for (int b = 0; b < kNumBands; ++b) target.transmission[b] = slot.transmission[b].load(std::memory_order_relaxed);
+      target.audible = slot.audible.load(std::memory_order_relaxed);
+      slot.voice->process(inputs[i] + off, left + off, right + off, m, target);
+    }
+  }
+}
+
+}  // namespace earshot::runtime

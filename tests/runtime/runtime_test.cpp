@@ -1,0 +1,264 @@
+// The runtime (issue 6, 7): the direct voice (delay, Doppler, head rotation),
+// and the engine (exact static convolution, round-robin simulation, errors).
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <numeric>
+#include <string>
+#include <vector>
+
+#include "earshot/core/math.h"
+#include "earshot/core/random.h"
+#include "earshot/core/thread_pool.h"
+#include "earshot/ir/ir_pipeline.h"
+#include "earshot/runtime/direct_voice.h"
+#include "earshot/runtime/engine.h"
+#include "earshot/scene/ray_tracer.h"
+#include "runtime_fixture.h"
+
+namespace earshot::runtime {
+namespace {
+
+using test::kFs;
+
+// Frequency of a sine in x[from, from + n) by counting zero crossings with
+// linear interpolation between samples (accurate to ~0.01 % over 0.2 s).
+double sineFrequency(const std::vector<float>& x, size_t from, size_t n) {
+  double first = -1, last = -1;
+  int crossings = 0;
+  for (size_t i = from + 1; i < from + n; ++i) {
+    if (x[i - 1] < 0 && x[i] >= 0) {
+      const double t = double(i - 1) + double(x[i - 1]) / double(x[i - 1] - x[i]);
+      if (first < 0) first = t;
+      last = t;
+      ++crossings;
+    }
+  }
+  return crossings > 1 ? (crossings - 1) * kFs / (last - first) : 0.0;
+}
+
+double energy(const float* x, size_t n) {
+  double e = 0;
+  for (size_t i = 0; i < n; ++i) e += double(x[i]) * x[i];
+  return e;
+}
+
+}  // namespace
+
+// A static source: the voice's impulse response peaks at r/c plus the
+// convolver latency it is told to align with, with the HRTF's energy / r^2.
+TEST(DirectVoice, StaticSourceArrivesAtRoverCWithOneOverR) {
+  auto model = test::ku100();
+  ASSERT_TRUE(model);
+  DirectVoiceSettings s;
+  s.air.enabled = false;
+  s.extraDelayFrames = 256;
+  auto voice = DirectVoice::create(s, model->hrtfPtr());
+  ASSERT_TRUE(voice.isOk()) << voice.status().message();
+  DirectTarget t;
+  t.source = {0, 0, -6.86};  // ahead, 20 ms
+  const size_t n = 4096;
+  std::vector<float> in(n, 0.0f), l(n, 0.0f), r(n, 0.0f);
+  in[0] = 1.0f;
+  (*voice)->process(in.data(), l.data(), r.data(), n, t);
+  size_t peak = 0;
+  for (size_t i = 0; i < n; ++i)
+    if (std::fabs(l[i]) > std::fabs(l[peak])) peak = i;
+  const double expected = 6.86 / 343.0 * kFs + 256;
+  EXPECT_NEAR(double(peak), expected, 0.001 * kFs) << "within the HRIR's onset";
+  auto pair = std::make_unique<hrtf::HrirPair>();
+  model->hrtf().lookup({0, 0, -1}, *pair);
+  const double hrirEnergy = energy(pair->left.data(), pair->length);
+  EXPECT_NEAR(energyToDb(energy(l.data(), n)), energyToDb(hrirEnergy / (6.86 * 6.86)), 0.2);
+}
+
+// Issue 7: a source passing the listener at constant speed is heard at
+// f c / (c - v cos) approaching and f c / (c + v cos) receding (within 1 %).
+TEST(DirectVoice, MovingSourceGivesTheDopplerShift) {
+  auto model = test::ku100();
+  ASSERT_TRUE(model);
+  DirectVoiceSettings s;
+  auto voice = DirectVoice::create(s, model->hrtfPtr());
+  ASSERT_TRUE(voice.isOk());
+  const double v = 20.0, f0 = 500.0, c = 343.0, seconds = 6.0;
+  const size_t total = size_t(seconds * kFs), block = 256;
+  std::vector<float> in(total), l(total, 0.0f), r(total, 0.0f);
+  for (size_t i = 0; i < total; ++i) in[i] = float(std::sin(2 * kPi * f0 * double(i) / kFs));
+  DirectTarget t;
+  for (size_t off = 0; off < total; off += block) {
+    const double time = double(off + block) / kFs;
+    t.source = {-60.0 + v * time, 0.0, -2.0};  // passes 2 m in front at t = 3 s
+    (*voice)->process(in.data() + off, l.data() + off, r.data() + off, block, t);
+  }
+  // Emission at 0.5-1.0 s: approaching at about v (the path is 2 m aside, 30+ m away).
+  const double approach = sineFrequency(l, size_t(1.0 * kFs), size_t(0.4 * kFs));
+  const double recede = sineFrequency(l, size_t(5.2 * kFs), size_t(0.4 * kFs));
+  EXPECT_NEAR(approach / (f0 * c / (c - v)), 1.0, 0.01) << approach;
+  EXPECT_NEAR(recede / (f0 * c / (c + v)), 1.0, 0.01) << recede;
+  EXPECT_GT(approach, f0 * 1.04);
+  EXPECT_LT(recede, f0 * 0.96);
+}
+
+// Issue 6: after the listener turns 90 degrees, the direct sound's ILD has
+// flipped sign within 2 audio blocks.
+TEST(DirectVoice, HeadTurnFlipsTheIldWithinTwoBlocks) {
+  auto model = test::ku100();
+  ASSERT_TRUE(model);
+  DirectVoiceSettings s;
+  auto voice = DirectVoice::create(s, model->hrtfPtr());
+  ASSERT_TRUE(voice.isOk());
+  const size_t block = 256;
+  Pcg32 rng(3, 4);
+  std::vector<float> in(block), l(block), r(block);
+  DirectTarget t;
+  t.source = {-2, 0, -2};  // 45 degrees to the left of forward (-z)
+  auto ildOfNextBlock = [&] {
+    for (float& x : in) x = rng.uniform() * 2.0f - 1.0f;
+    std::fill(l.begin(), l.end(), 0.0f);
+    std::fill(r.begin(), r.end(), 0.0f);
+    (*voice)->process(in.data(), l.data(), r.data(), block, t);
+    return energyToDb(energy(l.data(), block) / energy(r.data(), block));
+  };
+  for (int i = 0; i < 20; ++i) ildOfNextBlock();
+  EXPECT_GT(ildOfNextBlock(), 3.0) << "source on the left";
+  t.orientation.forward = {-1, 0, 0};  // turn 90 degrees left: the source is now 45 degrees right
+  ildOfNextBlock();                     // block 1: crossfading
+  EXPECT_LT(ildOfNextBlock(), -3.0) << "block 2: the ILD has flipped";
+}
+
+// Any host block size gives the same output (parameters fixed).
+TEST(DirectVoice, BlockSizeDoesNotChangeTheOutputOfAStaticSource) {
+  auto model = test::ku100();
+  ASSERT_TRUE(model);
+  DirectVoiceSettings s;
+  auto a = DirectVoice::create(s, model->hrtfPtr());
+  auto b = DirectVoice::create(s, model->hrtfPtr());
+  ASSERT_TRUE(a.isOk() && b.isOk());
+  const size_t n = 20000;
+  std::vector<float> in(n), la(n, 0.0f), ra(n, 0.0f), lb(n, 0.0f), rb(n, 0.0f);
+  Pcg32 rng(1, 2);
+  for (float& x : in) x = rng.uniform() - 0.5f;
+  DirectTarget t;
+  t.source = {3, 1, -4};
+  (*a)->process(in.data(), la.data(), ra.data(), n, t);
+  const size_t sizes[] = {1, 7, 64, 333, 1024, 5};
+  for (size_t off = 0, k = 0; off < n; ++k) {
+    const size_t m = std::min(sizes[k % 6], n - off);
+    (*b)->process(in.data() + off, lb.data() + off, rb.data() + off, m, t);
+    off += m;
+  }
+  for (size_t i = 0; i < n; ++i) {
+    ASSERT_NEAR(la[i], lb[i], 1e-6) << i;
+    ASSERT_NEAR(ra[i], rb[i], 1e-6) << i;
+  }
+}
+
+// Issue 7's exactness, at the engine: a static source whose IR includes the
+// direct sound renders exactly the dry signal convolved with computeIr's IR
+// for the same poses and settings, delayed by the latency (1e-5 of peak).
+TEST(Engine, StaticSourceIsTheDrySignalConvolvedWithTheIr) {
+  auto model = test::ku100();
+  ASSERT_TRUE(model);
+  test::Room room;
+  EngineSettings es = test::fastSettings();
+  auto engine = Engine::create(es, model);
+  ASSERT_TRUE(engine.isOk()) << engine.status().message();
+  Engine& e = **engine;
+  e.setScene(room.tracer, room.materials);
+  SourceSettings ss;
+  ss.direct = DirectMode::kInImpulseResponse;
+  auto id = e.addSource(ss);
+  ASSERT_TRUE(id.isOk());
+  const Vec3d source{2, 3, 1.5}, listener{7, 4, 1.6};
+  ListenerOrientation o{{1, 0, 0}, {0, 0, 1}};
+  ASSERT_TRUE(e.setSourcePosition(*id, source).isOk());
+  ASSERT_TRUE(e.setListener(listener, o).isOk());
+  ASSERT_TRUE(e.simulate().isOk());
+
+  ThreadPool pool(1);
+  BinauralReceiver receiver{model, o};
+  OmniIrSettings is = es.simulation;
+  auto ir = computeIr(*room.tracer, *room.materials, source, listener, is, pool, &receiver);
+  ASSERT_TRUE(ir.isOk());
+
+  const size_t n = size_t(0.5 * kFs), lat = e.latencyFrames();
+  std::vector<float> dry(n, 0.0f);
+  Pcg32 rng(9, 9);
+  for (size_t i = 0; i < 2000; ++i) dry[i] = rng.uniform() - 0.5f;
+  std::vector<float> l(n + lat), r(n + lat), zeros(4096, 0.0f);
+  std::vector<const float*> inputs(es.maxSources, nullptr);
+  const size_t sizes[] = {256, 100, 1000, 17, 512};
+  for (size_t off = 0, k = 0; off < n + lat; ++k) {
+    const size_t m = std::min(sizes[k % 5], n + lat - off);
+    inputs[*id] = off < n ? dry.data() + off : zeros.data();
+    if (off < n && off + m > n) inputs[*id] = zeros.data();  // keep the tail simple: dry is zero there anyway
+    e.process(inputs.data(), l.data() + off, r.data() + off, m);
+    off += m;
+  }
+  // Reference: direct convolution of the first 2000 samples (the rest is 0).
+  const auto& h = ir->ir.channels;
+  double peak = 0, worst = 0;
+  for (int ear = 0; ear < 2; ++ear) {
+    const std::vector<float>& out = ear ? r : l;
+    for (size_t t = 0; t < n; ++t) {
+      double y = 0;
+      for (size_t k = 0; k < 2000 && k <= t; ++k)
+        if (t - k < h[ear].size()) y += double(dry[k]) * h[ear][t - k];
+      peak = std::max(peak, std::fabs(y));
+      worst = std::max(worst, std::fabs(y - out[t + lat]));
+    }
+  }
+  EXPECT_GT(peak, 0.0);
+  EXPECT_LE(worst, 1e-5 * peak) << "worst " << worst << " peak " << peak;
+}
+
+// Round robin: simulate(1) visits the active sources in turn.
+TEST(Engine, RoundRobinSimulatesOneSourceAtATime) {
+  auto model = test::ku100();
+  ASSERT_TRUE(model);
+  test::Room room;
+  auto engine = Engine::create(test::fastSettings(), model);
+  ASSERT_TRUE(engine.isOk());
+  Engine& e = **engine;
+  e.setScene(room.tracer, room.materials);
+  for (int i = 0; i < 3; ++i) {
+    auto id = e.addSource({});
+    ASSERT_TRUE(id.isOk());
+    ASSERT_TRUE(e.setSourcePosition(*id, {2.0 + i, 3, 1.5}).isOk());
+  }
+  for (int k = 0; k < 4; ++k) {
+    ASSERT_TRUE(e.simulate(1).isOk());
+    EXPECT_EQ(e.lastSimulation().sourcesSimulated, 1u);
+  }
+  ASSERT_TRUE(e.simulate().isOk());
+  EXPECT_EQ(e.lastSimulation().sourcesSimulated, 3u);
+}
+
+TEST(Engine, BadArgumentsAreErrors) {
+  auto model = test::ku100();
+  ASSERT_TRUE(model);
+  EngineSettings es = test::fastSettings();
+  es.sampleRateHz = 44100;
+  EXPECT_FALSE(Engine::create(es, model).isOk()) << "rate differs from the HRTF model";
+  EXPECT_FALSE(Engine::create(test::fastSettings(), nullptr).isOk());
+  es = test::fastSettings();
+  es.maxSources = 2;
+  auto engine = Engine::create(es, model);
+  ASSERT_TRUE(engine.isOk());
+  Engine& e = **engine;
+  EXPECT_FALSE(e.setSourcePosition(0, {0, 0, 0}).isOk()) << "no such source";
+  auto a = e.addSource({});
+  auto b = e.addSource({});
+  ASSERT_TRUE(a.isOk() && b.isOk());
+  EXPECT_FALSE(e.addSource({}).isOk()) << "all slots in use";
+  EXPECT_FALSE(e.setSourcePosition(*a, {0, std::nan(""), 0}).isOk());
+  EXPECT_FALSE(e.setSourceGainDb(*a, 1000).isOk());
+  EXPECT_FALSE(e.setListener({0, 0, 0}, {{0, 0, -1}, {0, 0, 1}}).isOk()) << "parallel forward and up";
+  EXPECT_TRUE(e.removeSource(*a).isOk());
+  EXPECT_FALSE(e.removeSource(*a).isOk()) << "removed twice";
+  EXPECT_TRUE(e.addSource({}).isOk()) << "the slot is free again";
+}
+
+}  // namespace earshot::runtime
