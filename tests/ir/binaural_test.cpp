@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <complex>
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -25,10 +26,16 @@ namespace {
 const std::string kPulse = std::string(EARSHOT_TEST_DATA_DIR) + "/hrtf/Pulse.sofa";
 const std::string kKu100 = std::string(EARSHOT_SOURCE_DIR) + "/hrtf/FHK_HRIR_L2354.sofa";
 
+// Loaded once per set and rate (loading the KU100 takes over a second).
 std::shared_ptr<const BinauralModel> model(const std::string& path, double fs = 48000.0) {
-  auto m = loadBinauralModel(path, fs);
-  EXPECT_TRUE(m.isOk()) << m.status().message();
-  return m.isOk() ? *m : nullptr;
+  static std::map<std::pair<std::string, double>, std::shared_ptr<const BinauralModel>> cache;
+  auto& slot = cache[{path, fs}];
+  if (!slot) {
+    auto m = loadBinauralModel(path, fs);
+    EXPECT_TRUE(m.isOk()) << m.status().message();
+    if (m.isOk()) slot = *m;
+  }
+  return slot;
 }
 
 std::unique_ptr<RayTracer> freeField() {
