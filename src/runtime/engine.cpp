@@ -109,8 +109,8 @@ void Engine::setScene(std::shared_ptr<const RayTracer> tracer, std::shared_ptr<c
 bool Engine::validSource(uint32_t s) const { return s < mSlots.size() && mSlots[s]->active.load(); }
 
 Result<uint32_t> Engine::addSource(const SourceSettings& settings) {
-  if (!(settings.gainDb >= -120.0 && settings.gainDb <= 40.0))
-    return invalidArgument("source gain " + std::to_string(settings.gainDb) + " dB is outside [-120, 40]");
+  if (!(settings.gainDb >= -120.0 && settings.gainDb <= 60.0))
+    return invalidArgument("source gain " + std::to_string(settings.gainDb) + " dB is outside [-120, 60]");
   for (uint32_t i = 0; i < mSlots.size(); ++i) {
     Slot& slot = *mSlots[i];
     if (slot.active.load()) continue;
@@ -141,8 +141,8 @@ Status Engine::setSourcePosition(uint32_t s, const Vec3d& p) {
 
 Status Engine::setSourceGainDb(uint32_t s, double gainDb) {
   if (!validSource(s)) return invalidArgument("source " + std::to_string(s) + " does not exist");
-  if (!(gainDb >= -120.0 && gainDb <= 40.0))
-    return invalidArgument("source gain " + std::to_string(gainDb) + " dB is outside [-120, 40]");
+  if (!(gainDb >= -120.0 && gainDb <= 60.0))
+    return invalidArgument("source gain " + std::to_string(gainDb) + " dB is outside [-120, 60]");
   mSlots[s]->gain.store(std::pow(10.0, gainDb / 20.0), std::memory_order_relaxed);
   return Status::ok();
 }
@@ -159,6 +159,25 @@ SimulationStats Engine::lastSimulation() const { return mStats; }
 
 Status Engine::simulate(uint32_t count) {
   std::lock_guard<std::mutex> simLock(mSimulationMutex);
+  std::vector<uint32_t> order;
+  const uint32_t n = uint32_t(mSlots.size());
+  for (uint32_t k = 0; k < n; ++k) {
+    const uint32_t i = (mNextRoundRobin + k) % n;
+    if (mSlots[i]->active.load()) order.push_back(i);
+  }
+  if (count > 0 && count < order.size()) order.resize(count);
+  if (!order.empty()) mNextRoundRobin = (order.back() + 1) % n;
+  return simulateLocked(order);
+}
+
+Status Engine::simulate(const std::vector<uint32_t>& sources) {
+  for (uint32_t s : sources)
+    if (!validSource(s)) return invalidArgument("source " + std::to_string(s) + " does not exist");
+  std::lock_guard<std::mutex> simLock(mSimulationMutex);
+  return simulateLocked(sources);
+}
+
+Status Engine::simulateLocked(const std::vector<uint32_t>& order) {
   const auto t0 = std::chrono::steady_clock::now();
   std::shared_ptr<const RayTracer> tracer;
   std::shared_ptr<const MaterialTable> materials;
@@ -173,13 +192,6 @@ Status Engine::simulate(uint32_t count) {
   receiver.orientation.forward = {mListener[3].load(), mListener[4].load(), mListener[5].load()};
   receiver.orientation.up = {mListener[6].load(), mListener[7].load(), mListener[8].load()};
 
-  std::vector<uint32_t> order;
-  const uint32_t n = uint32_t(mSlots.size());
-  for (uint32_t k = 0; k < n; ++k) {
-    const uint32_t i = (mNextRoundRobin + k) % n;
-    if (mSlots[i]->active.load()) order.push_back(i);
-  }
-  if (count > 0 && count < order.size()) order.resize(count);
   SimulationStats stats;
   const size_t maxFrames = size_t(std::ceil(mSettings.maxIrSeconds * mSettings.sampleRateHz));
   for (uint32_t i : order) {
@@ -217,7 +229,6 @@ Status Engine::simulate(uint32_t count) {
     stats.prepareMs += msSince(tPrepare);
     ++stats.sourcesSimulated;
   }
-  if (!order.empty()) mNextRoundRobin = (order.back() + 1) % n;
   stats.totalMs = msSince(t0);
   mStats = stats;
   return Status::ok();

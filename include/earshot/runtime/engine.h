@@ -63,7 +63,7 @@ enum class DirectMode {
 };
 
 struct SourceSettings {
-  double gainDb = 0.0;  ///< [-120, 40]
+  double gainDb = 0.0;  ///< [-120, 60]
   DirectMode direct = DirectMode::kPerBlock;
 };
 
@@ -102,6 +102,8 @@ class Engine {
    *  so far: traces, synthesises and posts their IRs, and updates their
    *  direct paths' occlusion. */
   Status simulate(uint32_t count = 0);
+  /** Simulates exactly these sources (in this order). */
+  Status simulate(const std::vector<uint32_t>& sources);
   SimulationStats lastSimulation() const;
 
   // ---- audio thread ----
@@ -114,6 +116,7 @@ class Engine {
   struct Slot;
   Engine() = default;
   bool validSource(uint32_t s) const;
+  Status simulateLocked(const std::vector<uint32_t>& sources);
 
   EngineSettings mSettings;
   std::shared_ptr<const BinauralModel> mModel;

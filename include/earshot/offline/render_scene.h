@@ -1,0 +1,67 @@
+#pragma once
+/** @file Offline rendering of a scene file to binaural audio: the runtime's
+ *  update path (runtime/engine.h) driven by the scene's trajectories instead
+ *  of a game. Scene time advances in blocks of the engine's block size; at
+ *  every block the sources' and listener's poses are set from their
+ *  trajectories (so the direct sound's delay, level and HRTF follow motion
+ *  sample-accurately across blocks: Doppler, no clicks), and at the scene's
+ *  update rate the reflections are simulated again for every source whose
+ *  relative pose changed (crossfaded in the convolver).
+ *
+ *  A source that does not move, heard by a listener that does not move, is
+ *  simulated once, with the direct sound inside its IR: its output is then
+ *  exactly its dry signal convolved with the IR `earshot ir` computes for the
+ *  same positions and settings.
+ *
+ *  Directivity: a source's pattern scales its whole output by the pattern's
+ *  gain toward the listener (reflections leave in other directions; a known
+ *  simplification).
+ *
+ *  Threading: renderScene() is a blocking call; it uses settings.threads (or
+ *  the options' override) worker threads for tracing. Same scene, options
+ *  and seed give bit-identical output whatever the thread count. */
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "earshot/core/audio_buffer.h"
+#include "earshot/core/status.h"
+#include "earshot/render/scene_file.h"
+
+namespace earshot {
+
+struct RenderOptions {
+  std::optional<std::string> quality;  ///< overrides the scene's quality preset
+  std::optional<uint64_t> seed;        ///< overrides the scene's seed
+  unsigned threads = 0;                ///< tracing threads; 0: all cores
+  double fromSeconds = 0.0;            ///< first scene time rendered, >= 0
+  std::optional<double> toSeconds;     ///< end of the render (exclusive); unset: the scene's duration
+  /** Reverberation carried into `fromSeconds`: rendering starts this much
+   *  earlier (not before 0) and the pre-roll is dropped. */
+  double preRollSeconds = 2.0;
+  /** Called now and then with the fraction done (0..1); from the calling thread. */
+  std::function<void(double fraction)> progress;
+};
+
+struct RenderResult {
+  AudioBuffer audio;            ///< 2 channels (left, right) at the scene's rate
+  double audioSeconds = 0.0;
+  double wallSeconds = 0.0;
+  double simulationSeconds = 0.0;  ///< tracing and IR synthesis (wall)
+  double audioProcessSeconds = 0.0;  ///< convolution and direct sound (wall)
+  uint64_t simulations = 0;     ///< source IRs simulated
+  double peak = 0.0;            ///< largest |sample|
+  bool clipped = false;         ///< some |sample| > 1 (the WAV is float: nothing is cut, but players will clip)
+  std::vector<std::string> log; ///< what was loaded and how (resampling, modes, durations)
+};
+
+/** Renders `scene`. Errors name the file and what is wrong (unreadable
+ *  geometry, audio, HRTF; a time window outside the scene). */
+Result<RenderResult> renderScene(const SceneDescription& scene, const RenderOptions& options);
+
+/** The scene's length when settings.durationSeconds is unset: the last dry
+ *  sample's time (start + length) over all sources, plus 2 s of reverberation. */
+double defaultSceneDuration(const SceneDescription& scene, const std::vector<double>& dryLengthsSeconds);
+
+}  // namespace earshot

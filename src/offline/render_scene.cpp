@@ -1,0 +1,234 @@
+// Offline rendering of a scene file: see render_scene.h.
+#include "earshot/offline/render_scene.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <memory>
+#include <string>
+
+#include "earshot/core/math.h"
+#include "earshot/ir/binaural_synthesis.h"
+#include "earshot/ir/ir_pipeline.h"
+#include "earshot/materials/material.h"
+#include "earshot/render/dry_audio.h"
+#include "earshot/runtime/engine.h"
+#include "earshot/scene/gltf_loader.h"
+#include "earshot/scene/ray_tracer.h"
+
+namespace earshot {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double secondsSince(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+constexpr double kTailSeconds = 2.0;
+constexpr double kMaxIrSeconds = 10.0;
+
+// What a source's last simulation saw (relative poses decide re-simulation).
+struct SimulatedPose {
+  bool valid = false;
+  Vec3d source, listener, forward, up;
+  bool operator==(const SimulatedPose& o) const {
+    return valid && o.valid && source == o.source && listener == o.listener && forward == o.forward && up == o.up;
+  }
+};
+
+double clampGainDb(double db) { return std::clamp(std::isfinite(db) ? db : -120.0, -120.0, 60.0); }
+
+}  // namespace
+
+double defaultSceneDuration(const SceneDescription& scene, const std::vector<double>& dryLengths) {
+  double end = 0.0;
+  for (size_t i = 0; i < scene.sources.size() && i < dryLengths.size(); ++i)
+    end = std::max(end, scene.sources[i].startSeconds + dryLengths[i]);
+  return end + kTailSeconds;
+}
+
+Result<RenderResult> renderScene(const SceneDescription& scene, const RenderOptions& options) {
+  const auto t0 = Clock::now();
+  RenderResult out;
+  const SceneSettings& ss = scene.settings;
+  const double fs = ss.sampleRateHz;
+  if (scene.sources.empty()) return invalidArgument(scene.sceneFile + ": no sources");
+
+  // Simulation settings: the preset, the scene's overrides, the options'.
+  runtime::EngineSettings es;
+  es.sampleRateHz = fs;
+  es.maxSources = scene.sources.size();
+  es.maxIrSeconds = kMaxIrSeconds;
+  es.threads = options.threads;
+  auto preset = qualityPreset(options.quality.value_or(ss.quality));
+  if (!preset.isOk()) return preset.status();
+  apply(*preset, es.simulation);
+  if (ss.rays && !options.quality) es.simulation.rays = *ss.rays;
+  if (ss.bounces && !options.quality) es.simulation.bounces = *ss.bounces;
+  es.simulation.seed = options.seed.value_or(ss.seed);
+  es.simulation.speedOfSound = ss.speedOfSound;
+  es.simulation.air.enabled = ss.air.enabled;
+  es.simulation.air.temperatureC = ss.air.temperatureC;
+  es.simulation.air.humidityPercent = ss.air.humidityPercent;
+  es.simulation.air.pressureKpa = ss.air.pressureKpa;
+  out.log.push_back("quality " + preset->name + ": " + std::to_string(es.simulation.rays) + " rays, " +
+                    std::to_string(es.simulation.bounces) + " bounces, image sources to order " +
+                    std::to_string(es.simulation.imageSourceOrder) + ", seed " + std::to_string(es.simulation.seed));
+
+  // Geometry and materials.
+  auto materials = std::make_shared<MaterialTable>(defaultMaterials());
+  if (!scene.materialsPath.empty()) {
+    auto m = loadMaterials(scene.materialsPath);
+    if (!m.isOk()) return m.status();
+    *materials = std::move(m.value());
+  }
+  TriangleMesh mesh;
+  if (!scene.geometryPath.empty()) {
+    auto g = loadGltf(scene.geometryPath, *materials, scene.materialMap);
+    if (!g.isOk()) return g.status();
+    for (const auto& w : g->warnings) out.log.push_back("warning: " + w);
+    mesh = std::move(g->mesh);
+    out.log.push_back(scene.geometryPath + ": " + std::to_string(mesh.triangleCount()) + " triangles");
+  } else {
+    out.log.push_back("no geometry: free field");
+  }
+  auto tracer = RayTracer::create(mesh);
+  if (!tracer.isOk()) return Status(tracer.status().code(), scene.geometryPath + ": " + tracer.status().message());
+  std::shared_ptr<const RayTracer> sharedTracer = std::move(tracer.value());
+
+  // HRTF and engine.
+  auto model = loadBinauralModel(ss.hrtfPath, fs);
+  if (!model.isOk()) return model.status();
+  out.log.push_back("HRTF: " + (*model)->hrtf().path());
+  auto created = runtime::Engine::create(es, *model);
+  if (!created.isOk()) return created.status();
+  runtime::Engine& engine = **created;
+  engine.setScene(sharedTracer, materials);
+
+  // Dry audio and sources.
+  std::vector<DryAudio> dry;
+  std::vector<double> dryLengths;
+  std::vector<uint32_t> ids;
+  std::vector<long long> startFrame;
+  const bool listenerStatic = scene.listener.trajectory.isStatic();
+  for (const SceneSource& src : scene.sources) {
+    std::string line;
+    auto d = loadDryAudio(src.audioPath, fs, &line);
+    if (!d.isOk()) return Status(d.status().code(), "source \"" + src.name + "\": " + d.status().message());
+    out.log.push_back("source \"" + src.name + "\": " + line);
+    dryLengths.push_back(double(d->samples.size()) / fs);
+    dry.push_back(std::move(d.value()));
+    runtime::SourceSettings s;
+    const bool still = listenerStatic && src.trajectory.isStatic();
+    s.direct = still ? runtime::DirectMode::kInImpulseResponse : runtime::DirectMode::kPerBlock;
+    out.log.push_back("source \"" + src.name + "\": " +
+                      (still ? "static: simulated once, direct sound inside its IR (exact convolution)"
+                             : "moving: direct sound rendered per block, reflections updated at " +
+                                   std::to_string(ss.updateRateHz) + " Hz"));
+    auto id = engine.addSource(s);
+    if (!id.isOk()) return id.status();
+    ids.push_back(*id);
+    startFrame.push_back(std::llround(src.startSeconds * fs));
+  }
+
+  // Time window.
+  const double duration = ss.durationSeconds.value_or(defaultSceneDuration(scene, dryLengths));
+  const double to = options.toSeconds.value_or(duration);
+  if (!(options.fromSeconds >= 0) || !(to > options.fromSeconds))
+    return invalidArgument("--from " + std::to_string(options.fromSeconds) + " / --to " + std::to_string(to) +
+                           ": the window must satisfy 0 <= from < to");
+  const double begin = std::max(0.0, options.fromSeconds - std::max(0.0, options.preRollSeconds));
+  const long long firstFrame = std::llround(begin * fs);
+  const long long outFirstFrame = std::llround(options.fromSeconds * fs);
+  const long long endFrame = std::llround(to * fs);
+  const size_t outFrames = size_t(endFrame - outFirstFrame);
+  const size_t latency = engine.latencyFrames();
+  const size_t block = latency;
+  const size_t processFrames = size_t(endFrame - firstFrame) + latency;
+  out.audio = AudioBuffer(2, outFrames, fs);
+
+  std::vector<std::vector<float>> input(ids.size(), std::vector<float>(block, 0.0f));
+  std::vector<const float*> inputs(es.maxSources, nullptr);
+  for (size_t i = 0; i < ids.size(); ++i) inputs[ids[i]] = input[i].data();
+  std::vector<float> left(block), right(block);
+  std::vector<SimulatedPose> simulated(ids.size());
+  const long long updateFrames = std::max<long long>(1, std::llround(fs / ss.updateRateHz));
+  long long nextUpdate = firstFrame;
+  double lastProgress = -1.0;
+
+  auto setPoses = [&](double t) -> Status {
+    const Pose lp = scene.listener.trajectory.at(t);
+    EARSHOT_RETURN_IF_ERROR(engine.setListener(lp.position, {lp.forward, lp.up}));
+    for (size_t i = 0; i < ids.size(); ++i) {
+      const Pose sp = scene.sources[i].trajectory.at(t);
+      EARSHOT_RETURN_IF_ERROR(engine.setSourcePosition(ids[i], sp.position));
+      const Vec3d toListener = lp.position - sp.position;
+      const double r = length(toListener);
+      const double cosAngle = r > 1e-9 ? dot(normalize(sp.forward), toListener / r) : 1.0;
+      const double g = directivityGain(scene.sources[i].directivity, cosAngle);
+      EARSHOT_RETURN_IF_ERROR(
+          engine.setSourceGainDb(ids[i], clampGainDb(scene.sources[i].gainDb + (g > 0 ? gainToDb(g) : -300.0))));
+    }
+    return Status::ok();
+  };
+
+  for (size_t f = 0; f < processFrames; f += block) {
+    const long long sceneFrame = firstFrame + (long long)f;
+    // Acoustic update: re-simulate the sources whose relative pose changed.
+    if (sceneFrame >= nextUpdate) {
+      const double t = double(sceneFrame) / fs;
+      EARSHOT_RETURN_IF_ERROR(setPoses(t));
+      const Pose lp = scene.listener.trajectory.at(t);
+      std::vector<uint32_t> changed;
+      for (size_t i = 0; i < ids.size(); ++i) {
+        SimulatedPose now{true, scene.sources[i].trajectory.at(t).position, lp.position, lp.forward, lp.up};
+        if (!(now == simulated[i])) {
+          changed.push_back(ids[i]);
+          simulated[i] = now;
+        }
+      }
+      if (!changed.empty()) {
+        const auto ts = Clock::now();
+        EARSHOT_RETURN_IF_ERROR(engine.simulate(changed));
+        out.simulationSeconds += secondsSince(ts);
+        out.simulations += changed.size();
+      }
+      while (nextUpdate <= sceneFrame) nextUpdate += updateFrames;
+    }
+    // Poses at the block's end: the direct sound moves across the block.
+    EARSHOT_RETURN_IF_ERROR(setPoses(double(sceneFrame + (long long)block) / fs));
+    for (size_t i = 0; i < ids.size(); ++i) {
+      const std::vector<float>& x = dry[i].samples;
+      for (size_t k = 0; k < block; ++k) {
+        const long long at = sceneFrame + (long long)k - startFrame[i];
+        input[i][k] = at >= 0 && at < (long long)x.size() ? x[size_t(at)] : 0.0f;
+      }
+    }
+    const auto ta = Clock::now();
+    engine.process(inputs.data(), left.data(), right.data(), block);
+    out.audioProcessSeconds += secondsSince(ta);
+    // Output frame f is scene frame firstFrame + f - latency.
+    for (size_t k = 0; k < block; ++k) {
+      const long long sceneOut = firstFrame + (long long)(f + k) - (long long)latency;
+      const long long o = sceneOut - outFirstFrame;
+      if (o >= 0 && o < (long long)outFrames) {
+        out.audio.channels[0][size_t(o)] = left[k];
+        out.audio.channels[1][size_t(o)] = right[k];
+      }
+    }
+    if (options.progress) {
+      const double fraction = double(f + block) / double(processFrames);
+      if (fraction - lastProgress >= 0.01 || f + block >= processFrames) {
+        options.progress(std::min(1.0, fraction));
+        lastProgress = fraction;
+      }
+    }
+  }
+  for (const auto& ch : out.audio.channels)
+    for (float v : ch) out.peak = std::max(out.peak, double(std::fabs(v)));
+  out.clipped = out.peak > 1.0;
+  out.audioSeconds = double(outFrames) / fs;
+  out.wallSeconds = secondsSince(t0);
+  return out;
+}
+
+}  // namespace earshot

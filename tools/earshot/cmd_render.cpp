@@ -1,0 +1,153 @@
+// `earshot render`: a scene file to a binaural WAV.
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "command.h"
+#include "earshot/io/wav.h"
+#include "earshot/offline/render_scene.h"
+#include "earshot/render/scene_file.h"
+
+namespace earshot::cli {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct RenderCliOptions {
+  std::string scene;
+  std::string output;
+  std::string quality;
+  unsigned threads = 0;
+  uint64_t seed = 0;
+  double from = 0.0;
+  double to = 0.0;
+  bool strict = false;
+  bool quiet = false;
+};
+
+bool samePath(const std::string& a, const std::string& b) {
+  std::error_code ea, eb;
+  const fs::path pa = fs::weakly_canonical(fs::absolute(a), ea), pb = fs::weakly_canonical(fs::absolute(b), eb);
+  return !ea && !eb && pa == pb;
+}
+
+std::string clock(double seconds) {
+  if (!std::isfinite(seconds) || seconds < 0) return "--:--";
+  const long s = long(seconds + 0.5);
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%ld:%02ld", s / 60, s % 60);
+  return buf;
+}
+
+// Progress on stderr: a bar redrawn in place on a terminal, a plain line
+// every 10 % otherwise.
+class Progress {
+ public:
+  Progress(bool quiet) : mQuiet(quiet), mTerminal(isatty(STDERR_FILENO) == 1) {}
+  void update(double fraction) {
+    if (mQuiet) return;
+    const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - mStart).count();
+    const double left = fraction > 0 ? elapsed * (1.0 - fraction) / fraction : NAN;
+    if (mTerminal) {
+      const int width = 30, filled = int(fraction * width + 0.5);
+      std::fprintf(stderr, "\r[%s%s] %3.0f%%  elapsed %s  left %s ", std::string(size_t(filled), '#').c_str(),
+                   std::string(size_t(width - filled), '.').c_str(), fraction * 100.0, clock(elapsed).c_str(),
+                   clock(left).c_str());
+      if (fraction >= 1.0) std::fprintf(stderr, "\n");
+    } else if (fraction >= mNextLine || fraction >= 1.0) {
+      std::fprintf(stderr, "earshot: render %3.0f%%, elapsed %s, about %s left\n", fraction * 100.0,
+                   clock(elapsed).c_str(), clock(left).c_str());
+      while (mNextLine <= fraction) mNextLine += 0.1;
+    }
+    std::fflush(stderr);
+  }
+
+ private:
+  bool mQuiet, mTerminal;
+  double mNextLine = 0.1;
+  std::chrono::steady_clock::time_point mStart = std::chrono::steady_clock::now();
+};
+
+int run(const RenderCliOptions& o, const CLI::App& cmd) {
+  SceneParseOptions po;
+  po.strict = o.strict;
+  std::vector<std::string> warnings;
+  auto scene = loadSceneFile(o.scene, po, &warnings);
+  if (!check(scene.status())) return 2;
+  for (const auto& w : warnings) std::cerr << "earshot: warning: " << w << "\n";
+
+  // Never overwrite an input.
+  std::vector<std::string> inputs = {o.scene, scene->geometryPath, scene->materialsPath, scene->materialMapPath,
+                                     scene->settings.hrtfPath};
+  for (const auto& s : scene->sources) inputs.push_back(s.audioPath);
+  for (const auto& in : inputs)
+    if (!in.empty() && samePath(in, o.output)) {
+      printError("-o " + o.output + ": is an input of the scene (" + in + "); refusing to overwrite it");
+      return 2;
+    }
+
+  RenderOptions ro;
+  if (cmd.count("--quality")) ro.quality = o.quality;
+  if (cmd.count("--seed")) ro.seed = o.seed;
+  ro.threads = o.threads;
+  ro.fromSeconds = o.from;
+  if (cmd.count("--to")) ro.toSeconds = o.to;
+  Progress progress(o.quiet);
+  ro.progress = [&](double f) { progress.update(f); };
+  auto result = renderScene(*scene, ro);
+  if (!check(result.status())) return 2;
+  const RenderResult& r = *result;
+  if (!check(writeWavFloat(o.output, r.audio))) return 2;
+  if (!o.quiet) {
+    for (const auto& line : r.log) std::cerr << "earshot: " << line << "\n";
+    std::fprintf(stderr,
+                 "earshot: rendered %.2f s of audio in %.2f s (%.1fx real time; simulation %.2f s for %llu source IRs, "
+                 "audio %.2f s) to %s\n",
+                 r.audioSeconds, r.wallSeconds, r.audioSeconds / std::max(r.wallSeconds, 1e-9), r.simulationSeconds,
+                 (unsigned long long)r.simulations, r.audioProcessSeconds, o.output.c_str());
+    std::fprintf(stderr, "earshot: peak %.2f dBFS (%.4f)\n", 20.0 * std::log10(std::max(r.peak, 1e-30)), r.peak);
+  }
+  if (r.clipped)
+    std::fprintf(stderr,
+                 "earshot: warning: the peak %.3f (%+.2f dBFS) exceeds full scale; the float WAV keeps it, but lower "
+                 "the sources' gain_db to play it without clipping\n",
+                 r.peak, 20.0 * std::log10(r.peak));
+  return 0;
+}
+
+const Registrar registrar([](CLI::App& root) {
+  auto o = std::make_shared<RenderCliOptions>();
+  CLI::App* cmd = root.add_subcommand(
+      "render", "Render a scene file (moving sources and listener) to a binaural float WAV (docs/scene-format.md)");
+  cmd->add_option("scene", o->scene, "Scene file (JSON)")->required()->check(CLI::ExistingFile);
+  cmd->add_option("-o,--output", o->output,
+                  "Output WAV (32-bit float, 2 channels: left, right). Written to a temporary file and renamed at the "
+                  "end: an existing file is replaced only on success")
+      ->required();
+  cmd->add_option("--quality", o->quality, "Override the scene's preset: draft | balanced | high | reference")
+      ->check(CLI::IsMember({"draft", "balanced", "high", "reference"}));
+  cmd->add_option("--threads", o->threads, "Tracing threads (0 = all cores); the output does not depend on it")
+      ->check(CLI::Range(0u, 256u))
+      ->capture_default_str();
+  cmd->add_option("--seed", o->seed, "Override the scene's random seed");
+  cmd->add_option("--from", o->from, "Start of the rendered window, seconds of scene time (reverberation from up to "
+                                     "2 s before it is included)")
+      ->check(CLI::Range(0.0, 86400.0))
+      ->capture_default_str();
+  cmd->add_option("--to", o->to, "End of the rendered window, seconds (default: the scene's duration)")
+      ->check(CLI::Range(0.0, 86400.0));
+  cmd->add_flag("--strict", o->strict, "Unknown keys in the scene file are errors (default: warnings)");
+  cmd->add_flag("-q,--quiet", o->quiet, "No progress, log or summary on stderr (errors and clipping warnings remain)");
+  cmd->callback([o, cmd] { setExitCode(run(*o, *cmd)); });
+});
+
+}  // namespace
+}  // namespace earshot::cli
