@@ -256,7 +256,9 @@ def two_rooms(out):
     """Rooms A [0,6] and B [6.2,12.2] (x) by [0,5] by [0,3] separated by a
     20 cm partition with a 1 x 2.1 m doorway at y in [2, 3]; the door is its
     own node and mesh "door", hinged at (6.1, 2.0): rotate the node about z to
-    open it."""
+    open it. Written twice: two_rooms.gltf with the door closed in the
+    doorway, two_rooms_door_open.gltf with it open into room B (otherwise the
+    same bytes: same meshes, same buffer)."""
     L, W, H = 12.2, 5.0, 3.0
     xa, xb = 6.0, 6.2
     hole_y, hole_z = (2.0, 3.0), (0.0, 2.1)
@@ -277,14 +279,28 @@ def two_rooms(out):
     geo.quad("partition", (xa, y1, 0), (xb, y1, 0), (xb, y1, zt), (xa, y1, zt))  # jamb, faces -y
     geo.quad("partition", (xa, y0, zt), (xa, y1, zt), (xb, y1, zt), (xb, y0, zt))  # head, faces -z
 
-    g = Gltf()
-    room = geo.to_gltf(g, "rooms")
     door_geo = Geometry()
     # Local frame: hinge at the origin, door along +y, 4 cm thick, 5 mm gaps.
-    door_geo.box("door", (-0.02, 0.005, 0.005), (0.02, (y1 - y0) - 0.005, zt - 0.005))
-    door = door_geo.to_gltf(g, "door")
-    g.scene([g.node(name="rooms", mesh=room), g.node(name="door", mesh=door, translation=[(xa + xb) / 2, y0, 0.0])])
-    g.write_gltf(os.path.join(out, "two_rooms.gltf"))
+    gap, half = 0.005, 0.02
+    door_geo.box("door", (-half, gap, gap), (half, (y1 - y0) - gap, zt - gap))
+
+    def write(filename, door_transform):
+        g = Gltf()
+        room = geo.to_gltf(g, "rooms")
+        door = door_geo.to_gltf(g, "door")
+        g.scene([g.node(name="rooms", mesh=room), g.node(name="door", mesh=door, **door_transform)])
+        g.write_gltf(os.path.join(out, filename))
+
+    write("two_rooms.gltf", {"translation": [(xa + xb) / 2, y0, 0.0]})
+    # Open: turned -90 degrees about z, so the door runs from the hinge along +x
+    # into room B, perpendicular to the partition. A 4 cm door turned about
+    # (6.1, 2.0) itself would straddle the jamb (the face y = 2, x in [6, 6.2]),
+    # so the hinge moves half the door's thickness plus its 5 mm gap into the
+    # doorway: the open door occupies x in [6.105, 7.095], y in [2.005, 2.045],
+    # z in [0.005, 2.095], touching nothing, and leaves y in [2.05, 3] clear.
+    s = math.sqrt(0.5)
+    write("two_rooms_door_open.gltf",
+          {"translation": [(xa + xb) / 2, y0 + half + gap, 0.0], "rotation": [0.0, 0.0, -s, s]})
     write_map(out, {"floor_a": "wood_floor", "floor_b": "carpet_thick", "floor_partition": "wood_floor",
                     "ceiling": "gypsum_board", "walls": "plaster", "partition": "gypsum_board", "door": "door_wood"})
     return geo.triangle_count() + door_geo.triangle_count()

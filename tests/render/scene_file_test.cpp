@@ -18,6 +18,8 @@
 #include "earshot/ir/ir_pipeline.h"
 #include "earshot/propagation/air_absorption.h"
 #include "earshot/render/dry_audio.h"
+#include "earshot/scene/gltf_loader.h"
+#include "earshot/scene/ray_tracer.h"
 
 namespace earshot {
 namespace {
@@ -413,17 +415,20 @@ SceneDescription loadSample(const std::string& rel) {
 
 TEST(SampleScenes, EachSampleDoesWhatItsReadmeSays) {
   // Two rooms: the source starts in A (x < 6), crosses the doorway (y in [2, 3])
-  // at the partition (x 6..6.2), ends in B (x > 6.2); the listener stays in A.
+  // well inside it (y in [2.2, 2.8]) at the partition (x 6..6.2), ends in B
+  // (x > 6.2); the listener stays in A. (TwoRoomsTalkerWalksThroughTheOpenDoor
+  // checks the walk against the geometry.)
   SceneDescription door = loadSample("two_rooms/walk_through_door.json");
   ASSERT_EQ(door.sources.size(), 1u);
+  EXPECT_EQ(fs::path(door.geometryPath).filename(), "two_rooms_door_open.gltf");
   const Trajectory& walk = door.sources[0].trajectory;
   EXPECT_LT(walk.at(0).position.x, 6.0);
   EXPECT_GT(walk.at(walk.endSeconds()).position.x, 6.2);
   for (double t = 0; t <= walk.endSeconds(); t += 0.01) {
     Vec3d p = walk.at(t).position;
     if (p.x >= 5.9 && p.x <= 6.3) {
-      EXPECT_GT(p.y, 2.1) << t;
-      EXPECT_LT(p.y, 2.9) << t;
+      EXPECT_GT(p.y, 2.2) << t;
+      EXPECT_LT(p.y, 2.8) << t;
       EXPECT_LT(p.z, 2.0) << t;
     }
   }
@@ -464,6 +469,102 @@ TEST(SampleScenes, EachSampleDoesWhatItsReadmeSays) {
   EXPECT_TRUE(box.sources[0].trajectory.isStatic());
   EXPECT_EQ(box.sources[0].trajectory.at(0).position, Vec3d(2, 3.5, 1.5));
   EXPECT_EQ(box.listener.trajectory.at(0).position, Vec3d(7, 3.5, 1.5));
+}
+
+// The walk's positions every 10 ms, and whether the straight step between two
+// of them crosses a surface of `tracer`.
+std::vector<double> stepsThroughSurfaces(const Trajectory& walk, const RayTracer& tracer) {
+  std::vector<double> crossed;
+  for (double t = 0; t + 0.01 <= walk.endSeconds(); t += 0.01) {
+    const Vec3d a = walk.at(t).position, b = walk.at(t + 0.01).position;
+    const double len = length(b - a);
+    if (len <= 0) continue;
+    Ray ray;
+    ray.origin = Vec3f(a);
+    ray.direction = Vec3f((b - a) / len);
+    ray.tFar = float(len);
+    if (tracer.occluded(ray)) crossed.push_back(t);
+  }
+  return crossed;
+}
+
+std::unique_ptr<RayTracer> loadTwoRooms(const SceneDescription& scene, const std::string& file,
+                                        std::vector<GltfNodeTriangles>* nodes) {
+  auto g = loadGltf((fs::path(scene.geometryPath).parent_path() / file).string(), defaultMaterials(),
+                    scene.materialMap);
+  EXPECT_TRUE(g.isOk()) << g.status().message();
+  if (!g.isOk()) return nullptr;
+  EXPECT_TRUE(g->warnings.empty()) << g->warnings.front();
+  *nodes = g->nodes;
+  auto tracer = RayTracer::create(g->mesh);
+  EXPECT_TRUE(tracer.isOk()) << tracer.status().message();
+  return tracer.isOk() ? std::move(tracer).value() : nullptr;
+}
+
+TEST(SampleScenes, TwoRoomsTalkerWalksThroughTheOpenDoor) {
+  SceneDescription scene = loadSample("two_rooms/walk_through_door.json");
+  ASSERT_EQ(scene.sources.size(), 1u);
+  const Trajectory& walk = scene.sources[0].trajectory;
+  std::vector<GltfNodeTriangles> openNodes, closedNodes;
+  auto open = loadTwoRooms(scene, "two_rooms_door_open.gltf", &openNodes);
+  auto closed = loadTwoRooms(scene, "two_rooms.gltf", &closedNodes);
+  ASSERT_TRUE(open && closed);
+
+  // The same triangles but the door's: the two files differ only in the door node's transform.
+  ASSERT_EQ(open->mesh().triangleCount(), closed->mesh().triangleCount());
+  ASSERT_EQ(openNodes.size(), 2u);
+  ASSERT_EQ(openNodes[1].name, "door");
+  const GltfNodeTriangles& doorNode = openNodes[1];
+  const TriangleMesh& om = open->mesh();
+  const TriangleMesh& cm = closed->mesh();
+  Vec3f lo{1e9f, 1e9f, 1e9f}, hi{-1e9f, -1e9f, -1e9f};
+  for (uint32_t t = 0; t < om.triangleCount(); ++t) {
+    const bool isDoor = t >= doorNode.firstTriangle && t < doorNode.firstTriangle + doorNode.triangleCount;
+    for (int k = 0; k < 3; ++k) {
+      const Vec3f p = om.positions[om.triangles[t][k]];
+      if (!isDoor) {
+        EXPECT_EQ(p, cm.positions[cm.triangles[t][k]]) << t;
+        continue;
+      }
+      lo = {std::min(lo.x, p.x), std::min(lo.y, p.y), std::min(lo.z, p.z)};
+      hi = {std::max(hi.x, p.x), std::max(hi.y, p.y), std::max(hi.z, p.z)};
+    }
+  }
+  // README: the open door stands in room B at x in [6.105, 7.095], y in [2.005, 2.045]:
+  // clear of the partition's solid part (y < 2 or y > 3 for x in [6, 6.2]) and of the doorway's head (z 2.1).
+  EXPECT_NEAR(lo.x, 6.105f, 1e-4f);
+  EXPECT_NEAR(hi.x, 7.095f, 1e-4f);
+  EXPECT_NEAR(lo.y, 2.005f, 1e-4f);
+  EXPECT_NEAR(hi.y, 2.045f, 1e-4f);
+  EXPECT_GT(lo.z, 0.0f);
+  EXPECT_LT(hi.z, 2.1f);
+
+  // The talker walks through no surface of the open-door geometry, but through
+  // the closed door (the only thing between the two) in the other file.
+  EXPECT_EQ(stepsThroughSurfaces(walk, *open), std::vector<double>{});
+  const std::vector<double> throughClosed = stepsThroughSurfaces(walk, *closed);
+  ASSERT_FALSE(throughClosed.empty());
+  for (double t : throughClosed) EXPECT_NEAR(walk.at(t).position.x, 6.1, 0.05) << t;  // the door's two faces
+
+  // Direct sound: the listener sees the talker in the doorway (t ~ 3.5 s) and
+  // loses them behind the partition later in room B (t ~ 5 s).
+  const Vec3d ear = scene.listener.trajectory.at(0).position;
+  auto visible = [&](double t) {
+    const Vec3d d = walk.at(t).position - ear;
+    Ray ray;
+    ray.origin = Vec3f(ear);
+    ray.direction = Vec3f(d / length(d));
+    ray.tFar = float(length(d));
+    return !open->occluded(ray);
+  };
+  double doorway = -1, hidden = -1;
+  for (double t = 0; t <= walk.endSeconds(); t += 0.01) {
+    if (doorway < 0 && walk.at(t).position.x >= 6.1) doorway = t;
+    if (doorway >= 0 && hidden < 0 && !visible(t)) hidden = t;
+  }
+  EXPECT_NEAR(doorway, 3.5, 0.1);
+  EXPECT_TRUE(visible(doorway));
+  EXPECT_NEAR(hidden, 5.0, 0.3);
 }
 
 TEST(SampleScenes, SampleAudioLoadsAtTheSceneRate) {
