@@ -38,6 +38,20 @@ void apply(const QualityPreset& p, OmniIrSettings& s) {
   s.binSeconds = p.binSeconds;
 }
 
+std::vector<Arrival> arrivalsOf(const OmniIrResult& r, bool includeDirect) {
+  std::vector<Arrival> arrivals;
+  if (r.direct.audible && includeDirect) arrivals.push_back(toArrival(r.direct));
+  for (const SpecularPath& p : r.early) {
+    Arrival a;
+    a.delaySeconds = p.delaySeconds;
+    a.gain = p.spreadingGain;
+    a.bandGain = p.bandGain;
+    a.direction = p.directionFromListener;
+    arrivals.push_back(a);
+  }
+  return arrivals;
+}
+
 Result<OmniIrResult> computeOmniIr(const RayTracer& tracer, const MaterialTable& materials, const Vec3d& source,
                                    const Vec3d& listener, const OmniIrSettings& s, ThreadPool& pool) {
   return computeIr(tracer, materials, source, listener, s, pool, nullptr);
@@ -70,8 +84,6 @@ Result<OmniIrResult> computeIr(const RayTracer& tracer, const MaterialTable& mat
   EARSHOT_RETURN_IF_ERROR(validate(ds.air));
   out.direct = computeDirectPath(&tracer, materials, source, listener, ds);
   out.timings.directMs = msSince(t);
-  std::vector<Arrival> arrivals;
-  if (out.direct.audible && s.includeDirect) arrivals.push_back(toArrival(out.direct));
   if (tracer.empty()) out.skipped.push_back("reflections: no geometry");
   if (out.direct.surfacesCrossed == 0 && !tracer.empty()) out.skipped.push_back("transmission: nothing between source and listener");
 
@@ -94,14 +106,6 @@ Result<OmniIrResult> computeIr(const RayTracer& tracer, const MaterialTable& mat
     out.imageSourceCandidates = ism.candidates;
     out.imageSourcesExhaustive = ism.exhaustive;
     excluded = &ism.found;
-    for (const SpecularPath& p : ism.paths) {
-      Arrival a;
-      a.delaySeconds = p.delaySeconds;
-      a.gain = p.spreadingGain;
-      a.bandGain = p.bandGain;
-      a.direction = p.directionFromListener;
-      arrivals.push_back(a);
-    }
   }
 
   // Late reflections.
@@ -141,6 +145,7 @@ Result<OmniIrResult> computeIr(const RayTracer& tracer, const MaterialTable& mat
   }
 
   t = std::chrono::steady_clock::now();
+  const std::vector<Arrival> arrivals = arrivalsOf(out, s.includeDirect);
   auto ir = binaural ? synthesizeBinauralIr(arrivals, late, synth, *binaural->model, binaural->orientation)
                      : synthesizeOmniIr(arrivals, late, synth);
   if (!ir.isOk()) return ir.status();

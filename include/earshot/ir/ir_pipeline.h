@@ -77,6 +77,10 @@ Result<OmniIrResult> computeIr(const RayTracer& tracer, const MaterialTable& mat
                                const Vec3d& listener, const OmniIrSettings& settings, ThreadPool& pool,
                                const BinauralReceiver* binaural);
 
+/** The discrete arrivals a result's IR was synthesised from: the direct sound
+ *  (if audible and `includeDirect`) and the image-source paths. */
+std::vector<Arrival> arrivalsOf(const OmniIrResult& result, bool includeDirect);
+
 /** computeIr without a binaural receiver. */
 Result<OmniIrResult> computeOmniIr(const RayTracer& tracer, const MaterialTable& materials, const Vec3d& source,
                                    const Vec3d& listener, const OmniIrSettings& settings, ThreadPool& pool);
