@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <mutex>
 #include <string>
 
 #include "earshot/core/math.h"
@@ -69,38 +70,99 @@ Result<SpectralSynth> SpectralSynth::plan(const std::vector<Arrival>& arrivals, 
   return create(length, settings.sampleRateHz);
 }
 
+void SpectralSynth::prepareGrid(size_t gridSize) {
+  if (mGridSize == gridSize) return;
+  mGridSize = gridSize;
+  mGridIndex.resize(mBins);
+  mGridFrac.resize(mBins);
+  const size_t last = gridSize / 2;
+  for (size_t k = 0; k < mBins; ++k) {
+    const double pos = double(k) * double(gridSize) / double(mN);
+    const size_t i = std::min(size_t(pos), last);
+    mGridIndex[k] = uint32_t(i == last ? last - 1 : i);
+    mGridFrac[k] = i == last ? 1.0 : pos - double(i);
+  }
+}
+
 std::complex<double> SpectralSynth::filterAt(const GridFilter& h, size_t k) const {
-  const double pos = double(k) * double(h.gridSize) / double(mN);
-  const size_t last = h.gridSize / 2;
-  size_t i = std::min(size_t(pos), last);
-  if (i == last) return std::complex<double>(h.values[last]);
-  const double f = pos - double(i);
+  const size_t i = mGridIndex[k];
+  const double f = mGridFrac[k];
   return std::complex<double>(h.values[i]) * (1.0 - f) + std::complex<double>(h.values[i + 1]) * f;
 }
 
 void SpectralSynth::addArrival(const Arrival& a, double delaySeconds, const GridFilter& h,
-                               std::complex<double>* spectrum) const {
+                               std::complex<double>* spectrum) {
   if (a.gain == 0) return;
+  if (h.values) prepareGrid(h.gridSize);
   const double tau = delaySeconds * mFs;  // samples
-  // exp(-j 2 pi k tau / n) by recurrence: one complex multiply per bin.
-  const std::complex<double> step = std::polar(1.0, -2.0 * kPi * tau / double(mN));
-  std::complex<double> phase = 1.0;
-  for (size_t k = 0; k < mBins; ++k) {
-    const int lb = mLowerBand[k];
-    const double w = mLowerWeight[k];
-    const double g = a.bandGain[lb] * w + (lb + 1 < kNumBands ? a.bandGain[lb + 1] * (1.0 - w) : 0.0);
-    if (h.values)
-      spectrum[k] += a.gain * g * phase * filterAt(h, k);
-    else
-      spectrum[k] += a.gain * g * phase;
-    phase *= step;
-    if ((k & 1023) == 1023) phase /= std::abs(phase);  // keep |phase| = 1 over long recurrences
+  // exp(-j 2 pi k tau / n) by recurrence: one complex multiply per bin, in
+  // plain real arithmetic (std::complex multiplies check for NaN and are
+  // several times slower here).
+  // Four interleaved recurrences (bins k, k+1, k+2, k+3 advance by step^4)
+  // so the multiplies of neighbouring bins do not wait on each other.
+  constexpr int kLanes = 4;
+  const double angle = -2.0 * kPi * tau / double(mN);
+  double pr[kLanes], pi[kLanes];
+  for (int l = 0; l < kLanes; ++l) {
+    pr[l] = std::cos(angle * l);
+    pi[l] = std::sin(angle * l);
+  }
+  const double sr = std::cos(angle * kLanes), si = std::sin(angle * kLanes);
+  double* out = reinterpret_cast<double*>(spectrum);  // std::complex<double> is two doubles
+  const float* hv = h.values ? reinterpret_cast<const float*>(h.values) : nullptr;
+  for (size_t k0 = 0; k0 < mBins; k0 += kLanes) {
+    const int lanes = int(std::min<size_t>(kLanes, mBins - k0));
+    for (int l = 0; l < lanes; ++l) {
+      const size_t k = k0 + size_t(l);
+      const int lb = mLowerBand[k];
+      const double w = mLowerWeight[k];
+      const double g = a.gain * (a.bandGain[lb] * w + (lb + 1 < kNumBands ? a.bandGain[lb + 1] * (1.0 - w) : 0.0));
+      double vr = g * pr[l], vi = g * pi[l];
+      if (hv) {
+        const size_t i = mGridIndex[k];
+        const double f = mGridFrac[k];
+        const double fr = double(hv[2 * i]) * (1.0 - f) + double(hv[2 * i + 2]) * f;
+        const double fi = double(hv[2 * i + 1]) * (1.0 - f) + double(hv[2 * i + 3]) * f;
+        const double t = vr * fr - vi * fi;
+        vi = vr * fi + vi * fr;
+        vr = t;
+      }
+      out[2 * k] += vr;
+      out[2 * k + 1] += vi;
+    }
+    for (int l = 0; l < kLanes; ++l) {
+      const double npr = pr[l] * sr - pi[l] * si;
+      pi[l] = pr[l] * si + pi[l] * sr;
+      pr[l] = npr;
+    }
+    if ((k0 & 1023) == 1020) {  // keep |phase| = 1 over long recurrences
+      for (int l = 0; l < kLanes; ++l) {
+        const double m = std::sqrt(pr[l] * pr[l] + pi[l] * pi[l]);
+        pr[l] /= m;
+        pi[l] /= m;
+      }
+    }
   }
   // The Nyquist bin of a real signal must be real.
   if (mN % 2 == 0) spectrum[mBins - 1] = spectrum[mBins - 1].real();
 }
 
 std::vector<float> SpectralSynth::noise(uint64_t seed, uint64_t stream) const {
+  // Box-Muller costs a sine and a cosine per two samples; successive IRs of a
+  // simulation use the same seed, so the last noise of each stream is kept
+  // (a prefix of a longer one is the same noise).
+  struct Cached {
+    uint64_t seed = 0, stream = 0;
+    std::vector<float> samples;
+  };
+  static std::mutex mutex;
+  static Cached cache[2];
+  {
+    std::lock_guard<std::mutex> lock(mutex);
+    for (const Cached& c : cache)
+      if (c.seed == seed && c.stream == stream && c.samples.size() >= mLength)
+        return std::vector<float>(c.samples.begin(), c.samples.begin() + std::ptrdiff_t(mLength));
+  }
   std::vector<float> out(mLength);
   Pcg32 rng(seed, stream);
   for (size_t i = 0; i < mLength; i += 2) {  // Box-Muller, two at a time
@@ -108,6 +170,13 @@ std::vector<float> SpectralSynth::noise(uint64_t seed, uint64_t stream) const {
     double r = std::sqrt(-2.0 * std::log(u1));
     out[i] = float(r * std::cos(2 * kPi * u2));
     if (i + 1 < mLength) out[i + 1] = float(r * std::sin(2 * kPi * u2));
+  }
+  std::lock_guard<std::mutex> lock(mutex);
+  Cached& slot = cache[stream == kLateNoiseStream ? 0 : 1];
+  if (!(slot.seed == seed && slot.stream == stream && slot.samples.size() >= mLength)) {
+    slot.seed = seed;
+    slot.stream = stream;
+    slot.samples = out;
   }
   return out;
 }
@@ -123,16 +192,22 @@ bool SpectralSynth::shapeBand(const float* noise, const EnergyHistogram& h, int 
     const double d = h.energy(size_t(bin), band) / binSamples;
     return gain ? d * double(gain[bin]) : d;
   };
-  for (size_t i = 0; i < mLength; ++i) {
-    // Energy density per sample, linear between bin centres.
-    const double x = (double(i) + 0.5) / binSamples - 0.5;
-    const double xf = std::floor(x);
-    const long j = long(xf);
-    const double frac = x - xf;
-    const double density = (1.0 - frac) * densityAt(j) + frac * densityAt(j + 1);
-    if (density > 0) {
-      shaped[i] = float(noise[i] * std::sqrt(density));
-      any = true;
+  // Energy density per sample, linear between bin centres: one segment per
+  // pair of neighbouring centres, samples i with (i + 0.5) / binSamples - 0.5
+  // in [j, j + 1).
+  for (long j = -1; j < long(histBins); ++j) {
+    const double d0 = densityAt(j), d1 = densityAt(j + 1);
+    if (d0 <= 0 && d1 <= 0) continue;
+    const double first = (double(j) + 0.5) * binSamples - 0.5, next = (double(j) + 1.5) * binSamples - 0.5;
+    const size_t begin = size_t(std::max(0.0, std::ceil(first)));
+    const size_t end = std::min(mLength, size_t(std::max(0.0, std::ceil(next))));
+    for (size_t i = begin; i < end; ++i) {
+      const double frac = (double(i) + 0.5) / binSamples - 0.5 - double(j);
+      const double density = (1.0 - frac) * d0 + frac * d1;
+      if (density > 0) {
+        shaped[i] = float(noise[i] * std::sqrt(density));
+        any = true;
+      }
     }
   }
   return any;
@@ -140,6 +215,7 @@ bool SpectralSynth::shapeBand(const float* noise, const EnergyHistogram& h, int 
 
 void SpectralSynth::addBand(int band, const std::vector<float>& shaped, const GridFilter& h,
                             std::complex<double>* spectrum) {
+  if (h.values) prepareGrid(h.gridSize);
   kiss_fftr(mForward.get(), shaped.data(), mScratch.data());
   const std::vector<float>& w = mWeights[band];
   for (size_t k = 0; k < mBins; ++k) {

@@ -45,7 +45,7 @@ class SpectralSynth {
 
   /** spectrum += gain * G_a(f) * H(f) * exp(-j 2 pi f delay), where G_a is the
    *  arrival's band gains through the complementary band weights. */
-  void addArrival(const Arrival& a, double delaySeconds, const GridFilter& h, std::complex<double>* spectrum) const;
+  void addArrival(const Arrival& a, double delaySeconds, const GridFilter& h, std::complex<double>* spectrum);
 
   /** `length` samples of white Gaussian noise (unit variance) from a seed and stream. */
   std::vector<float> noise(uint64_t seed, uint64_t stream) const;
@@ -71,6 +71,7 @@ class SpectralSynth {
 
  private:
   std::complex<double> filterAt(const GridFilter& h, size_t k) const;
+  void prepareGrid(size_t gridSize);  // bin -> grid position table for one grid size
 
   double mFs = 48000.0;
   size_t mLength = 0, mN = 0, mBins = 0;
@@ -79,6 +80,9 @@ class SpectralSynth {
   std::vector<uint8_t> mLowerBand;           // per bin: the lower of the (at most two) non-zero bands
   std::vector<double> mLowerWeight;
   std::vector<kiss_fft_cpx> mScratch;
+  size_t mGridSize = 0;
+  std::vector<uint32_t> mGridIndex;  // per bin: the grid point below
+  std::vector<double> mGridFrac;     // per bin: position between it and the next
 };
 
 /** Noise stream of the late reflections. The binaural path's first noise (U)
