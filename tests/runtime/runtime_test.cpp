@@ -214,6 +214,36 @@ TEST(Engine, StaticSourceIsTheDrySignalConvolvedWithTheIr) {
   EXPECT_LE(worst, 1e-5 * peak) << "worst " << worst << " peak " << peak;
 }
 
+// Issue 6: motion to sound through the whole engine: after the listener
+// turns 90 degrees (a game-thread call between two audio blocks), the direct
+// sound's ILD has flipped sign within 2 blocks.
+TEST(Engine, ListenerTurnFlipsTheIldWithinTwoBlocks) {
+  auto model = test::ku100();
+  ASSERT_TRUE(model);
+  auto engine = Engine::create(test::fastSettings(), model);
+  ASSERT_TRUE(engine.isOk());
+  Engine& e = **engine;  // free field: the direct sound alone
+  auto id = e.addSource({});
+  ASSERT_TRUE(id.isOk());
+  ASSERT_TRUE(e.setSourcePosition(*id, {-2, 0, -2}).isOk());  // 45 degrees left of forward (-z)
+  ASSERT_TRUE(e.simulate().isOk());
+  const size_t block = 256;
+  Pcg32 rng(7, 8);
+  std::vector<float> in(block), l(block), r(block);
+  std::vector<const float*> inputs(test::fastSettings().maxSources, nullptr);
+  inputs[*id] = in.data();
+  auto ild = [&] {
+    for (float& x : in) x = rng.uniform() - 0.5f;
+    e.process(inputs.data(), l.data(), r.data(), block);
+    return energyToDb(energy(l.data(), block) / energy(r.data(), block));
+  };
+  for (int i = 0; i < 20; ++i) ild();
+  EXPECT_GT(ild(), 3.0);
+  ASSERT_TRUE(e.setListener({0, 0, 0}, {{-1, 0, 0}, {0, 1, 0}}).isOk());  // turn left: the source is now 45 degrees right
+  ild();
+  EXPECT_LT(ild(), -3.0) << "second block after the turn";
+}
+
 // Round robin: simulate(1) visits the active sources in turn.
 TEST(Engine, RoundRobinSimulatesOneSourceAtATime) {
   auto model = test::ku100();
