@@ -29,7 +29,9 @@ TEST(EngineRealtime, HooksSeeAllocationsAndLocks) {
     locks = counter.locks();
   }
   EXPECT_GE(allocations, 1);
-  if (earshot::test::mallocIsHooked()) EXPECT_GE(locks, 1);
+  if (earshot::test::mallocIsHooked()) {
+    EXPECT_GE(locks, 1);
+  }
 }
 
 TEST(EngineRealtime, TenSecondsWithUpdatesAndSceneEditsNeverAllocateOrLockOnTheAudioThread) {
@@ -121,7 +123,9 @@ TEST(EngineRealtime, TenSecondsWithUpdatesAndSceneEditsNeverAllocateOrLockOnTheA
   EXPECT_TRUE(std::isfinite(sumSquares));
   EXPECT_EQ(allocations, 0) << "heap allocation on the audio thread";
   EXPECT_EQ(releases, 0) << "heap release on the audio thread";
-  if (earshot::test::mallocIsHooked()) EXPECT_EQ(locks, 0) << "lock taken on the audio thread";
+  if (earshot::test::mallocIsHooked()) {
+    EXPECT_EQ(locks, 0) << "lock taken on the audio thread";
+  }
 }
 
 }  // namespace earshot::runtime
