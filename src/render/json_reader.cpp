@@ -164,8 +164,12 @@ Result<nlohmann::json> parseJsonWithPaths(const std::string& text, const std::st
 }
 
 std::string jsonKeyPath(const std::string& parent, const std::string& key) {
-  if (!isIdentifier(key)) return parent + "[" + json(key).dump(-1, ' ', false, json::error_handler_t::replace) + "]";
+  if (!isIdentifier(key)) return parent + "[" + jsonQuoted(key) + "]";
   return parent.empty() ? key : parent + "." + key;
+}
+
+std::string jsonQuoted(const std::string& s) {
+  return nlohmann::json(s).dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
 }
 
 std::string jsonIndexPath(const std::string& parent, size_t index) {

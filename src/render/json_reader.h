@@ -20,6 +20,11 @@ Result<nlohmann::json> parseJsonWithPaths(const std::string& text, const std::st
  *  (`key` alone when parent is empty). */
 std::string jsonKeyPath(const std::string& parent, const std::string& key);
 
+/** `s` as a JSON string literal, quotes included: control characters,
+ *  quotes and backslashes escaped (invalid UTF-8 replaced), so text from the
+ *  file keeps an error message on one line. */
+std::string jsonQuoted(const std::string& s);
+
 /** `parent[index]`. */
 std::string jsonIndexPath(const std::string& parent, size_t index);
 

@@ -23,6 +23,7 @@ namespace fs = std::filesystem;
 using json = nlohmann::json;
 using render_detail::jsonIndexPath;
 using render_detail::jsonKeyPath;
+using render_detail::jsonQuoted;
 
 namespace {
 
@@ -173,7 +174,8 @@ class SceneReader {
       const double d = v.get<double>();
       if (!(std::isfinite(d) && d == std::floor(d)))
         return fail(path, "expected a whole number, got " + describe(v));
-      if (d < double(lo) || d > double(hi))
+      // double(hi) may round up past hi (2^64 for the seed): uint64_t(d) needs d < 2^64.
+      if (d < double(lo) || d > double(hi) || d >= 18446744073709551616.0)
         return fail(path, fmt(d) + " is outside [" + std::to_string(lo) + ", " + std::to_string(hi) + "]",
                     StatusCode::kOutOfRange);
       return uint64_t(d);
@@ -216,9 +218,9 @@ class SceneReader {
     if (mOptions.checkFiles) {
       std::error_code ec;
       if (!fs::exists(resolved, ec))
-        return fail(path, what + " \"" + resolved + "\" not found", StatusCode::kNotFound);
+        return fail(path, what + " " + jsonQuoted(resolved) + " not found", StatusCode::kNotFound);
       if (fs::is_directory(resolved, ec))
-        return fail(path, "\"" + resolved + "\" is a directory, expected " + what);
+        return fail(path, jsonQuoted(resolved) + " is a directory, expected " + what);
     }
     return resolved;
   }
@@ -345,7 +347,7 @@ Status SceneReader::readSource(const json& v, const std::string& path, SceneSour
     } else if (*d == "cardioid") {
       out.directivity = SourceDirectivity::kCardioid;
     } else {
-      return fail(dp, "expected \"omni\" or \"cardioid\", got \"" + *d + "\"");
+      return fail(dp, "expected \"omni\" or \"cardioid\", got " + jsonQuoted(*d));
     }
   }
   if (v.contains("start")) {
@@ -399,7 +401,8 @@ Status SceneReader::readSettings(const json& v, SceneSettings& out) {
     if (!q) return q.status();
     const auto& names = sceneQualityNames();
     if (std::find(names.begin(), names.end(), *q) == names.end())
-      return fail("settings.quality", "unknown quality \"" + *q + "\" (expected draft, balanced, high or reference)");
+      return fail("settings.quality",
+                  "unknown quality " + jsonQuoted(*q) + " (expected draft, balanced, high or reference)");
     out.quality = *q;
   }
   if (v.contains("rays")) {
@@ -501,9 +504,10 @@ Status SceneReader::checkMaterialNames(const SceneDescription& scene, const std:
   for (const auto& [gltfName, acoustic] : scene.materialMap) {
     if (table->find(acoustic)) continue;
     const std::string hint = closest(acoustic, names, 3);
+    const std::string didYouMean = hint.empty() ? "" : "; did you mean " + jsonQuoted(hint) + "?";
     return Status(StatusCode::kNotFound, filePrefix + ": " + jsonKeyPath(mapPath, gltfName) +
-                                             ": unknown acoustic material \"" + acoustic + "\" (not in " + tableName +
-                                             (hint.empty() ? "" : "; did you mean \"" + hint + "\"?") + ")");
+                                             ": unknown acoustic material " + jsonQuoted(acoustic) + " (not in " +
+                                             tableName + didYouMean + ")");
   }
   return Status::ok();
 }
@@ -546,7 +550,7 @@ Result<SceneDescription> SceneReader::read(const json& root) {
     EARSHOT_RETURN_IF_ERROR(readSource(sources[i], sp, s));
     auto [it, fresh] = names.emplace(s.name, i);
     if (!fresh)
-      return fail(jsonKeyPath(sp, "name"), "\"" + s.name + "\" is already the name of sources[" +
+      return fail(jsonKeyPath(sp, "name"), jsonQuoted(s.name) + " is already the name of sources[" +
                                                std::to_string(it->second) + "] (names must be unique)");
     scene.sources.push_back(std::move(s));
   }

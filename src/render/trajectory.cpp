@@ -105,6 +105,10 @@ Status checkPose(const Vec3d& position, Vec3d& forward, Vec3d& up, const std::st
   if (!(sinAngle >= kMinSinForwardUp))
     return invalidArgument(name + ".up: " + vecText(up) + " is parallel to forward " + vecText(forward) +
                            " (the two must span a plane)");
+  // Scale to unit length first: the part of a tiny up (1e-160) orthogonal to
+  // forward could underflow to zero when squared.
+  forward = forward / lf;
+  up = up / lu;
   orthonormalise(forward, up);
   return Status::ok();
 }
