@@ -1,0 +1,475 @@
+#ifndef EARSHOT_EARSHOT_H
+#define EARSHOT_EARSHOT_H
+/** @file earshot's C API (C99; this header compiles on its own).
+ *
+ *  What it is: a game pushes geometry (meshes with acoustic materials, or a
+ *  glTF file) into a scene, commits the scene, moves sources and a listener
+ *  every frame, runs the simulation (reflections, on worker threads) a few
+ *  times a second, and pulls binaural audio (left, right) from its audio
+ *  thread in blocks of any size.
+ *
+ *  Objects. Every object is an opaque, reference-counted handle:
+ *    earshot_context  the engine: HRTF, source slots, listener, worker
+ *                     threads, the optional built-in simulation thread;
+ *    earshot_scene    editable geometry and its acoustic materials; commit()
+ *                     makes an immutable snapshot the simulation traces;
+ *    earshot_mesh     triangles in their own frame with a transform and
+ *                     materials; lives in at most one scene at a time;
+ *    earshot_source   one sound source (a slot of its context).
+ *  A create function returns a handle holding one reference; `_retain` adds
+ *  one, `_release` drops one, and the object is destroyed when the last goes.
+ *  A source holds a reference to its context; a scene holds references to
+ *  its meshes; a context holds a reference to the scene given to
+ *  earshot_context_set_scene. Nothing else holds references, so there are
+ *  no cycles. Passing a handle after its last release is undefined.
+ *
+ *  Errors. Every function that can fail returns an earshot_status and never
+ *  lets a C++ exception or an abort out. Invalid arguments (NULL pointers,
+ *  NaN or infinite numbers, values out of the documented range, a settings
+ *  struct whose struct_size is not the size of this header's struct, a
+ *  handle of the wrong type) return EARSHOT_ERROR_INVALID_ARGUMENT and change
+ *  nothing. The message explaining the last failure on the calling thread is
+ *  earshot_last_error_message(); with EARSHOT_CONTEXT_VALIDATION set, argument
+ *  errors are also logged (naming the function and the argument). Other
+ *  errors (files, memory, limits) are always logged at EARSHOT_LOG_ERROR.
+ *
+ *  Threads. Three roles, as in a game engine:
+ *    - the game thread: creates, edits and releases objects, sets poses and
+ *      gains, commits scenes (one thread at a time per scene; the context's
+ *      functions are safe to call from several threads);
+ *    - the simulation thread: earshot_simulate(), or the context's built-in
+ *      thread (earshot_context_start_simulation); it uses the context's
+ *      worker threads;
+ *    - the audio thread: earshot_process() only, which never allocates,
+ *      locks, logs or waits.
+ *  Every function says which of these may call it.
+ *
+ *  Units and conventions: metres, seconds, Hz, decibels; right-handed
+ *  coordinates; the listener's default orientation is forward -Z, up +Y
+ *  (glTF). Output channel 0 is the left ear, 1 the right. Audio is 32-bit
+ *  float, non-interleaved. */
+
+#include <stddef.h>
+#include <stdint.h>
+
+#if defined(_WIN32) && defined(EARSHOT_BUILDING_SHARED)
+#define EARSHOT_API __declspec(dllexport)
+#elif defined(__GNUC__)
+#define EARSHOT_API __attribute__((visibility("default")))
+#else
+#define EARSHOT_API
+#endif
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* ---------------------------------------------------------------- versions */
+
+#define EARSHOT_VERSION_MAJOR 0
+#define EARSHOT_VERSION_MINOR 1
+#define EARSHOT_VERSION_PATCH 0
+/** The version this header describes, as (major << 16) | (minor << 8) | patch. */
+#define EARSHOT_VERSION ((EARSHOT_VERSION_MAJOR << 16) | (EARSHOT_VERSION_MINOR << 8) | EARSHOT_VERSION_PATCH)
+
+/** The library's version, encoded as EARSHOT_VERSION. Any thread. */
+EARSHOT_API uint32_t earshot_version(void);
+
+/* ------------------------------------------------------------------ status */
+
+typedef enum earshot_status {
+  EARSHOT_OK = 0,
+  EARSHOT_ERROR_INVALID_ARGUMENT = 1, /**< NULL, NaN, out of range, wrong struct_size or handle type */
+  EARSHOT_ERROR_OUT_OF_MEMORY = 2,    /**< an allocation failed (the allocator callback or the C++ heap) */
+  EARSHOT_ERROR_IO = 3,               /**< a file could not be read or written */
+  EARSHOT_ERROR_NOT_FOUND = 4,        /**< a missing file, or an unknown name (material, glTF node) */
+  EARSHOT_ERROR_PARSE = 5,            /**< a malformed file (JSON, glTF, SOFA) */
+  EARSHOT_ERROR_UNSUPPORTED = 6,      /**< valid, but not handled (a format, an operation on this object) */
+  EARSHOT_ERROR_OUT_OF_RANGE = 7,     /**< a size beyond the limits (e.g. every source slot in use) */
+  EARSHOT_ERROR_INVALID_STATE = 8,    /**< not now (e.g. a mesh already in a scene, a thread already running) */
+  EARSHOT_ERROR_INTERNAL = 9          /**< a bug in earshot: please report it with the log */
+} earshot_status;
+
+/** A static, human-readable name of `status` ("invalid argument", ...); an
+ *  unknown value gives "unknown status". Never NULL. Any thread. */
+EARSHOT_API const char* earshot_status_string(earshot_status status);
+
+/** The message explaining the last failed call on the calling thread (one
+ *  line, e.g. "earshot_scene_load_gltf: rooms.gltf: no node named \"door\""),
+ *  or "" if none failed yet. Valid until the next earshot call on this thread.
+ *  earshot_process() does not set it. Any thread but the audio thread. */
+EARSHOT_API const char* earshot_last_error_message(void);
+
+/* ----------------------------------------------------------- basic types */
+
+typedef struct earshot_vec3 {
+  float x, y, z;
+} earshot_vec3;
+
+/** Octave bands of material data: 125, 250, 500, 1000, 2000, 4000, 8000 Hz. */
+#define EARSHOT_BAND_COUNT 7
+
+typedef struct earshot_context earshot_context;
+typedef struct earshot_scene earshot_scene;
+typedef struct earshot_mesh earshot_mesh;
+typedef struct earshot_source earshot_source;
+
+/* ------------------------------------------------------ log and allocator */
+
+typedef enum earshot_log_level {
+  EARSHOT_LOG_ERROR = 0,
+  EARSHOT_LOG_WARNING = 1,
+  EARSHOT_LOG_INFO = 2,
+  EARSHOT_LOG_DEBUG = 3
+} earshot_log_level;
+
+/** Receives log messages (one line, no trailing newline, valid only during
+ *  the call). Called on the thread that made the failing or reporting call:
+ *  the game thread, or the simulation thread (errors of the built-in
+ *  simulation thread); never the audio thread. Must not call earshot. */
+typedef void (*earshot_log_callback)(void* user_data, earshot_log_level level, const char* message);
+
+/** Allocates `size` bytes aligned to `alignment` (a power of two, at most 64)
+ *  or returns NULL. Called from the game thread (object creation) only. */
+typedef void* (*earshot_allocate_callback)(void* user_data, size_t size, size_t alignment);
+/** Frees what the allocate callback returned (never NULL). Called on the
+ *  thread that drops an object's last reference (never the audio thread). */
+typedef void (*earshot_free_callback)(void* user_data, void* pointer);
+
+/* ----------------------------------------------------------------- context */
+
+/** Flags for earshot_context_settings.flags. */
+enum {
+  /** Log every invalid argument (function, argument, value) at EARSHOT_LOG_ERROR. */
+  EARSHOT_CONTEXT_VALIDATION = 1u << 0
+};
+
+typedef struct earshot_context_settings {
+  uint32_t struct_size;        /**< sizeof(earshot_context_settings) */
+  uint32_t flags;              /**< EARSHOT_CONTEXT_* flags; default 0 */
+  double sample_rate_hz;       /**< audio rate, [8000, 384000]; default 48000 */
+  uint32_t block_frames;       /**< convolver partition and latency (frames), even, [8, 65536]; default 256.
+                                    earshot_process() accepts blocks of any size regardless. */
+  uint32_t max_sources;        /**< source slots allocated up front, [1, 4096]; default 32 */
+  double max_ir_seconds;       /**< reflections are cut here (10 ms fade), (0, 60]; default 3 */
+  uint32_t rays;               /**< rays traced per source and simulation, [1, 100000000]; default 16384 */
+  uint32_t bounces;            /**< reflections per ray, [0, 100000]; default 12 */
+  uint32_t image_source_order; /**< order of exact early reflections, [0, 4]; default 3 */
+  uint32_t threads;            /**< simulation worker threads, [0, 256], 0 = all cores; default 0 */
+  uint64_t seed;               /**< random seed of the ray tracer; default 1 */
+  double max_distance_meters;  /**< farthest source heard directly (delay line size), (0, 20000]; default 343 */
+  /** SOFA HRTF file (UTF-8 path, copied), resampled to sample_rate_hz; NULL or
+   *  "" = the default set shipped with earshot (see earshot_hrtf_default_path). */
+  const char* hrtf_path;
+  earshot_log_callback log;           /**< NULL: no logging */
+  void* log_user_data;                /**< passed to `log` */
+  earshot_log_level log_level;        /**< most verbose level passed to `log`; default EARSHOT_LOG_WARNING */
+  /** Allocator for the API's own objects: the context, scene, mesh and source
+   *  handles (and their small bookkeeping). Both NULL (default: malloc/free)
+   *  or both set. Everything the engine allocates inside (HRTF, BVHs, IRs,
+   *  convolution buffers, threads) uses the C++ global allocator. */
+  earshot_allocate_callback allocate;
+  earshot_free_callback free;
+  void* allocator_user_data;          /**< passed to allocate and free */
+} earshot_context_settings;
+
+/** Fills `settings` with the defaults above (and struct_size). Any thread. */
+EARSHOT_API earshot_status earshot_context_settings_init(earshot_context_settings* settings);
+
+/** Creates a context: loads the HRTF (20-200 ms), allocates every source
+ *  slot and the audio thread's buffers, starts the worker threads.
+ *  `settings` is only read (strings copied). On success *out holds one
+ *  reference; on failure *out is set to NULL. Errors: INVALID_ARGUMENT,
+ *  NOT_FOUND / PARSE (HRTF file), OUT_OF_MEMORY. Game thread. */
+EARSHOT_API earshot_status earshot_context_create(const earshot_context_settings* settings, earshot_context** out);
+/** Adds a reference. Any thread but the audio thread. */
+EARSHOT_API earshot_status earshot_context_retain(earshot_context* context);
+/** Drops a reference; the last one stops the built-in simulation thread
+ *  (waiting for a running step to end), releases the scene and frees
+ *  everything. Sources hold references, so the context outlives them. Must
+ *  not race with earshot_process() on the same context. Game thread. */
+EARSHOT_API earshot_status earshot_context_release(earshot_context* context);
+
+typedef struct earshot_context_info {
+  uint32_t struct_size;     /**< set by the caller: sizeof(earshot_context_info) */
+  double sample_rate_hz;
+  uint32_t block_frames;
+  uint32_t max_sources;
+  uint32_t latency_frames;  /**< output lags input by this many frames (the convolver's block) */
+  uint32_t active_sources;  /**< sources created and not yet released */
+  uint32_t simulation_thread_running; /**< 1 while the built-in simulation thread runs */
+  uint32_t last_simulation_sources;   /**< sources simulated by the last simulation step */
+  double last_simulation_ms;          /**< wall time of the last simulation step */
+} earshot_context_info;
+
+/** Reads the context's settings and state into *info (info->struct_size
+ *  must be set). Any thread but the audio thread. */
+EARSHOT_API earshot_status earshot_context_get_info(earshot_context* context, earshot_context_info* info);
+
+/** Sets the listener's pose: `position` (metres, finite), `forward` and `up`
+ *  (finite, non-zero, not parallel; need not be unit length; up is made
+ *  orthogonal to forward). The direct sound follows it at the next audio
+ *  block; the reflections at the next simulation of each source. Game thread
+ *  (any thread but the audio thread). */
+EARSHOT_API earshot_status earshot_context_set_listener(earshot_context* context, earshot_vec3 position,
+                                                        earshot_vec3 forward, earshot_vec3 up);
+
+/** Makes `scene` (or NULL: free field, no geometry) the one the context
+ *  simulates. The context keeps a reference and follows the scene: each
+ *  earshot_scene_commit() is picked up by the next simulation step. Until
+ *  the scene's first commit the context simulates a free field. Game thread. */
+EARSHOT_API earshot_status earshot_context_set_scene(earshot_context* context, earshot_scene* scene);
+
+/** Runs one simulation step: picks up the scene's latest commit, then
+ *  traces, synthesises and posts the reflections of `source_count` active
+ *  sources in round-robin order (0 or more than active: all of them) and
+ *  updates their direct paths' occlusion, from the poses set so far. Takes
+ *  time (milliseconds per source; see earshot_context_get_info) on the
+ *  context's worker threads. A new source is silent until its first
+ *  simulation. Errors: INVALID_ARGUMENT, INVALID_STATE (the built-in
+ *  simulation thread is running), OUT_OF_MEMORY, INTERNAL. Simulation thread
+ *  (any thread but the audio thread; one at a time). */
+EARSHOT_API earshot_status earshot_simulate(earshot_context* context, uint32_t source_count);
+
+/** Starts the built-in simulation thread: it calls earshot_simulate(context,
+ *  sources_per_step) every 1 / rate_hz seconds of wall time (a step that
+ *  overruns delays the next rather than queueing steps). rate_hz in
+ *  (0, 1000]; sources_per_step 0 = all (round robin otherwise, e.g. 32
+ *  sources at 10 Hz and 4 per step update each source at 1.25 Hz). Errors of
+ *  a step are logged and the thread goes on. Errors: INVALID_ARGUMENT,
+ *  INVALID_STATE (already running), OUT_OF_MEMORY (no thread). Game thread. */
+EARSHOT_API earshot_status earshot_context_start_simulation(earshot_context* context, double rate_hz,
+                                                            uint32_t sources_per_step);
+/** Stops the built-in simulation thread and waits for it (at most one step);
+ *  OK if it was not running. Game thread. */
+EARSHOT_API earshot_status earshot_context_stop_simulation(earshot_context* context);
+
+/** Renders `frames` frames of binaural output: inputs[i] is the dry mono
+ *  signal (`frames` floats) of the source whose index
+ *  (earshot_source_get_index) is i, for i < input_count; a NULL entry, an
+ *  index with no source and every index >= input_count play silence.
+ *  `inputs` may be NULL when input_count is 0. input_count is at most
+ *  max_sources. `left` and `right` (`frames` floats each, distinct) are
+ *  overwritten; frames may be any number, 0 included. The output lags the
+ *  input by latency_frames. No allocation, lock, log or system call;
+ *  arguments are checked but not logged. Audio thread (one thread at a
+ *  time per context). */
+EARSHOT_API earshot_status earshot_process(earshot_context* context, const float* const* inputs,
+                                           size_t input_count, float* left, float* right, size_t frames);
+
+/** Copies the path of the default HRTF (the SOFA file a context loads when
+ *  hrtf_path is NULL) into `buffer` (`capacity` bytes, NUL-terminated) and
+ *  stores its length (without the NUL) in *length if `length` is not NULL.
+ *  The file is looked up in $EARSHOT_HRTF_DIR, then in share/earshot/hrtf
+ *  next to the installed library, then in the source tree it was built from.
+ *  Errors: NOT_FOUND (no default HRTF), OUT_OF_RANGE (buffer too small;
+ *  *length says how much is needed). Any thread but the audio thread. */
+EARSHOT_API earshot_status earshot_hrtf_default_path(char* buffer, size_t capacity, size_t* length);
+
+/* ------------------------------------------------------------------- scene */
+
+typedef struct earshot_scene_settings {
+  uint32_t struct_size;        /**< sizeof(earshot_scene_settings) */
+  /** Acoustic materials JSON file (format: DESIGN.md "Materials file");
+   *  NULL = earshot's default set (materials/default.json). */
+  const char* materials_path;
+} earshot_scene_settings;
+
+/** Fills `settings` with the defaults (and struct_size). Any thread. */
+EARSHOT_API earshot_status earshot_scene_settings_init(earshot_scene_settings* settings);
+
+/** Creates an empty scene with the materials of `settings` (NULL: defaults).
+ *  The scene uses the context's log, allocator and validation flag but does
+ *  not keep it alive, and may serve several contexts. *out holds one
+ *  reference (NULL on failure). Errors: INVALID_ARGUMENT, NOT_FOUND / PARSE
+ *  (materials file), INTERNAL (no Embree device). Game thread. */
+EARSHOT_API earshot_status earshot_scene_create(earshot_context* context, const earshot_scene_settings* settings,
+                                                earshot_scene** out);
+/** Adds a reference. Game thread. */
+EARSHOT_API earshot_status earshot_scene_retain(earshot_scene* scene);
+/** Drops a reference; the last one removes every mesh from the scene
+ *  (meshes still referenced elsewhere survive, in no scene). Snapshots
+ *  already committed stay valid for the contexts using them. Game thread. */
+EARSHOT_API earshot_status earshot_scene_release(earshot_scene* scene);
+
+typedef struct earshot_material {
+  uint32_t struct_size;                       /**< sizeof(earshot_material) */
+  const char* name;                           /**< non-empty; replaces a material of the same name */
+  float absorption[EARSHOT_BAND_COUNT];       /**< energy fraction absorbed per reflection, [0, 1] */
+  float scattering[EARSHOT_BAND_COUNT];       /**< fraction of reflected energy scattered diffusely, [0, 1] */
+  float transmission[EARSHOT_BAND_COUNT];     /**< energy fraction passing through, [0, absorption] */
+} earshot_material;
+
+/** Adds (or replaces, by name) an acoustic material of the scene, usable by
+ *  meshes added or re-materialled afterwards; it reaches the simulation with
+ *  the next commit. Game thread. */
+EARSHOT_API earshot_status earshot_scene_add_material(earshot_scene* scene, const earshot_material* material);
+
+/** Adds `mesh` to the scene (the scene takes a reference), resolving its
+ *  material names against the scene's materials; takes effect at the next
+ *  commit. Errors: INVALID_STATE (already in a scene, or a glTF mesh removed
+ *  from its scene: its triangles are not kept), NOT_FOUND (a material name
+ *  the scene does not know), INVALID_ARGUMENT. Game thread. */
+EARSHOT_API earshot_status earshot_scene_add_mesh(earshot_scene* scene, earshot_mesh* mesh);
+/** Removes `mesh` from the scene (dropping the scene's reference); takes
+ *  effect at the next commit. INVALID_STATE if it is not in this scene. Game thread. */
+EARSHOT_API earshot_status earshot_scene_remove_mesh(earshot_scene* scene, earshot_mesh* mesh);
+
+/** Builds an immutable snapshot of the scene as edited so far and publishes
+ *  it to every context using the scene (picked up at their next simulation
+ *  step; the previous snapshot keeps serving until then). Moving a movable
+ *  mesh rebuilds only a small top-level BVH; adding, removing or moving a
+ *  static mesh rebuilds the static BVH. Without edits it is nearly free.
+ *  Game thread. */
+EARSHOT_API earshot_status earshot_scene_commit(earshot_scene* scene);
+
+typedef struct earshot_gltf_settings {
+  uint32_t struct_size;                      /**< sizeof(earshot_gltf_settings) */
+  const char* path;                          /**< .gltf or .glb file (UTF-8 path); required */
+  /** JSON object {"glTF material name": "acoustic material name"}; NULL: none
+   *  (then each glTF material's extras.acoustic_material, then its name). */
+  const char* material_map_path;
+  /** Names of glTF nodes that become movable meshes (each in its node's own
+   *  frame, placed by the node's world transform: rotating it about its
+   *  origin swings it as the file's hierarchy would). May be NULL if the
+   *  count is 0. Every other node joins one static mesh. */
+  const char* const* movable_node_names;
+  size_t movable_node_count;                 /**< [0, 65536] */
+} earshot_gltf_settings;
+
+/** Fills `settings` with the defaults (and struct_size). Any thread. */
+EARSHOT_API earshot_status earshot_gltf_settings_init(earshot_gltf_settings* settings);
+
+/** Loads a glTF 2.0 file into the scene: its static part as one static mesh
+ *  named after the path, each movable node as a movable mesh named after
+ *  the node (find them with earshot_scene_find_mesh). Positions are metres
+ *  in the file's axes (no axis conversion). Unmapped glTF materials get the
+ *  default material and a warning in the log. All or nothing. Errors:
+ *  NOT_FOUND (file, or a movable name that is no node with a mesh), PARSE,
+ *  INVALID_ARGUMENT (bad content, named in the message). Game thread. */
+EARSHOT_API earshot_status earshot_scene_load_gltf(earshot_scene* scene, const earshot_gltf_settings* settings);
+
+/** Finds the first mesh in the scene (in the order added) named `name`;
+ *  *out gets a new reference (release it), NULL with NOT_FOUND if none. Game thread. */
+EARSHOT_API earshot_status earshot_scene_find_mesh(earshot_scene* scene, const char* name, earshot_mesh** out);
+
+typedef struct earshot_scene_stats {
+  uint32_t struct_size;       /**< set by the caller: sizeof(earshot_scene_stats) */
+  uint32_t mesh_count;        /**< meshes in the scene */
+  uint64_t commits;           /**< commits that built a new snapshot */
+  uint64_t static_bvh_builds; /**< builds of the BVH over all static meshes */
+  uint64_t top_level_builds;  /**< builds of a snapshot's BVH over movable meshes */
+  double last_commit_ms;      /**< wall time of the last commit that built a snapshot */
+} earshot_scene_stats;
+
+/** Reads the scene's counters into *stats (stats->struct_size must be set). Game thread. */
+EARSHOT_API earshot_status earshot_scene_get_stats(earshot_scene* scene, earshot_scene_stats* stats);
+
+/* -------------------------------------------------------------------- mesh */
+
+typedef enum earshot_mesh_motion {
+  EARSHOT_MESH_STATIC = 0,  /**< baked into the scene's static BVH (walls, floors) */
+  EARSHOT_MESH_MOVABLE = 1  /**< its own BVH, instanced: moving it is cheap (doors, vehicles) */
+} earshot_mesh_motion;
+
+typedef struct earshot_mesh_settings {
+  uint32_t struct_size;          /**< sizeof(earshot_mesh_settings) */
+  const char* name;              /**< label for errors and earshot_scene_find_mesh; NULL = "" */
+  const float* vertices;         /**< vertex_count * 3 floats (x, y, z; metres; finite), copied */
+  size_t vertex_count;           /**< [1, 2^31] */
+  const uint32_t* indices;       /**< triangle_count * 3 vertex indices (< vertex_count), copied */
+  size_t triangle_count;         /**< [1, 2^31] */
+  /** Acoustic material names (of the scene's materials; resolved when the
+   *  mesh is added to a scene), material_count >= 1. */
+  const char* const* material_names;
+  size_t material_count;         /**< [1, 65536] */
+  /** Per triangle, an index into material_names; NULL: every triangle uses material_names[0]. */
+  const uint32_t* triangle_materials;
+  earshot_mesh_motion motion;    /**< default EARSHOT_MESH_STATIC */
+  /** Initial transform (mesh frame -> world), row-major 3x4 (element [r * 4 + c];
+   *  column 3 is the translation in metres); NULL = identity. Finite, invertible. */
+  const float* transform;
+} earshot_mesh_settings;
+
+/** Fills `settings` with the defaults (and struct_size). Any thread. */
+EARSHOT_API earshot_status earshot_mesh_settings_init(earshot_mesh_settings* settings);
+
+/** Creates a mesh from vertex and index arrays (copied). It is in no scene
+ *  until earshot_scene_add_mesh. *out holds one reference (NULL on failure).
+ *  Errors: INVALID_ARGUMENT (naming the bad vertex, index or material
+ *  index), OUT_OF_MEMORY. Game thread. */
+EARSHOT_API earshot_status earshot_mesh_create(earshot_context* context, const earshot_mesh_settings* settings,
+                                               earshot_mesh** out);
+/** Adds a reference. Game thread. */
+EARSHOT_API earshot_status earshot_mesh_retain(earshot_mesh* mesh);
+/** Drops a reference. A mesh in a scene stays there (the scene holds a
+ *  reference) until removed. Game thread. */
+EARSHOT_API earshot_status earshot_mesh_release(earshot_mesh* mesh);
+
+/** Places the mesh (its frame -> world): a row-major 3x4 matrix (element
+ *  [r * 4 + c], column 3 the translation in metres), finite and invertible
+ *  (rigid motions are what the acoustics expect). In a scene it takes effect
+ *  at the next commit. Game thread (the thread that edits its scene). */
+EARSHOT_API earshot_status earshot_mesh_set_transform(earshot_mesh* mesh, const float* matrix3x4);
+/** As earshot_mesh_set_transform, from a column-major 4x4 matrix (glTF,
+ *  OpenGL; element [c * 4 + r]); the last row is ignored. Game thread. */
+EARSHOT_API earshot_status earshot_mesh_set_transform_4x4(earshot_mesh* mesh, const float* matrix4x4);
+/** Writes the mesh's current transform (row-major 3x4, 12 floats) to
+ *  `matrix3x4`: for a glTF movable node, its world transform in the file
+ *  until changed. Game thread. */
+EARSHOT_API earshot_status earshot_mesh_get_transform(earshot_mesh* mesh, float* matrix3x4);
+/** Gives every triangle of the mesh the acoustic material `name`. In a
+ *  scene it must be one of the scene's materials (NOT_FOUND otherwise) and
+ *  takes effect at the next commit without rebuilding a BVH; outside a
+ *  scene it is resolved when the mesh is added. Game thread. */
+EARSHOT_API earshot_status earshot_mesh_set_material(earshot_mesh* mesh, const char* name);
+
+/* ------------------------------------------------------------------ source */
+
+typedef enum earshot_direct_mode {
+  /** The direct sound is rendered every audio block from the latest poses
+   *  (delay with Doppler, distance, HRTF of the current head direction):
+   *  for moving sources. Default. */
+  EARSHOT_DIRECT_PER_BLOCK = 0,
+  /** The direct sound is part of the convolved IR, exactly as `earshot ir`
+   *  computes it, updated only when simulated: for static sources. */
+  EARSHOT_DIRECT_IN_IMPULSE_RESPONSE = 1
+} earshot_direct_mode;
+
+typedef struct earshot_source_settings {
+  uint32_t struct_size;           /**< sizeof(earshot_source_settings) */
+  float gain_db;                  /**< [-120, 40]; default 0 */
+  earshot_direct_mode direct;     /**< default EARSHOT_DIRECT_PER_BLOCK */
+} earshot_source_settings;
+
+/** Fills `settings` with the defaults (and struct_size). Any thread. */
+EARSHOT_API earshot_status earshot_source_settings_init(earshot_source_settings* settings);
+
+/** Creates a source in one of the context's slots (settings NULL: defaults),
+ *  at the origin; it stays silent until simulated once. The source holds a
+ *  reference to the context. *out holds one reference (NULL on failure).
+ *  Errors: INVALID_ARGUMENT, OUT_OF_RANGE (all max_sources slots in use). Game thread. */
+EARSHOT_API earshot_status earshot_source_create(earshot_context* context, const earshot_source_settings* settings,
+                                                 earshot_source** out);
+/** Adds a reference. Game thread. */
+EARSHOT_API earshot_status earshot_source_retain(earshot_source* source);
+/** Drops a reference; the last one frees the slot (silent from the next
+ *  audio block; the index may be reused by a later source). Game thread. */
+EARSHOT_API earshot_status earshot_source_release(earshot_source* source);
+
+/** The source's slot index in [0, max_sources): its position in the
+ *  `inputs` array of earshot_process(). Fixed for the source's life. Any thread. */
+EARSHOT_API earshot_status earshot_source_get_index(earshot_source* source, uint32_t* index);
+/** Moves the source (metres, finite). The direct sound follows at the next
+ *  audio block (with Doppler), the reflections at the source's next
+ *  simulation. Game thread (any thread but the audio thread). */
+EARSHOT_API earshot_status earshot_source_set_position(earshot_source* source, earshot_vec3 position);
+/** Sets the source's gain in dB, [-120, 40]; ramped over the next audio
+ *  block. Game thread (any thread but the audio thread). */
+EARSHOT_API earshot_status earshot_source_set_gain_db(earshot_source* source, float gain_db);
+
+#ifdef __cplusplus
+}  /* extern "C" */
+#endif
+
+#endif /* EARSHOT_EARSHOT_H */

@@ -1,0 +1,454 @@
+// The C API's context (engine, listener, simulation, audio) and sources.
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <string>
+
+#include "capi_internal.h"
+#include "earshot/ir/binaural_synthesis.h"
+#include "earshot/propagation/image_sources.h"
+
+namespace earshot::capi {
+
+namespace {
+
+// Largest block earshot_process accepts (2^24 frames: ~350 s at 48 kHz); a
+// bound that catches sizes that are garbage rather than limits real use.
+constexpr size_t kMaxProcessFrames = size_t(1) << 24;
+
+std::string checkSettings(const earshot_context_settings& s) {
+  if (s.flags & ~uint32_t(EARSHOT_CONTEXT_VALIDATION))
+    return "settings->flags has unknown bits " + std::to_string(s.flags);
+  if (!(s.sample_rate_hz >= 8000.0 && s.sample_rate_hz <= 384000.0))
+    return "settings->sample_rate_hz " + describe(s.sample_rate_hz) + " is outside [8000, 384000]";
+  if (s.block_frames < 8 || s.block_frames > 65536 || s.block_frames % 2 != 0)
+    return "settings->block_frames " + std::to_string(s.block_frames) + " is not an even number in [8, 65536]";
+  if (s.max_sources < 1 || s.max_sources > 4096)
+    return "settings->max_sources " + std::to_string(s.max_sources) + " is outside [1, 4096]";
+  if (!(s.max_ir_seconds > 0.0 && s.max_ir_seconds <= 60.0))
+    return "settings->max_ir_seconds " + describe(s.max_ir_seconds) + " is outside (0, 60]";
+  if (s.rays < 1 || s.rays > 100000000) return "settings->rays " + std::to_string(s.rays) + " is outside [1, 1e8]";
+  if (s.bounces > 100000) return "settings->bounces " + std::to_string(s.bounces) + " is outside [0, 100000]";
+  if (s.image_source_order > kMaxImageSourceOrder)
+    return "settings->image_source_order " + std::to_string(s.image_source_order) + " is outside [0, " +
+           std::to_string(kMaxImageSourceOrder) + "]";
+  if (s.threads > 256) return "settings->threads " + std::to_string(s.threads) + " is outside [0, 256]";
+  if (!(s.max_distance_meters > 0.0 && s.max_distance_meters <= 20000.0))
+    return "settings->max_distance_meters " + describe(s.max_distance_meters) + " is outside (0, 20000]";
+  if (int(s.log_level) < int(EARSHOT_LOG_ERROR) || int(s.log_level) > int(EARSHOT_LOG_DEBUG))
+    return "settings->log_level " + std::to_string(int(s.log_level)) + " is not an earshot_log_level";
+  if ((s.allocate == nullptr) != (s.free == nullptr))
+    return "settings->allocate and settings->free must both be set or both NULL";
+  return "";
+}
+
+Env envOf(const earshot_context_settings& s) {
+  Env e;
+  e.log = s.log;
+  e.logUser = s.log_user_data;
+  e.level = s.log_level;
+  e.allocate = s.allocate;
+  e.free = s.free;
+  e.allocUser = s.allocator_user_data;
+  e.validation = (s.flags & EARSHOT_CONTEXT_VALIDATION) != 0;
+  return e;
+}
+
+/** Hands the followed scene's latest commit to the engine if it is new. */
+void syncScene(earshot_context* c) {
+  std::lock_guard<std::mutex> lock(c->sceneMutex);
+  uint64_t version = 0;
+  std::shared_ptr<const RayTracer> tracer;
+  std::shared_ptr<const MaterialTable> materials;
+  if (c->scene) {
+    std::lock_guard<std::mutex> publish(c->scene->publishMutex);
+    version = c->scene->version;
+    tracer = c->scene->snapshot;
+    materials = c->scene->snapshotMaterials;
+  }
+  if (c->appliedAny && version == c->appliedVersion) return;
+  c->engine->setScene(std::move(tracer), std::move(materials));
+  c->appliedVersion = version;
+  c->appliedAny = true;
+}
+
+/** One simulation step (earshot_simulate and the built-in thread). */
+Status step(earshot_context* c, uint32_t count) {
+  std::lock_guard<std::mutex> lock(c->stepMutex);
+  syncScene(c);
+  Status s = c->engine->simulate(count);
+  const runtime::SimulationStats stats = c->engine->lastSimulation();
+  c->lastStepSources = stats.sourcesSimulated;
+  c->lastStepMs = stats.totalMs;
+  return s;
+}
+
+void simulationLoop(earshot_context* c, double rateHz, uint32_t count) {
+  using Clock = std::chrono::steady_clock;
+  const auto period = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(1.0 / rateHz));
+  auto next = Clock::now();
+  std::unique_lock<std::mutex> lock(c->threadMutex);
+  while (!c->threadStop) {
+    lock.unlock();
+    try {
+      Status s = step(c, count);
+      if (!s.isOk()) c->env.logMessage(EARSHOT_LOG_ERROR, "simulation thread: " + s.message());
+    } catch (const std::exception& e) {
+      c->env.logMessage(EARSHOT_LOG_ERROR, std::string("simulation thread: ") + e.what());
+    } catch (...) {
+      c->env.logMessage(EARSHOT_LOG_ERROR, "simulation thread: unexpected exception");
+    }
+    lock.lock();
+    // An overrunning step delays the next one instead of queueing a burst.
+    next += period;
+    const auto now = Clock::now();
+    if (next < now) next = now;
+    c->threadWake.wait_until(lock, next, [c] { return c->threadStop; });
+  }
+}
+
+void stopThread(earshot_context* c) {
+  std::lock_guard<std::mutex> control(c->threadControl);
+  if (!c->thread.joinable()) return;
+  {
+    std::lock_guard<std::mutex> lock(c->threadMutex);
+    c->threadStop = true;
+  }
+  c->threadWake.notify_all();
+  c->thread.join();
+  c->threadRunning.store(false);
+}
+
+}  // namespace
+
+void releaseContext(earshot_context* c) {
+  if (c->refs.fetch_sub(1, std::memory_order_acq_rel) == 1) destroy(c);
+}
+
+}  // namespace earshot::capi
+
+using namespace earshot;
+using namespace earshot::capi;
+
+earshot_context::~earshot_context() {
+  stopThread(this);
+  if (scene) releaseScene(scene);
+  scene = nullptr;
+  engine.reset();
+}
+
+extern "C" {
+
+earshot_status earshot_context_settings_init(earshot_context_settings* s) {
+  if (!s) return argError(nullptr, "earshot_context_settings_init", "settings is NULL");
+  *s = earshot_context_settings{};
+  s->struct_size = sizeof(earshot_context_settings);
+  s->flags = 0;
+  s->sample_rate_hz = 48000.0;
+  s->block_frames = 256;
+  s->max_sources = 32;
+  s->max_ir_seconds = 3.0;
+  const OmniIrSettings defaults;
+  s->rays = defaults.rays;
+  s->bounces = defaults.bounces;
+  s->image_source_order = defaults.imageSourceOrder;
+  s->threads = 0;
+  s->seed = defaults.seed;
+  s->max_distance_meters = 343.0;
+  s->hrtf_path = nullptr;
+  s->log = nullptr;
+  s->log_user_data = nullptr;
+  s->log_level = EARSHOT_LOG_WARNING;
+  s->allocate = nullptr;
+  s->free = nullptr;
+  s->allocator_user_data = nullptr;
+  return EARSHOT_OK;
+}
+
+earshot_status earshot_context_create(const earshot_context_settings* settings, earshot_context** out) {
+  static const char* kFn = "earshot_context_create";
+  if (out) *out = nullptr;
+  if (!settings) return argError(nullptr, kFn, "settings is NULL");
+  return guard(nullptr, kFn, [&]() -> earshot_status {
+    const std::string badSize = checkStructSize(settings->struct_size, sizeof(earshot_context_settings), "settings");
+    if (!badSize.empty()) return argError(nullptr, kFn, badSize);
+    const Env env = envOf(*settings);
+    return guard(&env, kFn, [&]() -> earshot_status {
+      if (!out) return argError(&env, kFn, "out is NULL");
+      const std::string bad = checkSettings(*settings);
+      if (!bad.empty()) return argError(&env, kFn, bad);
+      const std::string hrtfPath = settings->hrtf_path ? settings->hrtf_path : "";
+
+      auto model = loadBinauralModel(hrtfPath, settings->sample_rate_hz);
+      if (!model.isOk()) return fromStatus(&env, kFn, model.status());
+
+      runtime::EngineSettings es;
+      es.sampleRateHz = settings->sample_rate_hz;
+      es.blockFrames = settings->block_frames;
+      es.maxSources = settings->max_sources;
+      es.maxIrSeconds = settings->max_ir_seconds;
+      es.simulation.rays = settings->rays;
+      es.simulation.bounces = settings->bounces;
+      es.simulation.imageSourceOrder = settings->image_source_order;
+      es.simulation.seed = settings->seed;
+      es.threads = settings->threads;
+      es.maxDistanceMeters = settings->max_distance_meters;
+      auto engine = runtime::Engine::create(es, *model);
+      if (!engine.isOk()) return fromStatus(&env, kFn, engine.status());
+
+      earshot_context* c = create<earshot_context>(env);
+      c->engine = std::move(engine.value());
+      c->sampleRateHz = settings->sample_rate_hz;
+      c->blockFrames = settings->block_frames;
+      c->maxSources = settings->max_sources;
+      try {
+        c->inputs.assign(settings->max_sources, nullptr);
+      } catch (...) {
+        destroy(c);
+        throw;
+      }
+      env.logMessage(EARSHOT_LOG_INFO, std::string(kFn) + ": HRTF " + (hrtfPath.empty() ? "(default)" : hrtfPath) +
+                                           ", " + describe(settings->sample_rate_hz) + " Hz, " +
+                                           std::to_string(settings->max_sources) + " source slots");
+      *out = c;
+      return EARSHOT_OK;
+    });
+  });
+}
+
+earshot_status earshot_context_retain(earshot_context* c) {
+  return retainHandle(c, "earshot_context_retain", "context");
+}
+
+earshot_status earshot_context_release(earshot_context* c) {
+  return releaseHandle(c, "earshot_context_release", "context", releaseContext);
+}
+
+earshot_status earshot_context_get_info(earshot_context* c, earshot_context_info* info) {
+  static const char* kFn = "earshot_context_get_info";
+  if (!alive(c)) return argError(nullptr, kFn, "context is not a live earshot_context");
+  if (!info) return argError(&c->env, kFn, "info is NULL");
+  return guard(&c->env, kFn, [&]() -> earshot_status {
+    const std::string badSize = checkStructSize(info->struct_size, sizeof(earshot_context_info), "info");
+    if (!badSize.empty()) return argError(&c->env, kFn, badSize);
+    earshot_context_info i{};
+    i.struct_size = sizeof(earshot_context_info);
+    i.sample_rate_hz = c->sampleRateHz;
+    i.block_frames = c->blockFrames;
+    i.max_sources = c->maxSources;
+    i.latency_frames = uint32_t(c->engine->latencyFrames());
+    {
+      std::lock_guard<std::mutex> lock(c->sourcesMutex);
+      i.active_sources = c->activeSources;
+    }
+    i.simulation_thread_running = c->threadRunning.load() ? 1 : 0;
+    {
+      std::lock_guard<std::mutex> lock(c->stepMutex);
+      i.last_simulation_sources = c->lastStepSources;
+      i.last_simulation_ms = c->lastStepMs;
+    }
+    *info = i;
+    return EARSHOT_OK;
+  });
+}
+
+earshot_status earshot_context_set_listener(earshot_context* c, earshot_vec3 position, earshot_vec3 forward,
+                                            earshot_vec3 up) {
+  static const char* kFn = "earshot_context_set_listener";
+  if (!alive(c)) return argError(nullptr, kFn, "context is not a live earshot_context");
+  return guard(&c->env, kFn, [&]() -> earshot_status {
+    for (auto [v, name] : {std::pair{position, "position"}, std::pair{forward, "forward"}, std::pair{up, "up"}}) {
+      const std::string bad = checkVec3(v, name);
+      if (!bad.empty()) return argError(&c->env, kFn, bad);
+    }
+    ListenerOrientation o;
+    o.forward = {forward.x, forward.y, forward.z};
+    o.up = {up.x, up.y, up.z};
+    const Status valid = validate(o);
+    if (!valid.isOk()) return argError(&c->env, kFn, "forward/up: " + valid.message());
+    return fromStatus(&c->env, kFn, c->engine->setListener({position.x, position.y, position.z}, o));
+  });
+}
+
+earshot_status earshot_context_set_scene(earshot_context* c, earshot_scene* scene) {
+  static const char* kFn = "earshot_context_set_scene";
+  if (!alive(c)) return argError(nullptr, kFn, "context is not a live earshot_context");
+  if (scene && !alive(scene)) return argError(&c->env, kFn, "scene is not NULL and not a live earshot_scene");
+  return guard(&c->env, kFn, [&] {
+    earshot_scene* old = nullptr;
+    {
+      std::lock_guard<std::mutex> lock(c->sceneMutex);
+      if (scene) scene->refs.fetch_add(1, std::memory_order_relaxed);
+      old = c->scene;
+      c->scene = scene;
+      c->appliedAny = false;
+    }
+    syncScene(c);
+    if (old) releaseScene(old);
+    return EARSHOT_OK;
+  });
+}
+
+earshot_status earshot_simulate(earshot_context* c, uint32_t sourceCount) {
+  static const char* kFn = "earshot_simulate";
+  if (!alive(c)) return argError(nullptr, kFn, "context is not a live earshot_context");
+  return guard(&c->env, kFn, [&]() -> earshot_status {
+    if (c->threadRunning.load())
+      return fail(&c->env, kFn, EARSHOT_ERROR_INVALID_STATE, "the built-in simulation thread is running");
+    return fromStatus(&c->env, kFn, step(c, sourceCount));
+  });
+}
+
+earshot_status earshot_context_start_simulation(earshot_context* c, double rateHz, uint32_t sourcesPerStep) {
+  static const char* kFn = "earshot_context_start_simulation";
+  if (!alive(c)) return argError(nullptr, kFn, "context is not a live earshot_context");
+  return guard(&c->env, kFn, [&]() -> earshot_status {
+    if (!(rateHz > 0.0 && rateHz <= 1000.0))
+      return argError(&c->env, kFn, "rate_hz " + describe(rateHz) + " is outside (0, 1000]");
+    std::lock_guard<std::mutex> control(c->threadControl);
+    if (c->thread.joinable())
+      return fail(&c->env, kFn, EARSHOT_ERROR_INVALID_STATE, "the simulation thread is already running");
+    {
+      std::lock_guard<std::mutex> lock(c->threadMutex);
+      c->threadStop = false;
+    }
+    try {
+      c->thread = std::thread(simulationLoop, c, rateHz, sourcesPerStep);
+    } catch (const std::system_error& e) {
+      return fail(&c->env, kFn, EARSHOT_ERROR_OUT_OF_MEMORY, std::string("cannot start a thread: ") + e.what());
+    }
+    c->threadRunning.store(true);
+    return EARSHOT_OK;
+  });
+}
+
+earshot_status earshot_context_stop_simulation(earshot_context* c) {
+  static const char* kFn = "earshot_context_stop_simulation";
+  if (!alive(c)) return argError(nullptr, kFn, "context is not a live earshot_context");
+  return guard(&c->env, kFn, [&] {
+    stopThread(c);
+    return EARSHOT_OK;
+  });
+}
+
+earshot_status earshot_process(earshot_context* c, const float* const* inputs, size_t inputCount, float* left,
+                               float* right, size_t frames) {
+  // The audio thread: no allocation, lock or log here, so no guard() (which
+  // may format a message); the engine's process() does not throw.
+  if (!alive(c)) return EARSHOT_ERROR_INVALID_ARGUMENT;
+  if (inputCount > c->maxSources || (inputCount > 0 && !inputs)) return EARSHOT_ERROR_INVALID_ARGUMENT;
+  if (frames > kMaxProcessFrames) return EARSHOT_ERROR_INVALID_ARGUMENT;
+  if (frames == 0) return EARSHOT_OK;
+  if (!left || !right) return EARSHOT_ERROR_INVALID_ARGUMENT;
+  const uintptr_t l = reinterpret_cast<uintptr_t>(left), r = reinterpret_cast<uintptr_t>(right);
+  const uintptr_t bytes = frames * sizeof(float);
+  if ((l < r ? r - l : l - r) < bytes) return EARSHOT_ERROR_INVALID_ARGUMENT;  // overlapping outputs
+  for (size_t i = 0; i < c->maxSources; ++i) c->inputs[i] = i < inputCount ? inputs[i] : nullptr;
+  c->engine->process(c->inputs.data(), left, right, frames);
+  return EARSHOT_OK;
+}
+
+// ---- sources ----
+
+earshot_status earshot_source_settings_init(earshot_source_settings* s) {
+  if (!s) return argError(nullptr, "earshot_source_settings_init", "settings is NULL");
+  *s = earshot_source_settings{};
+  s->struct_size = sizeof(earshot_source_settings);
+  s->gain_db = 0.0f;
+  s->direct = EARSHOT_DIRECT_PER_BLOCK;
+  return EARSHOT_OK;
+}
+
+earshot_status earshot_source_create(earshot_context* c, const earshot_source_settings* settings,
+                                     earshot_source** out) {
+  static const char* kFn = "earshot_source_create";
+  if (out) *out = nullptr;
+  if (!alive(c)) return argError(nullptr, kFn, "context is not a live earshot_context");
+  if (!out) return argError(&c->env, kFn, "out is NULL");
+  return guard(&c->env, kFn, [&]() -> earshot_status {
+    earshot_source_settings s;
+    earshot_source_settings_init(&s);
+    if (settings) {
+      const std::string badSize = checkStructSize(settings->struct_size, sizeof(earshot_source_settings), "settings");
+      if (!badSize.empty()) return argError(&c->env, kFn, badSize);
+      s = *settings;
+    }
+    if (!(s.gain_db >= -120.0f && s.gain_db <= 40.0f))
+      return argError(&c->env, kFn, "settings->gain_db " + describe(s.gain_db) + " is outside [-120, 40]");
+    if (s.direct != EARSHOT_DIRECT_PER_BLOCK && s.direct != EARSHOT_DIRECT_IN_IMPULSE_RESPONSE)
+      return argError(&c->env, kFn,
+                      "settings->direct " + std::to_string(int(s.direct)) + " is not an earshot_direct_mode");
+    runtime::SourceSettings rs;
+    rs.gainDb = s.gain_db;
+    rs.direct = s.direct == EARSHOT_DIRECT_PER_BLOCK ? runtime::DirectMode::kPerBlock
+                                                     : runtime::DirectMode::kInImpulseResponse;
+    std::lock_guard<std::mutex> lock(c->sourcesMutex);
+    auto slot = c->engine->addSource(rs);
+    if (!slot.isOk()) return fromStatus(&c->env, kFn, slot.status());
+    earshot_source* src = nullptr;
+    try {
+      src = create<earshot_source>(c->env);
+    } catch (...) {
+      (void)c->engine->removeSource(*slot);
+      throw;
+    }
+    src->slot = *slot;
+    src->context = c;
+    c->refs.fetch_add(1, std::memory_order_relaxed);
+    ++c->activeSources;
+    *out = src;
+    return EARSHOT_OK;
+  });
+}
+
+earshot_status earshot_source_retain(earshot_source* s) {
+  return retainHandle(s, "earshot_source_retain", "source");
+}
+
+earshot_status earshot_source_release(earshot_source* s) {
+  static const char* kFn = "earshot_source_release";
+  if (!alive(s)) return argError(nullptr, kFn, "source is not a live earshot_source");
+  return guard(&s->env, kFn, [&] {
+    if (s->refs.fetch_sub(1, std::memory_order_acq_rel) != 1) return EARSHOT_OK;
+    earshot_context* c = s->context;
+    {
+      std::lock_guard<std::mutex> lock(c->sourcesMutex);
+      (void)c->engine->removeSource(s->slot);
+      --c->activeSources;
+    }
+    destroy(s);
+    releaseContext(c);
+    return EARSHOT_OK;
+  });
+}
+
+earshot_status earshot_source_get_index(earshot_source* s, uint32_t* index) {
+  static const char* kFn = "earshot_source_get_index";
+  if (!alive(s)) return argError(nullptr, kFn, "source is not a live earshot_source");
+  if (!index) return argError(&s->env, kFn, "index is NULL");
+  *index = s->slot;
+  return EARSHOT_OK;
+}
+
+earshot_status earshot_source_set_position(earshot_source* s, earshot_vec3 position) {
+  static const char* kFn = "earshot_source_set_position";
+  if (!alive(s)) return argError(nullptr, kFn, "source is not a live earshot_source");
+  return guard(&s->env, kFn, [&]() -> earshot_status {
+    const std::string bad = checkVec3(position, "position");
+    if (!bad.empty()) return argError(&s->env, kFn, bad);
+    return fromStatus(&s->env, kFn,
+                      s->context->engine->setSourcePosition(s->slot, {position.x, position.y, position.z}));
+  });
+}
+
+earshot_status earshot_source_set_gain_db(earshot_source* s, float gainDb) {
+  static const char* kFn = "earshot_source_set_gain_db";
+  if (!alive(s)) return argError(nullptr, kFn, "source is not a live earshot_source");
+  return guard(&s->env, kFn, [&]() -> earshot_status {
+    if (!(gainDb >= -120.0f && gainDb <= 40.0f))
+      return argError(&s->env, kFn, "gain_db " + describe(gainDb) + " is outside [-120, 40]");
+    return fromStatus(&s->env, kFn, s->context->engine->setSourceGainDb(s->slot, gainDb));
+  });
+}
+
+}  // extern "C"
