@@ -1,0 +1,45 @@
+# The install test: `cmake --install` into a fresh prefix, then a tiny
+# external project (tests/capi/external) found with find_package(earshot
+# CONFIG) and built against it (shared, static, C++), and the same C program
+# built with pkg-config; every program must run and print "ok".
+#   cmake -DBUILD_DIR=... -DSOURCE_DIR=... -DWORK_DIR=... -DGENERATOR=... -DLIBDIR=... -DC_COMPILER=... -P install_test.cmake
+function(run)
+  execute_process(COMMAND ${ARGN} RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+  if(NOT rc EQUAL 0)
+    message(FATAL_ERROR "failed (${rc}): ${ARGN}\n${out}\n${err}")
+  endif()
+  message(STATUS "ran: ${ARGN}\n${out}")
+endfunction()
+
+set(prefix "${WORK_DIR}/prefix")
+file(REMOVE_RECURSE "${WORK_DIR}")
+file(MAKE_DIRECTORY "${WORK_DIR}")
+run("${CMAKE_COMMAND}" --install "${BUILD_DIR}" --prefix "${prefix}")
+foreach(f include/earshot/earshot.h include/earshot/earshot.hpp ${LIBDIR}/libearshot.a ${LIBDIR}/pkgconfig/earshot.pc
+          ${LIBDIR}/cmake/earshot/earshotConfig.cmake share/earshot/hrtf/FHK_HRIR_L2354.sofa)
+  if(NOT EXISTS "${prefix}/${f}")
+    message(FATAL_ERROR "not installed: ${f}")
+  endif()
+endforeach()
+
+# CMake package.
+run("${CMAKE_COMMAND}" -S "${SOURCE_DIR}/tests/capi/external" -B "${WORK_DIR}/build" -G "${GENERATOR}"
+    -DCMAKE_BUILD_TYPE=Release "-DCMAKE_PREFIX_PATH=${prefix}")
+run("${CMAKE_COMMAND}" --build "${WORK_DIR}/build")
+run("${WORK_DIR}/build/consumer_c" "${prefix}")
+run("${WORK_DIR}/build/consumer_cpp")
+run("${WORK_DIR}/build/consumer_static" -)
+
+# pkg-config.
+set(ENV{PKG_CONFIG_PATH} "${prefix}/${LIBDIR}/pkgconfig")
+execute_process(COMMAND pkg-config --cflags --libs earshot RESULT_VARIABLE rc OUTPUT_VARIABLE flags
+                OUTPUT_STRIP_TRAILING_WHITESPACE)
+if(NOT rc EQUAL 0)
+  message(FATAL_ERROR "pkg-config does not know earshot")
+endif()
+separate_arguments(flags UNIX_COMMAND "${flags}")
+run("${C_COMPILER}" -std=c99 -Wall -Wextra -pedantic -Werror "${SOURCE_DIR}/tests/capi/external/consumer.c" ${flags} -lm
+    -o "${WORK_DIR}/consumer_pkgconfig")
+set(ENV{LD_LIBRARY_PATH} "${prefix}/${LIBDIR}")
+run("${WORK_DIR}/consumer_pkgconfig" "${prefix}")
+file(REMOVE_RECURSE "${WORK_DIR}")
