@@ -19,10 +19,19 @@
 // delay perceptually transparent (Kulkarni, Isabelle & Colburn, JASA 105(5),
 // 1999). The stored HRIRs are the minimum-phase versions (same cepstral
 // method, applied after resampling).
+//
+// Speed: a measurement's two ears go through one complex FFT (a + ib; the
+// spectra of a and b are the Hermitian and anti-Hermitian parts), and every
+// spectrum in the chain (log magnitude, folded cepstrum, minimum phase,
+// cross-spectrum) is Hermitian, so logs and exponentials are taken on bins
+// 0..N/2 only and mirrored (e.g. Oppenheim & Schafer, ch. 9, "two real
+// sequences with one complex FFT"). Same values as one ear at a time up to
+// double rounding.
 #include "hrir_dsp.h"
 
 #include <algorithm>
 #include <cmath>
+#include <complex>
 
 #include "earshot/core/math.h"
 
@@ -36,10 +45,69 @@ std::size_t nextPow2(std::size_t n) {
   return p;
 }
 
+// FFT length for an impulse response of `irLength` taps: 4x zero padding, at least 256.
+std::size_t paddedFftLength(std::size_t irLength) { return std::max<std::size_t>(256, 4 * nextPow2(irLength)); }
+
+// Loads a (real part) and b (imaginary part), zero-padded to the FFT length.
+void loadPair(const float* a, const float* b, std::size_t length, std::vector<double>& re, std::vector<double>& im) {
+  std::fill(re.begin(), re.end(), 0.0);
+  std::fill(im.begin(), im.end(), 0.0);
+  for (std::size_t i = 0; i < length; ++i) {
+    re[i] = a[i];
+    im[i] = b[i];
+  }
+}
+
+// Z = A + iB with A, B the spectra of two real sequences: A[k] = (Z[k] +
+// conj(Z[N-k])) / 2, B[k] = (Z[k] - conj(Z[N-k])) / 2i.
+struct Split {
+  double ar, ai, br, bi;
+};
+inline Split split(const double* re, const double* im, std::size_t k, std::size_t n) {
+  const std::size_t m = (n - k) & (n - 1);
+  return {0.5 * (re[k] + re[m]), 0.5 * (im[k] - im[m]), 0.5 * (im[k] + im[m]), 0.5 * (re[m] - re[k])};
+}
+
+// Writes Z = A + iB for all bins from Hermitian A, B given on bins 0..N/2
+// (A[N-k] = conj(A[k])); bins k and N-k may be written in any order.
+inline void joinHermitian(double* re, double* im, std::size_t k, std::size_t n, double ar, double ai, double br,
+                          double bi) {
+  re[k] = ar - bi;
+  im[k] = ai + br;
+  if (k != 0 && 2 * k != n) {
+    re[n - k] = ar + bi;
+    im[n - k] = br - ai;
+  }
+}
+
+// Folds the real cepstra in re and im (length n, even) onto positive
+// quefrencies: the cepstra of the minimum-phase signals with the same magnitude.
+void foldToMinimumPhaseCepstrum(std::vector<double>& re, std::vector<double>& im) {
+  const std::size_t n = re.size();
+  for (std::size_t i = 1; i < n / 2; ++i) {
+    re[i] *= 2.0;
+    im[i] *= 2.0;
+  }
+  for (std::size_t i = n / 2 + 1; i < n; ++i) re[i] = im[i] = 0.0;
+}
+
+// e^z for z = (r, i).
+inline std::complex<double> expOf(double r, double i) {
+  const double m = std::exp(r);
+  return {m * std::cos(i), m * std::sin(i)};
+}
+
 }  // namespace
 
-Fft::Fft(std::size_t n) : mN(n), mTwiddle(n / 2), mBitReverse(n) {
-  for (std::size_t k = 0; k < n / 2; ++k) mTwiddle[k] = std::polar(1.0, -2.0 * kPi * double(k) / double(n));
+Fft::Fft(std::size_t n) : mN(n), mTwRe(n > 1 ? n - 1 : 0), mTwIm(mTwRe.size()), mBitReverse(n) {
+  for (std::size_t h = 1; h < n; h <<= 1) {
+    const std::size_t step = n / (2 * h);
+    for (std::size_t j = 0; j < h; ++j) {
+      const double angle = -2.0 * kPi * double(j * step) / double(n);
+      mTwRe[h - 1 + j] = std::cos(angle);
+      mTwIm[h - 1 + j] = std::sin(angle);
+    }
+  }
   int bits = 0;
   while ((std::size_t(1) << bits) < n) ++bits;
   for (std::size_t i = 0; i < n; ++i) {
@@ -50,109 +118,219 @@ Fft::Fft(std::size_t n) : mN(n), mTwiddle(n / 2), mBitReverse(n) {
   }
 }
 
-void Fft::run(std::vector<std::complex<double>>& x, bool inverse) const {
-  for (std::size_t i = 0; i < mN; ++i)
-    if (i < mBitReverse[i]) std::swap(x[i], x[mBitReverse[i]]);
-  for (std::size_t len = 2; len <= mN; len <<= 1) {
-    std::size_t half = len / 2, step = mN / len;
-    for (std::size_t s = 0; s < mN; s += len) {
-      for (std::size_t j = 0; j < half; ++j) {
-        std::complex<double> w = mTwiddle[j * step];
-        if (inverse) w = std::conj(w);
-        std::complex<double> a = x[s + j], b = x[s + j + half] * w;
-        x[s + j] = a + b;
-        x[s + j + half] = a - b;
-      }
+namespace {
+
+// One radix-2 stage's butterflies for one block: a' = a + w b, b' = a - w b
+// (w conjugated for the inverse). Restrict pointers so the loop vectorises.
+template <bool kInverse>
+inline void butterflies(double* __restrict ar, double* __restrict ai, double* __restrict br, double* __restrict bi,
+                        const double* __restrict wr, const double* __restrict wi, std::size_t h) {
+  for (std::size_t j = 0; j < h; ++j) {
+    const double c = wr[j], d = kInverse ? -wi[j] : wi[j];
+    const double tr = br[j] * c - bi[j] * d, ti = br[j] * d + bi[j] * c;
+    br[j] = ar[j] - tr;
+    bi[j] = ai[j] - ti;
+    ar[j] += tr;
+    ai[j] += ti;
+  }
+}
+
+// Two radix-2 stages (half-lengths h and 2h) in one pass over a block of 4h:
+// the same operations in the same order as two calls of butterflies(), with
+// half the loads and stores. w1: stage h's twiddles, w2: stage 2h's.
+template <bool kInverse>
+inline void butterflies2(double* __restrict r0, double* __restrict i0, double* __restrict r1, double* __restrict i1,
+                         double* __restrict r2, double* __restrict i2, double* __restrict r3, double* __restrict i3,
+                         const double* __restrict w1r, const double* __restrict w1i, const double* __restrict w2r,
+                         const double* __restrict w2i, std::size_t h) {
+  for (std::size_t j = 0; j < h; ++j) {
+    const double c = w1r[j], d = kInverse ? -w1i[j] : w1i[j];
+    // Stage h: (x0, x1) and (x2, x3).
+    const double t1r = r1[j] * c - i1[j] * d, t1i = r1[j] * d + i1[j] * c;
+    const double t3r = r3[j] * c - i3[j] * d, t3i = r3[j] * d + i3[j] * c;
+    const double y0r = r0[j] + t1r, y0i = i0[j] + t1i, y1r = r0[j] - t1r, y1i = i0[j] - t1i;
+    const double y2r = r2[j] + t3r, y2i = i2[j] + t3i, y3r = r2[j] - t3r, y3i = i2[j] - t3i;
+    // Stage 2h: (y0, y2) with twiddle j, (y1, y3) with twiddle j + h.
+    const double c0 = w2r[j], d0 = kInverse ? -w2i[j] : w2i[j];
+    const double c1 = w2r[j + h], d1 = kInverse ? -w2i[j + h] : w2i[j + h];
+    const double u2r = y2r * c0 - y2i * d0, u2i = y2r * d0 + y2i * c0;
+    const double u3r = y3r * c1 - y3i * d1, u3i = y3r * d1 + y3i * c1;
+    r0[j] = y0r + u2r;
+    i0[j] = y0i + u2i;
+    r2[j] = y0r - u2r;
+    i2[j] = y0i - u2i;
+    r1[j] = y1r + u3r;
+    i1[j] = y1i + u3i;
+    r3[j] = y1r - u3r;
+    i3[j] = y1i - u3i;
+  }
+}
+
+}  // namespace
+
+template <bool kInverse>
+void Fft::run(double* re, double* im) const {
+  for (std::size_t i = 0; i < mN; ++i) {
+    const std::size_t r = mBitReverse[i];
+    if (i < r) {
+      std::swap(re[i], re[r]);
+      std::swap(im[i], im[r]);
     }
   }
+  // Decimation in time. First stage: the twiddle is 1.
+  for (std::size_t s = 0; s + 1 < mN; s += 2) {
+    const double tr = re[s + 1], ti = im[s + 1];
+    re[s + 1] = re[s] - tr;
+    im[s + 1] = im[s] - ti;
+    re[s] += tr;
+    im[s] += ti;
+  }
+  std::size_t h = 2;
+  for (; 4 * h <= mN; h *= 4) {
+    const double *w1r = mTwRe.data() + (h - 1), *w1i = mTwIm.data() + (h - 1);
+    const double *w2r = mTwRe.data() + (2 * h - 1), *w2i = mTwIm.data() + (2 * h - 1);
+    for (std::size_t s = 0; s < mN; s += 4 * h)
+      butterflies2<kInverse>(re + s, im + s, re + s + h, im + s + h, re + s + 2 * h, im + s + 2 * h, re + s + 3 * h,
+                             im + s + 3 * h, w1r, w1i, w2r, w2i, h);
+  }
+  for (; h < mN; h *= 2) {
+    const double *wr = mTwRe.data() + (h - 1), *wi = mTwIm.data() + (h - 1);
+    for (std::size_t s = 0; s < mN; s += 2 * h)
+      butterflies<kInverse>(re + s, im + s, re + s + h, im + s + h, wr, wi, h);
+  }
 }
 
-void Fft::inverse(std::vector<std::complex<double>>& x) const {
-  run(x, true);
-  double s = 1.0 / double(mN);
-  for (auto& v : x) v *= s;
+void Fft::inverse(double* re, double* im) const {
+  run<true>(re, im);
+  const double s = 1.0 / double(mN);
+  for (std::size_t i = 0; i < mN; ++i) {
+    re[i] *= s;
+    im[i] *= s;
+  }
 }
-
-// Folds a real cepstrum (length n, even) onto positive quefrencies: the
-// cepstrum of the minimum-phase signal with the same magnitude.
-static void foldToMinimumPhaseCepstrum(std::vector<std::complex<double>>& c) {
-  const std::size_t n = c.size();
-  for (std::size_t i = 1; i < n / 2; ++i) c[i] = 2.0 * c[i].real();
-  c[0] = c[0].real();
-  c[n / 2] = c[n / 2].real();
-  for (std::size_t i = n / 2 + 1; i < n; ++i) c[i] = 0.0;
-}
-
 
 MinimumPhase::MinimumPhase(std::size_t irLength)
-    : mLength(irLength), mFft(std::max<std::size_t>(256, 4 * nextPow2(irLength))), mWork(mFft.size()) {}
+    : mLength(irLength),
+      mFft(paddedFftLength(irLength)),
+      mRe(mFft.size()),
+      mIm(mFft.size()),
+      mLogA(mFft.size() / 2 + 1),
+      mLogB(mFft.size() / 2 + 1) {}
 
-void MinimumPhase::compute(const float* x, float* out, std::size_t outLength) {
-  const std::size_t n = mFft.size();
-  std::fill(mWork.begin(), mWork.end(), std::complex<double>(0.0));
-  for (std::size_t i = 0; i < mLength; ++i) mWork[i] = x[i];
-  mFft.forward(mWork);
-  double peak = 0.0;
-  for (const auto& v : mWork) peak = std::max(peak, std::abs(v));
-  if (!(peak > 0.0)) {
-    std::fill(out, out + outLength, 0.0f);
-    return;
+void MinimumPhase::computePair(const float* a, const float* b, float* outA, float* outB, std::size_t outLength) {
+  const std::size_t n = mFft.size(), half = n / 2;
+  loadPair(a, b, mLength, mRe, mIm);
+  mFft.forward(mRe.data(), mIm.data());
+  // Squared magnitudes of both spectra (bins 0..N/2) and their peaks.
+  double peakA = 0.0, peakB = 0.0;
+  for (std::size_t k = 0; k <= half; ++k) {
+    const Split z = split(mRe.data(), mIm.data(), k, n);
+    mLogA[k] = z.ar * z.ar + z.ai * z.ai;
+    mLogB[k] = z.br * z.br + z.bi * z.bi;
+    peakA = std::max(peakA, mLogA[k]);
+    peakB = std::max(peakB, mLogB[k]);
   }
-  const double floorMag = peak * 1e-5;  // -100 dB: keeps log finite at spectral zeros
-  for (auto& v : mWork) v = std::log(std::max(std::abs(v), floorMag));
-  mFft.inverse(mWork);
-  foldToMinimumPhaseCepstrum(mWork);
-  mFft.forward(mWork);
-  for (auto& v : mWork) v = std::exp(v);
-  mFft.inverse(mWork);
-  for (std::size_t i = 0; i < outLength; ++i) out[i] = i < n ? static_cast<float>(mWork[i].real()) : 0.0f;
+  const bool liveA = peakA > 0.0, liveB = peakB > 0.0;
+  // Log magnitude with a floor 100 dB below the peak (keeps log finite at
+  // spectral zeros); a silent input gets 0 so it cannot spoil the other.
+  const double floorA = peakA * 1e-10, floorB = peakB * 1e-10;
+  for (std::size_t k = 0; k <= half; ++k) {
+    mLogA[k] = liveA ? 0.5 * std::log(std::max(mLogA[k], floorA)) : 0.0;
+    mLogB[k] = liveB ? 0.5 * std::log(std::max(mLogB[k], floorB)) : 0.0;
+    joinHermitian(mRe.data(), mIm.data(), k, n, mLogA[k], 0.0, mLogB[k], 0.0);
+  }
+  mFft.inverse(mRe.data(), mIm.data());
+  foldToMinimumPhaseCepstrum(mRe, mIm);
+  mFft.forward(mRe.data(), mIm.data());
+  // Minimum-phase spectra exp(FFT(folded cepstrum)), Hermitian like the cepstra are real.
+  for (std::size_t k = 0; k <= half; ++k) {
+    const Split z = split(mRe.data(), mIm.data(), k, n);
+    const std::complex<double> ea = expOf(z.ar, z.ai), eb = expOf(z.br, z.bi);
+    joinHermitian(mRe.data(), mIm.data(), k, n, ea.real(), ea.imag(), eb.real(), eb.imag());
+  }
+  mFft.inverse(mRe.data(), mIm.data());
+  for (std::size_t i = 0; i < outLength; ++i) {
+    outA[i] = liveA && i < n ? static_cast<float>(mRe[i]) : 0.0f;
+    outB[i] = liveB && i < n ? static_cast<float>(mIm[i]) : 0.0f;
+  }
 }
 
 OnsetEstimator::OnsetEstimator(std::size_t irLength, double lowpassFraction)
     : mLength(irLength),
-      mLowpassFraction(lowpassFraction),
-      mFft(std::max<std::size_t>(256, 4 * nextPow2(irLength))),
-      mSpec(mFft.size()),
-      mWork(mFft.size()),
-      mCorr(irLength + 2 * (SincKernel::kZeroCrossings + 2)) {}
-
-double OnsetEstimator::onsetSamples(const float* x) {
-  const std::size_t n = mFft.size();
-  std::fill(mSpec.begin(), mSpec.end(), std::complex<double>(0.0));
-  double energy = 0.0;
-  for (std::size_t i = 0; i < mLength; ++i) {
-    mSpec[i] = x[i];
-    energy += double(x[i]) * x[i];
-  }
-  if (!(energy > 0.0)) return 0.0;
-  mFft.forward(mSpec);
-
-  // Real cepstrum of log|X|, with a floor 120 dB below the peak so that
-  // spectral zeros do not produce -inf.
-  double peak = 0.0;
-  for (const auto& v : mSpec) peak = std::max(peak, std::abs(v));
-  const double floorMag = peak * 1e-6;
-  for (std::size_t i = 0; i < n; ++i) mWork[i] = std::log(std::max(std::abs(mSpec[i]), floorMag));
-  mFft.inverse(mWork);
-  foldToMinimumPhaseCepstrum(mWork);
-  mFft.forward(mWork);
-  // Cross-spectrum X * conj(Hmin) = |X|^2 e^{i(excess phase)}.
+      mFft(paddedFftLength(irLength)),
+      mWeight(mFft.size() / 2 + 1),
+      mRe(mFft.size()),
+      mIm(mFft.size()),
+      mSpecA(2 * (mFft.size() / 2 + 1)),
+      mSpecB(2 * (mFft.size() / 2 + 1)),
+      mLogA(mFft.size() / 2 + 1),
+      mLogB(mFft.size() / 2 + 1),
+      mCorr(irLength + 2 * (SincKernel::kZeroCrossings + 2)) {
   // A Gaussian low-pass weight favours the low-frequency excess-phase delay,
   // which is stable where the high-frequency first arrival is ambiguous
   // (contralateral ear); it is symmetric, so a unit pulse still peaks exactly.
-  const double lpFraction = mLowpassFraction;  // cutoff as a fraction of the sampling rate
-  for (std::size_t i = 0; i < n; ++i) {
-    double f = double(std::min(i, n - i)) / double(n);
-    double wlp = lpFraction > 0.0 ? std::exp(-(f / lpFraction) * (f / lpFraction)) : 1.0;
-    mWork[i] = wlp * mSpec[i] * std::conj(std::exp(mWork[i]));
+  for (std::size_t k = 0; k < mWeight.size(); ++k) {
+    const double f = double(k) / double(mFft.size());
+    mWeight[k] = lowpassFraction > 0.0 ? std::exp(-(f / lowpassFraction) * (f / lowpassFraction)) : 1.0;
   }
-  mFft.inverse(mWork);
+}
 
+void OnsetEstimator::onsetPair(const float* a, const float* b, double* onsetA, double* onsetB) {
+  const std::size_t n = mFft.size(), half = n / 2;
+  double energyA = 0.0, energyB = 0.0;
+  for (std::size_t i = 0; i < mLength; ++i) {
+    energyA += double(a[i]) * a[i];
+    energyB += double(b[i]) * b[i];
+  }
+  loadPair(a, b, mLength, mRe, mIm);
+  mFft.forward(mRe.data(), mIm.data());
+  double peakA = 0.0, peakB = 0.0;
+  for (std::size_t k = 0; k <= half; ++k) {
+    const Split z = split(mRe.data(), mIm.data(), k, n);
+    mSpecA[2 * k] = z.ar;
+    mSpecA[2 * k + 1] = z.ai;
+    mSpecB[2 * k] = z.br;
+    mSpecB[2 * k + 1] = z.bi;
+    mLogA[k] = z.ar * z.ar + z.ai * z.ai;
+    mLogB[k] = z.br * z.br + z.bi * z.bi;
+    peakA = std::max(peakA, mLogA[k]);
+    peakB = std::max(peakB, mLogB[k]);
+  }
+  const bool liveA = energyA > 0.0 && peakA > 0.0, liveB = energyB > 0.0 && peakB > 0.0;
+
+  // Real cepstrum of log|X|, with a floor 120 dB below the peak so that
+  // spectral zeros do not produce -inf; folded, its FFT is log Hmin.
+  const double floorA = peakA * 1e-12, floorB = peakB * 1e-12;
+  for (std::size_t k = 0; k <= half; ++k) {
+    mLogA[k] = liveA ? 0.5 * std::log(std::max(mLogA[k], floorA)) : 0.0;
+    mLogB[k] = liveB ? 0.5 * std::log(std::max(mLogB[k], floorB)) : 0.0;
+    joinHermitian(mRe.data(), mIm.data(), k, n, mLogA[k], 0.0, mLogB[k], 0.0);
+  }
+  mFft.inverse(mRe.data(), mIm.data());
+  foldToMinimumPhaseCepstrum(mRe, mIm);
+  mFft.forward(mRe.data(), mIm.data());
+  // Cross-spectra w X conj(Hmin) = w |X|^2 e^{i(excess phase)}, Gaussian-weighted.
+  for (std::size_t k = 0; k <= half; ++k) {
+    const Split z = split(mRe.data(), mIm.data(), k, n);
+    const std::complex<double> ha = expOf(z.ar, z.ai), hb = expOf(z.br, z.bi);
+    const double w = mWeight[k];
+    const double xar = w * mSpecA[2 * k], xai = w * mSpecA[2 * k + 1];
+    const double xbr = w * mSpecB[2 * k], xbi = w * mSpecB[2 * k + 1];
+    joinHermitian(mRe.data(), mIm.data(), k, n, xar * ha.real() + xai * ha.imag(), xai * ha.real() - xar * ha.imag(),
+                  xbr * hb.real() + xbi * hb.imag(), xbi * hb.real() - xbr * hb.imag());
+  }
+  mFft.inverse(mRe.data(), mIm.data());
+  *onsetA = liveA ? peakLag(mRe.data()) : 0.0;
+  *onsetB = liveB ? peakLag(mIm.data()) : 0.0;
+}
+
+double OnsetEstimator::peakLag(const double* circular) {
+  const std::size_t n = mFft.size();
   // Correlation at lags -pad .. mLength + pad - 1 (circular indices).
   const long pad = SincKernel::kZeroCrossings + 2;
   for (std::size_t j = 0; j < mCorr.size(); ++j) {
     long lag = long(j) - pad;
-    mCorr[j] = mWork[std::size_t((lag + long(n)) % long(n))].real();
+    mCorr[j] = circular[std::size_t((lag + long(n)) % long(n))];
   }
   // Integer peak over non-negative lags (the excess-phase delay is causal).
   std::size_t best = std::size_t(pad);

@@ -1,8 +1,8 @@
 #pragma once
 // Internal DSP for HRIR preparation: a radix-2 FFT, minimum phase and the
-// onset (excess phase delay) estimator. See hrir_dsp.cpp for methods and
-// references; resampling is earshot/dsp/resample.h.
-#include <complex>
+// onset (excess phase delay) estimator, each working on the two ears of a
+// measurement at once. See hrir_dsp.cpp for methods and references;
+// resampling is earshot/dsp/resample.h.
 #include <cstddef>
 #include <vector>
 
@@ -10,18 +10,23 @@
 
 namespace earshot::hrtf::detail {
 
-/** In-place iterative radix-2 FFT of a power-of-two length; inverse includes 1/N. */
+/** In-place iterative radix-2 complex FFT of a power-of-two length on split
+ *  real/imaginary arrays (double); the inverse includes 1/N. Twiddles are
+ *  computed once, stored per stage contiguously. Const methods: thread-safe. */
 class Fft {
  public:
   explicit Fft(std::size_t n);
   std::size_t size() const { return mN; }
-  void forward(std::vector<std::complex<double>>& x) const { run(x, false); }
-  void inverse(std::vector<std::complex<double>>& x) const;
+  void forward(double* re, double* im) const { run<false>(re, im); }
+  void inverse(double* re, double* im) const;
 
  private:
-  void run(std::vector<std::complex<double>>& x, bool inverse) const;
+  template <bool kInverse>
+  void run(double* re, double* im) const;
   std::size_t mN;
-  std::vector<std::complex<double>> mTwiddle;  // e^{-2 pi i k / N}, k < N/2
+  // Stage with half-length h (h = 1, 2, 4, ... N/2) uses entries [h - 1, 2h - 1):
+  // e^{-2 pi i j / (2h)}, j < h.
+  std::vector<double> mTwRe, mTwIm;
   std::vector<std::size_t> mBitReverse;
 };
 
@@ -32,33 +37,42 @@ using ::earshot::interpolateAt;
 using ::earshot::resampleShifted;
 using ::earshot::SincKernel;
 
-/** Minimum-phase version of an impulse response with the same magnitude
- *  response (folded real cepstrum). Reusable scratch; not thread-safe. */
+/** Minimum-phase versions of two impulse responses (one measurement's two
+ *  ears) with the same magnitude responses (folded real cepstrum), both in
+ *  one complex FFT. Reusable scratch; not thread-safe. */
 class MinimumPhase {
  public:
   explicit MinimumPhase(std::size_t irLength);
-  /** x has irLength taps; writes outLength (<= FFT size) taps to out. */
-  void compute(const float* x, float* out, std::size_t outLength);
+  /** a, b have irLength taps; writes outLength (<= FFT size) taps to outA, outB.
+   *  An all-zero input gives zeros. */
+  void computePair(const float* a, const float* b, float* outA, float* outB, std::size_t outLength);
 
  private:
   std::size_t mLength;
   Fft mFft;
-  std::vector<std::complex<double>> mWork;
+  std::vector<double> mRe, mIm;
+  std::vector<double> mLogA, mLogB;  // squared magnitude, then log magnitude, bins 0..N/2
 };
 
-/** Onset of an impulse response in (fractional) samples: the lag maximising the
- *  cross-correlation of x with its minimum-phase version. Reusable scratch. */
+/** Onsets of two impulse responses in (fractional) samples: for each, the lag
+ *  maximising the cross-correlation of x with its minimum-phase version.
+ *  Reusable scratch; not thread-safe. */
 class OnsetEstimator {
  public:
   /** @param lowpassFraction Gaussian weight cutoff / sampling rate (0 = none). */
   OnsetEstimator(std::size_t irLength, double lowpassFraction);
-  double onsetSamples(const float* x);
+  /** a, b have irLength taps. An all-zero input has onset 0. */
+  void onsetPair(const float* a, const float* b, double* onsetA, double* onsetB);
 
  private:
+  // Golden-section peak of the band-limited correlation (circular, FFT length).
+  double peakLag(const double* circular);
   std::size_t mLength;
-  double mLowpassFraction;
   Fft mFft;
-  std::vector<std::complex<double>> mSpec, mWork;
+  std::vector<double> mWeight;  // Gaussian low-pass weight per bin k <= N/2
+  std::vector<double> mRe, mIm;
+  std::vector<double> mSpecA, mSpecB;  // spectra, bins 0..N/2, (re, im) interleaved
+  std::vector<double> mLogA, mLogB;    // squared magnitude, then log magnitude, bins 0..N/2
   std::vector<double> mCorr;
 };
 

@@ -117,6 +117,51 @@ std::pair<Vec3d, double> gridCell(int face, int i, int j, int n) {
   return {centre, r};
 }
 
+// Cube-map cells in blocks of kBlockN x kBlockN, for a coarse pass that
+// rules out whole blocks before the per-cell tests (same per-cell results,
+// a sixteenth of the tests).
+constexpr int kBlockN = 4;
+static_assert(kGridN % kBlockN == 0, "blocks tile the cube-map faces");
+
+struct CellCap {
+  Vec3d centre;
+  double radius;
+  int index;  // cell index, (face * kGridN + j) * kGridN + i
+};
+
+struct CellBlock {
+  Vec3d centre;
+  double radius;  // every point of every cell lies within this angle of centre
+  std::vector<CellCap> cells;
+};
+
+std::vector<CellBlock> cellBlocks() {
+  std::vector<CellBlock> blocks;
+  const int perFace = kGridN / kBlockN;
+  for (int face = 0; face < 6; ++face) {
+    for (int bj = 0; bj < perFace; ++bj) {
+      for (int bi = 0; bi < perFace; ++bi) {
+        CellBlock b;
+        b.centre = cubePoint(face, -1.0 + 2.0 * (bi + 0.5) / perFace, -1.0 + 2.0 * (bj + 0.5) / perFace);
+        b.radius = 0.0;
+        for (int j = bj * kBlockN; j < (bj + 1) * kBlockN; ++j) {
+          for (int i = bi * kBlockN; i < (bi + 1) * kBlockN; ++i) {
+            const auto [centre, r] = gridCell(face, i, j, kGridN);
+            b.cells.push_back({centre, r, (face * kGridN + j) * kGridN + i});
+            b.radius = std::max(b.radius, angleBetween(b.centre, centre) + r);
+          }
+        }
+        blocks.push_back(std::move(b));
+      }
+    }
+  }
+  return blocks;
+}
+
+// Slack (radians) of the coarse tests over the per-cell ones: covers their
+// 1e-6 margins on cosines (at most 1.5e-3 rad) and rounding.
+constexpr double kCoarseMargin = 1e-2;
+
 }  // namespace
 
 Result<std::shared_ptr<const HrtfSet>> HrtfSet::load(const std::string& sofaPath, double sampleRateHz,
@@ -196,15 +241,18 @@ Result<std::shared_ptr<const HrtfSet>> HrtfSet::load(const std::string& sofaPath
 
   // Onsets at the file's rate, plus any Data.Delay (samples, I x R or M x R).
   std::vector<double> onset(m * 2), fileDelay(m * 2, 0.0);
-  detail::OnsetEstimator estimator(n, std::min(kOnsetLowpassHz, 0.25 * fsIn) / fsIn);
-  for (std::size_t i = 0; i < m * 2; ++i) {
-    const float* ir = h->DataIR.values + i * n;
-    for (std::size_t k = 0; k < n; ++k) {
-      if (!std::isfinite(ir[k])) {
-        return parseError(sofaPath + ": Data.IR of measurement " + std::to_string(i / 2) + " has a non-finite value");
-      }
+  for (std::size_t k = 0; k < m * 2 * n; ++k) {
+    if (!std::isfinite(h->DataIR.values[k])) {
+      return parseError(sofaPath + ": Data.IR of measurement " + std::to_string(k / (2 * n)) +
+                        " has a non-finite value");
     }
-    onset[i] = estimator.onsetSamples(ir);
+  }
+  detail::OnsetEstimator estimator(n, std::min(kOnsetLowpassHz, 0.25 * fsIn) / fsIn);
+  for (std::size_t i = 0; i < m * 2; i += 2) {
+    const float* left = h->DataIR.values + i * n;
+    estimator.onsetPair(left, left + n, &onset[i], &onset[i + 1]);
+  }
+  for (std::size_t i = 0; i < m * 2; ++i) {
     if (h->DataDelay.elements == 2) fileDelay[i] = h->DataDelay.values[i % 2];
     if (h->DataDelay.elements == m * 2) fileDelay[i] = h->DataDelay.values[i];
   }
@@ -231,14 +279,26 @@ Result<std::shared_ptr<const HrtfSet>> HrtfSet::load(const std::string& sofaPath
   const double kernelHalfOut = detail::SincKernel::kZeroCrossings / std::min(1.0, 0.95 * sampleRateHz / fsIn) *
                                sampleRateHz / fsIn;
   const std::size_t margin = std::size_t(std::ceil(kernelHalfOut));
-  std::vector<float> resampled(length + 2 * margin);
-  detail::MinimumPhase minPhase(resampled.size());
-  for (std::size_t i = 0; i < m * 2; ++i) {
-    detail::resampleShifted(h->DataIR.values + i * n, n, fsIn, sampleRateHz, -double(margin) * fsIn / sampleRateHz,
-                            resampled.data(), resampled.size());
-    minPhase.compute(resampled.data(), set->mTaps.data() + i * length, length);
-    set->mDelays[i] = (onset[i] + fileDelay[i]) / fsIn - set->mReferenceOnsetSeconds;
+  const std::size_t padded = length + 2 * margin;
+  std::vector<float> resampled(2 * padded, 0.0f);  // left, right
+  detail::MinimumPhase minPhase(padded);
+  for (std::size_t i = 0; i < m * 2; i += 2) {
+    for (std::size_t ear = 0; ear < 2; ++ear) {
+      const float* ir = h->DataIR.values + (i + ear) * n;
+      float* out = resampled.data() + ear * padded;
+      if (fsIn == sampleRateHz) {
+        // resampleShifted at equal rates and a whole-sample shift copies exactly
+        // (the kernel is 1 at 0 and 0 at the other integers): skip its sums.
+        std::copy(ir, ir + n, out + margin);
+      } else {
+        detail::resampleShifted(ir, n, fsIn, sampleRateHz, -double(margin) * fsIn / sampleRateHz, out, padded);
+      }
+    }
+    float* taps = set->mTaps.data() + i * length;
+    minPhase.computePair(resampled.data(), resampled.data() + padded, taps, taps + length, length);
   }
+  for (std::size_t i = 0; i < m * 2; ++i)
+    set->mDelays[i] = (onset[i] + fileDelay[i]) / fsIn - set->mReferenceOnsetSeconds;
 
   set->buildNearestGrid();
   if (mode == InterpolationMode::kBarycentric) set->buildTriangulation();
@@ -253,6 +313,7 @@ void HrtfSet::buildTriangulation() {
   struct Cap {
     Vec3d centre;
     double radius, cosR, sinR;
+    double cosCoarse, sinCoarse;  // of radius + kCoarseMargin
   };
   std::vector<Cap> caps;
   for (const auto& t : hull) {
@@ -270,27 +331,36 @@ void HrtfSet::buildTriangulation() {
     mTriangles.push_back(tri);
     Vec3d centre = normalize(a + b + c);
     double r = std::max({angleBetween(centre, a), angleBetween(centre, b), angleBetween(centre, c)});
-    caps.push_back({centre, r, std::cos(r), std::sin(r)});
+    const double coarse = r + kCoarseMargin;
+    caps.push_back({centre, r, std::cos(r), std::sin(r), std::cos(coarse), std::sin(coarse)});
   }
 
   mGridN = kGridN;
   const int cells = 6 * kGridN * kGridN;
   std::vector<std::vector<uint32_t>> lists(cells);
-  for (int face = 0; face < 6; ++face) {
-    for (int j = 0; j < kGridN; ++j) {
-      for (int i = 0; i < kGridN; ++i) {
-        const auto [centre, r] = gridCell(face, i, j, kGridN);
-        auto& list = lists[(face * kGridN + j) * kGridN + i];
-        const double cr = std::cos(r), sr = std::sin(r);
-        for (uint32_t t = 0; t < caps.size(); ++t) {
-          // Caps overlap iff angle(centres) <= r + radius, i.e. the dot product
-          // >= cos(r + radius) (with a small margin). A cap of radius >= 90
-          // degrees is not convex: keep that triangle everywhere.
-          const Cap& cp = caps[t];
-          bool keep = cp.radius >= 0.49 * kPi || r + cp.radius >= kPi ||
-                      dot(centre, cp.centre) >= cr * cp.cosR - sr * cp.sinR - 1e-6;
-          if (keep) list.push_back(t);
-        }
+  std::vector<uint32_t> candidates;
+  for (const CellBlock& block : cellBlocks()) {
+    // Coarse: caps that can overlap some cell of the block (ascending t).
+    // angle(block, cap) <= block.radius + cap.radius + margin, compared as cosines.
+    candidates.clear();
+    const double cb = std::cos(block.radius), sb = std::sin(block.radius);
+    for (uint32_t t = 0; t < caps.size(); ++t) {
+      const Cap& cp = caps[t];
+      if (cp.radius >= 0.49 * kPi || block.radius + cp.radius + kCoarseMargin >= kPi ||
+          dot(block.centre, cp.centre) >= cb * cp.cosCoarse - sb * cp.sinCoarse)
+        candidates.push_back(t);
+    }
+    for (const CellCap& cell : block.cells) {
+      auto& list = lists[cell.index];
+      const double r = cell.radius, cr = std::cos(r), sr = std::sin(r);
+      for (uint32_t t : candidates) {
+        // Caps overlap iff angle(centres) <= r + radius, i.e. the dot product
+        // >= cos(r + radius) (with a small margin). A cap of radius >= 90
+        // degrees is not convex: keep that triangle everywhere.
+        const Cap& cp = caps[t];
+        bool keep = cp.radius >= 0.49 * kPi || r + cp.radius >= kPi ||
+                    dot(cell.centre, cp.centre) >= cr * cp.cosR - sr * cp.sinR - 1e-6;
+        if (keep) list.push_back(t);
       }
     }
   }
@@ -303,23 +373,36 @@ void HrtfSet::buildTriangulation() {
 void HrtfSet::buildNearestGrid() {
   // A site can be nearest to a point of a cell (cap centre c, radius r) only
   // if it lies within angle(c, nearest site of c) + 2 r of c (triangle
-  // inequality), so each cell keeps just those candidates.
+  // inequality), so each cell keeps just those candidates. A block's
+  // candidates, the sites within 3 rho + theta of its centre (rho its radius,
+  // theta the angle to its nearest site), hold for each of its cells the
+  // cell's nearest site (within rho + theta of the cell) and every site the
+  // cell keeps (within that + 2 r).
   const int cells = 6 * kGridN * kGridN;
+  std::vector<std::vector<uint32_t>> lists(cells);
+  std::vector<uint32_t> candidates;
+  for (const CellBlock& block : cellBlocks()) {
+    double blockBest = -2.0;
+    for (const Vec3f& d : mDirections) blockBest = std::max(blockBest, dot(block.centre, Vec3d(d)));
+    const double reach = std::acos(std::clamp(blockBest, -1.0, 1.0)) + 3.0 * block.radius + kCoarseMargin;
+    const double cosReach = reach >= kPi ? -2.0 : std::cos(reach);
+    candidates.clear();
+    for (uint32_t k = 0; k < mDirections.size(); ++k)
+      if (dot(block.centre, Vec3d(mDirections[k])) >= cosReach) candidates.push_back(k);
+    for (const CellCap& cell : block.cells) {
+      double bestDot = -2.0;
+      for (uint32_t k : candidates) bestDot = std::max(bestDot, dot(cell.centre, Vec3d(mDirections[k])));
+      double limit = std::acos(std::clamp(bestDot, -1.0, 1.0)) + 2.0 * cell.radius + 1e-4;
+      double cosLimit = limit >= kPi ? -2.0 : std::cos(limit);
+      for (uint32_t k : candidates)
+        if (dot(cell.centre, Vec3d(mDirections[k])) >= cosLimit) lists[cell.index].push_back(k);
+    }
+  }
   mNearStart.assign(cells + 1, 0);
   mNearSites.clear();
-  for (int face = 0; face < 6; ++face) {
-    for (int j = 0; j < kGridN; ++j) {
-      for (int i = 0; i < kGridN; ++i) {
-        const auto [centre, r] = gridCell(face, i, j, kGridN);
-        double bestDot = -2.0;
-        for (const Vec3f& d : mDirections) bestDot = std::max(bestDot, dot(centre, Vec3d(d)));
-        double limit = std::acos(std::clamp(bestDot, -1.0, 1.0)) + 2.0 * r + 1e-4;
-        double cosLimit = limit >= kPi ? -2.0 : std::cos(limit);
-        for (uint32_t k = 0; k < mDirections.size(); ++k)
-          if (dot(centre, Vec3d(mDirections[k])) >= cosLimit) mNearSites.push_back(k);
-        mNearStart[(face * kGridN + j) * kGridN + i + 1] = uint32_t(mNearSites.size());
-      }
-    }
+  for (int c = 0; c < cells; ++c) {
+    mNearSites.insert(mNearSites.end(), lists[c].begin(), lists[c].end());
+    mNearStart[c + 1] = uint32_t(mNearSites.size());
   }
 }
 

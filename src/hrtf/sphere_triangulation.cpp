@@ -35,6 +35,7 @@ struct Face {
   std::array<uint32_t, 3> v;
   Vec3d n;  // outward normal (unnormalised)
   double d;  // plane offset: dot(n, p) - d > 0 means p is outside
+  double tolerance;  // scale-aware: |n| ~ twice the face area
   bool alive;
 };
 
@@ -49,8 +50,12 @@ std::vector<std::array<uint32_t, 3>> convexHullTriangles(const std::vector<Vec3d
   std::vector<Vec3d> p;
   for (uint32_t i = 0; i < points.size(); ++i) {
     bool dup = false;
-    for (uint32_t j : ids)
-      if (length(points[i] - points[j]) < 1e-6) { dup = true; break; }
+    for (uint32_t j : ids) {
+      const Vec3d d = points[i] - points[j];
+      // Points 2e-6 apart on an axis are not duplicates: skip the square root.
+      if (std::fabs(d.x) >= 2e-6 || std::fabs(d.y) >= 2e-6 || std::fabs(d.z) >= 2e-6) continue;
+      if (length(d) < 1e-6) { dup = true; break; }
+    }
     if (dup) continue;
     ids.push_back(i);
     double r = 1.0 + 1e-6 * (double(splitMix(i) >> 11) * (1.0 / 9007199254740992.0));
@@ -80,13 +85,16 @@ std::vector<std::array<uint32_t, 3>> convexHullTriangles(const std::vector<Vec3d
   if (best < 1e-9) return out;  // coplanar set: no volume
 
   std::vector<Face> faces;
+  std::vector<uint32_t> alive;  // indices of the live faces, ascending
   std::unordered_map<uint64_t, uint32_t> edgeOwner;  // directed edge -> face
   const Vec3d centre = (p[i0] + p[i1] + p[i2] + p[i3]) * 0.25;
   auto addFace = [&](uint32_t a, uint32_t b, uint32_t c) {
-    Face f{{a, b, c}, cross(p[b] - p[a], p[c] - p[a]), 0.0, true};
+    Face f{{a, b, c}, cross(p[b] - p[a], p[c] - p[a]), 0.0, 0.0, true};
     f.d = dot(f.n, p[a]);
+    f.tolerance = 1e-14 * length(f.n);
     faces.push_back(f);
     auto id = uint32_t(faces.size() - 1);
+    alive.push_back(id);
     edgeOwner[edgeKey(a, b)] = id;
     edgeOwner[edgeKey(b, c)] = id;
     edgeOwner[edgeKey(c, a)] = id;
@@ -108,13 +116,11 @@ std::vector<std::array<uint32_t, 3>> convexHullTriangles(const std::vector<Vec3d
     if (ip == i0 || ip == i1 || ip == i2 || ip == i3) continue;
     const Vec3d& q = p[ip];
     visible.clear();
-    for (uint32_t f = 0; f < faces.size(); ++f) {
-      if (!faces[f].alive) continue;
-      // Scale-aware tolerance: |n| ~ twice the face area.
-      if (dot(faces[f].n, q) - faces[f].d > 1e-14 * length(faces[f].n)) visible.push_back(f);
-    }
+    for (uint32_t f : alive)
+      if (dot(faces[f].n, q) - faces[f].d > faces[f].tolerance) visible.push_back(f);
     if (visible.empty()) continue;  // inside the hull (not expected on a sphere)
     for (uint32_t f : visible) faces[f].alive = false;
+    alive.erase(std::remove_if(alive.begin(), alive.end(), [&](uint32_t f) { return !faces[f].alive; }), alive.end());
     horizon.clear();
     for (uint32_t f : visible) {
       const auto& v = faces[f].v;
