@@ -24,9 +24,9 @@
 // spectra of a and b are the Hermitian and anti-Hermitian parts), and every
 // spectrum in the chain (log magnitude, folded cepstrum, minimum phase,
 // cross-spectrum) is Hermitian, so logs and exponentials are taken on bins
-// 0..N/2 only and mirrored (e.g. Oppenheim & Schafer, ch. 9, "two real
-// sequences with one complex FFT"). Same values as one ear at a time up to
-// double rounding.
+// 0..N/2 only and mirrored (two real sequences in one complex FFT: W. H.
+// Press et al., Numerical Recipes, 3rd ed., section 12.3). Same values as one
+// ear at a time up to double rounding.
 #include "hrir_dsp.h"
 
 #include <algorithm>
