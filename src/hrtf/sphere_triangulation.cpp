@@ -85,7 +85,12 @@ std::vector<std::array<uint32_t, 3>> convexHullTriangles(const std::vector<Vec3d
   if (best < 1e-9) return out;  // coplanar set: no volume
 
   std::vector<Face> faces;
-  std::vector<uint32_t> alive;  // indices of the live faces, ascending
+  struct LivePlane {  // a live face's plane, copied so the visibility scan reads memory in order
+    Vec3d n;
+    double d, tolerance;
+    uint32_t face;
+  };
+  std::vector<LivePlane> alive;  // ascending face index
   std::unordered_map<uint64_t, uint32_t> edgeOwner;  // directed edge -> face
   const Vec3d centre = (p[i0] + p[i1] + p[i2] + p[i3]) * 0.25;
   auto addFace = [&](uint32_t a, uint32_t b, uint32_t c) {
@@ -94,7 +99,7 @@ std::vector<std::array<uint32_t, 3>> convexHullTriangles(const std::vector<Vec3d
     f.tolerance = 1e-14 * length(f.n);
     faces.push_back(f);
     auto id = uint32_t(faces.size() - 1);
-    alive.push_back(id);
+    alive.push_back({f.n, f.d, f.tolerance, id});
     edgeOwner[edgeKey(a, b)] = id;
     edgeOwner[edgeKey(b, c)] = id;
     edgeOwner[edgeKey(c, a)] = id;
@@ -116,11 +121,12 @@ std::vector<std::array<uint32_t, 3>> convexHullTriangles(const std::vector<Vec3d
     if (ip == i0 || ip == i1 || ip == i2 || ip == i3) continue;
     const Vec3d& q = p[ip];
     visible.clear();
-    for (uint32_t f : alive)
-      if (dot(faces[f].n, q) - faces[f].d > faces[f].tolerance) visible.push_back(f);
+    for (const LivePlane& l : alive)
+      if (dot(l.n, q) - l.d > l.tolerance) visible.push_back(l.face);
     if (visible.empty()) continue;  // inside the hull (not expected on a sphere)
     for (uint32_t f : visible) faces[f].alive = false;
-    alive.erase(std::remove_if(alive.begin(), alive.end(), [&](uint32_t f) { return !faces[f].alive; }), alive.end());
+    alive.erase(std::remove_if(alive.begin(), alive.end(), [&](const LivePlane& l) { return !faces[l.face].alive; }),
+                alive.end());
     horizon.clear();
     for (uint32_t f : visible) {
       const auto& v = faces[f].v;
