@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <memory>
 #include <string>
 
@@ -35,10 +36,26 @@ constexpr size_t kRenderFadeFrames = 2048;
 struct SimulatedPose {
   bool valid = false;
   Vec3d source, listener, forward, up;
-  bool operator==(const SimulatedPose& o) const {
-    return valid && o.valid && source == o.source && listener == o.listener && forward == o.forward && up == o.up;
+  // Close enough to `o` that the reflections need no new simulation: neither
+  // end moved more than minMove metres, the head turned less than minTurn
+  // radians. Zero thresholds: any change at all.
+  bool closeTo(const SimulatedPose& o, double minMove, double minTurn) const {
+    if (!valid || !o.valid) return false;
+    if (minMove <= 0 && minTurn <= 0)
+      return source == o.source && listener == o.listener && forward == o.forward && up == o.up;
+    auto angle = [](const Vec3d& a, const Vec3d& b) {
+      return std::acos(std::clamp(dot(normalize(a), normalize(b)), -1.0, 1.0));
+    };
+    return length(source - o.source) <= minMove && length(listener - o.listener) <= minMove &&
+           angle(forward, o.forward) <= minTurn && angle(up, o.up) <= minTurn;
   }
 };
+
+std::string formatNumber(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%g", v);
+  return buf;
+}
 
 double clampGainDb(double db) { return std::clamp(std::isfinite(db) ? db : -120.0, -120.0, 60.0); }
 
@@ -128,8 +145,10 @@ Result<RenderResult> renderScene(const SceneDescription& scene, const RenderOpti
     s.direct = still ? runtime::DirectMode::kInImpulseResponse : runtime::DirectMode::kPerBlock;
     out.log.push_back("source \"" + src.name + "\": " +
                       (still ? "static: simulated once, direct sound inside its IR (exact convolution)"
-                             : "moving: direct sound rendered per block, reflections updated at " +
-                                   std::to_string(ss.updateRateHz) + " Hz"));
+                             : "moving: direct sound rendered per block; reflections checked " +
+                                   formatNumber(ss.updateRateHz) + " times a second, simulated again after " +
+                                   formatNumber(options.minMoveMeters) + " m of motion or " +
+                                   formatNumber(options.minTurnDegrees) + " degrees of head turn"));
     auto id = engine.addSource(s);
     if (!id.isOk()) return id.status();
     ids.push_back(*id);
@@ -187,7 +206,7 @@ Result<RenderResult> renderScene(const SceneDescription& scene, const RenderOpti
       std::vector<uint32_t> changed;
       for (size_t i = 0; i < ids.size(); ++i) {
         SimulatedPose now{true, scene.sources[i].trajectory.at(t).position, lp.position, lp.forward, lp.up};
-        if (!(now == simulated[i])) {
+        if (!now.closeTo(simulated[i], options.minMoveMeters, options.minTurnDegrees * kPi / 180.0)) {
           changed.push_back(ids[i]);
           simulated[i] = now;
         }

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <optional>
 #include <string>
 
 #include "earshot/core/denormals.h"
@@ -96,6 +97,7 @@ Result<std::unique_ptr<Engine>> Engine::create(const EngineSettings& s, std::sha
   e->mTracer = e->mEmptyTracer;
   e->mMaterials = std::make_shared<const MaterialTable>();
   e->mPool = std::make_unique<ThreadPool>(s.threads);
+  for (unsigned w = 0; w < e->mPool->threadCount(); ++w) e->mWorkerPools.push_back(std::make_unique<ThreadPool>(1));
   e->mInputs.assign(s.maxSources, nullptr);
   return e;
 }
@@ -194,14 +196,35 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& order) {
 
   SimulationStats stats;
   const size_t maxFrames = size_t(std::ceil(mSettings.maxIrSeconds * mSettings.sampleRateHz));
+  struct Job {
+    uint32_t slot, generation;
+    OmniIrSettings settings;
+    Vec3d source;
+    std::optional<Result<OmniIrResult>> result;
+  };
+  std::vector<Job> jobs;
   for (uint32_t i : order) {
     Slot& slot = *mSlots[i];
-    const uint32_t generation = slot.generation.load();
-    const Vec3d source{slot.position[0].load(), slot.position[1].load(), slot.position[2].load()};
-    OmniIrSettings s = mSettings.simulation;
-    s.includeDirect = DirectMode(slot.direct.load()) == DirectMode::kInImpulseResponse;
-    auto r = computeIr(*tracer, *materials, source, listener, s, *mPool, &receiver);
-    if (!r.isOk()) return Status(r.status().code(), "source " + std::to_string(i) + ": " + r.status().message());
+    Job j{i, slot.generation.load(), mSettings.simulation,
+          {slot.position[0].load(), slot.position[1].load(), slot.position[2].load()}, std::nullopt};
+    j.settings.includeDirect = DirectMode(slot.direct.load()) == DirectMode::kInImpulseResponse;
+    jobs.push_back(std::move(j));
+  }
+  // Several sources: one per worker, each traced single-threaded (synthesis
+  // is single-threaded anyway); one source: all workers trace it. Either way
+  // each IR is bit-identical (the tracer's result does not depend on threads).
+  if (jobs.size() >= 2 && mPool->threadCount() >= 2) {
+    mPool->parallelFor(jobs.size(), [&](size_t k, unsigned worker) {
+      Job& j = jobs[k];
+      j.result = computeIr(*tracer, *materials, j.source, listener, j.settings, *mWorkerPools[worker], &receiver);
+    });
+  } else {
+    for (Job& j : jobs) j.result = computeIr(*tracer, *materials, j.source, listener, j.settings, *mPool, &receiver);
+  }
+  for (Job& j : jobs) {
+    Slot& slot = *mSlots[j.slot];
+    auto& r = *j.result;
+    if (!r.isOk()) return Status(r.status().code(), "source " + std::to_string(j.slot) + ": " + r.status().message());
     stats.traceMs += r->timings.traceMs + r->timings.imageSourcesMs;
     stats.synthesisMs += r->timings.synthesisMs;
     const auto tPrepare = std::chrono::steady_clock::now();
@@ -216,16 +239,16 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& order) {
     }
     auto prepared = PreparedIr::create(ir, mMixer->layout());
     if (!prepared.isOk()) return prepared.status();
-    EARSHOT_RETURN_IF_ERROR(mMixer->setIr(i, *prepared));
+    EARSHOT_RETURN_IF_ERROR(mMixer->setIr(j.slot, *prepared));
     // Transmission through occluders: the direct path's band gains without air.
     const DirectPath& d = r->direct;
-    const BandArrayD air = s.air.enabled ? airAttenuationDbPerMeter(s.air) : filledBands(0.0);
+    const BandArrayD air = j.settings.air.enabled ? airAttenuationDbPerMeter(j.settings.air) : filledBands(0.0);
     for (int b = 0; b < kNumBands; ++b) {
       const double airGain = std::pow(10.0, -air[b] * d.distanceMeters / 20.0);
       slot.transmission[b].store(airGain > 0 ? d.bandGain[b] / airGain : 0.0);
     }
     slot.audible.store(d.audible);
-    slot.simulatedGeneration.store(generation);
+    slot.simulatedGeneration.store(j.generation);
     stats.prepareMs += msSince(tPrepare);
     ++stats.sourcesSimulated;
   }

@@ -30,6 +30,8 @@ struct RenderCliOptions {
   double from = 0.0;
   double to = 0.0;
   bool strict = false;
+  double minMove = 0.25;
+  double minTurn = 5.0;
   bool quiet = false;
 };
 
@@ -100,6 +102,8 @@ int run(const RenderCliOptions& o, const CLI::App& cmd) {
   ro.threads = o.threads;
   ro.fromSeconds = o.from;
   if (cmd.count("--to")) ro.toSeconds = o.to;
+  ro.minMoveMeters = o.minMove;
+  ro.minTurnDegrees = o.minTurn;
   Progress progress(o.quiet);
   ro.progress = [&](double f) { progress.update(f); };
   auto result = renderScene(*scene, ro);
@@ -144,6 +148,14 @@ const Registrar registrar([](CLI::App& root) {
       ->capture_default_str();
   cmd->add_option("--to", o->to, "End of the rendered window, seconds (default: the scene's duration)")
       ->check(CLI::Range(0.0, 86400.0));
+  cmd->add_option("--min-move", o->minMove,
+                  "Re-simulate a source's reflections only after it or the listener moved this far (m; 0: any "
+                  "change). The direct sound follows every block")
+      ->check(CLI::Range(0.0, 1000.0))
+      ->capture_default_str();
+  cmd->add_option("--min-turn", o->minTurn, "... or the listener turned this far (degrees; 0: any change)")
+      ->check(CLI::Range(0.0, 180.0))
+      ->capture_default_str();
   cmd->add_flag("--strict", o->strict, "Unknown keys in the scene file are errors (default: warnings)");
   cmd->add_flag("-q,--quiet", o->quiet, "No progress, log or summary on stderr (errors and clipping warnings remain)");
   cmd->callback([o, cmd] { setExitCode(run(*o, *cmd)); });

@@ -6,7 +6,8 @@
  *  trajectories (so the direct sound's delay, level and HRTF follow motion
  *  sample-accurately across blocks: Doppler, no clicks), and at the scene's
  *  update rate the reflections are simulated again for every source whose
- *  relative pose changed (crossfaded in the convolver).
+ *  pose or the listener's changed by more than RenderOptions::minMoveMeters /
+ *  minTurnDegrees since its last simulation (crossfaded in the convolver).
  *
  *  A source that does not move, heard by a listener that does not move, is
  *  simulated once, with the direct sound inside its IR: its output is then
@@ -40,6 +41,12 @@ struct RenderOptions {
   /** Reverberation carried into `fromSeconds`: rendering starts this much
    *  earlier (not before 0) and the pre-roll is dropped. */
   double preRollSeconds = 2.0;
+  /** At an update, a source's reflections are simulated again only if it or
+   *  the listener moved more than this (metres) or the listener turned more
+   *  than minTurnDegrees since its last simulation; 0 and 0: at any change.
+   *  The direct sound follows every block regardless. */
+  double minMoveMeters = 0.25;
+  double minTurnDegrees = 5.0;
   /** Called now and then with the fraction done (0..1); from the calling thread. */
   std::function<void(double fraction)> progress;
 };

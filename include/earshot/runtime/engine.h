@@ -121,6 +121,7 @@ class Engine {
   EngineSettings mSettings;
   std::shared_ptr<const BinauralModel> mModel;
   std::unique_ptr<ThreadPool> mPool;
+  std::vector<std::unique_ptr<ThreadPool>> mWorkerPools;  // one single-thread pool per worker of mPool
   std::unique_ptr<ConvolutionMixer> mMixer;
   std::vector<std::unique_ptr<Slot>> mSlots;
   std::atomic<double> mListener[9];  // position, forward, up
