@@ -105,7 +105,9 @@ class HrtfSet {
    *          a bad sampling rate, no measurements, HRIRs longer than
    *          HrirPair::kMaxTaps at this rate. Never falls back to another set.
    *  Threading: any thread except the audio thread (reads a file, allocates,
-   *  takes 0.1..1 s for a few thousand directions). */
+   *  prepares the measurements on up to 4 threads of its own; about 0.3 s of
+   *  CPU for the 2354-direction KU100 set, half of it in libmysofa's reading).
+   *  The result does not depend on the thread count. */
   static Result<std::shared_ptr<const HrtfSet>> load(const std::string& sofaPath, double sampleRateHz,
                                                       InterpolationMode mode = InterpolationMode::kBarycentric);
 
