@@ -5,11 +5,13 @@
 #include <atomic>
 #include <condition_variable>
 #include <cstdint>
+#include <cstring>
 #include <memory>
 #include <mutex>
 #include <new>
 #include <string>
 #include <thread>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -115,6 +117,17 @@ earshot_status guard(const Env* env, const char* fn, F&& body) noexcept {
 /** The struct_size check of every settings struct: "" when `got` is
  *  `expected`, else "name->struct_size got is not expected". */
 std::string checkStructSize(uint32_t got, size_t expected, const char* name);
+
+/** The integer a C caller stored in an enum field or argument. C allows any
+ *  int there; reading it as the C++ enum type would be undefined for values
+ *  outside the enumerators, so read its bytes. */
+template <class E>
+int64_t rawEnum(const E& value) {
+  std::underlying_type_t<E> raw;
+  static_assert(sizeof(raw) == sizeof(E));
+  std::memcpy(&raw, &value, sizeof(raw));
+  return int64_t(raw);
+}
 
 /** "name is NaN" style checks: the problem, or "" when the value is fine. */
 std::string checkFinite(double v, const char* name);

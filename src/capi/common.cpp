@@ -118,7 +118,7 @@ extern "C" {
 uint32_t earshot_version(void) { return EARSHOT_VERSION; }
 
 const char* earshot_status_string(earshot_status status) {
-  switch (status) {
+  switch (rawEnum(status)) {
     case EARSHOT_OK: return "ok";
     case EARSHOT_ERROR_INVALID_ARGUMENT: return "invalid argument";
     case EARSHOT_ERROR_OUT_OF_MEMORY: return "out of memory";

@@ -35,8 +35,9 @@ std::string checkSettings(const earshot_context_settings& s) {
   if (s.threads > 256) return "settings->threads " + std::to_string(s.threads) + " is outside [0, 256]";
   if (!(s.max_distance_meters > 0.0 && s.max_distance_meters <= 20000.0))
     return "settings->max_distance_meters " + describe(s.max_distance_meters) + " is outside (0, 20000]";
-  if (int(s.log_level) < int(EARSHOT_LOG_ERROR) || int(s.log_level) > int(EARSHOT_LOG_DEBUG))
-    return "settings->log_level " + std::to_string(int(s.log_level)) + " is not an earshot_log_level";
+  const int64_t level = rawEnum(s.log_level);
+  if (level < EARSHOT_LOG_ERROR || level > EARSHOT_LOG_DEBUG)
+    return "settings->log_level " + std::to_string(level) + " is not an earshot_log_level";
   if ((s.allocate == nullptr) != (s.free == nullptr))
     return "settings->allocate and settings->free must both be set or both NULL";
   return "";
@@ -46,7 +47,9 @@ Env envOf(const earshot_context_settings& s) {
   Env e;
   e.log = s.log;
   e.logUser = s.log_user_data;
-  e.level = s.log_level;
+  // Called before the settings are checked (their errors go to this log).
+  const int64_t level = rawEnum(s.log_level);
+  e.level = level >= EARSHOT_LOG_ERROR && level <= EARSHOT_LOG_DEBUG ? earshot_log_level(level) : EARSHOT_LOG_ERROR;
   e.allocate = s.allocate;
   e.free = s.free;
   e.allocUser = s.allocator_user_data;
@@ -375,13 +378,13 @@ earshot_status earshot_source_create(earshot_context* c, const earshot_source_se
     }
     if (!(s.gain_db >= -120.0f && s.gain_db <= 40.0f))
       return argError(&c->env, kFn, "settings->gain_db " + describe(s.gain_db) + " is outside [-120, 40]");
-    if (s.direct != EARSHOT_DIRECT_PER_BLOCK && s.direct != EARSHOT_DIRECT_IN_IMPULSE_RESPONSE)
-      return argError(&c->env, kFn,
-                      "settings->direct " + std::to_string(int(s.direct)) + " is not an earshot_direct_mode");
+    const int64_t direct = rawEnum(s.direct);
+    if (direct != EARSHOT_DIRECT_PER_BLOCK && direct != EARSHOT_DIRECT_IN_IMPULSE_RESPONSE)
+      return argError(&c->env, kFn, "settings->direct " + std::to_string(direct) + " is not an earshot_direct_mode");
     runtime::SourceSettings rs;
     rs.gainDb = s.gain_db;
-    rs.direct = s.direct == EARSHOT_DIRECT_PER_BLOCK ? runtime::DirectMode::kPerBlock
-                                                     : runtime::DirectMode::kInImpulseResponse;
+    rs.direct = direct == EARSHOT_DIRECT_PER_BLOCK ? runtime::DirectMode::kPerBlock
+                                                   : runtime::DirectMode::kInImpulseResponse;
     std::lock_guard<std::mutex> lock(c->sourcesMutex);
     auto slot = c->engine->addSource(rs);
     if (!slot.isOk()) return fromStatus(&c->env, kFn, slot.status());

@@ -374,8 +374,9 @@ earshot_status earshot_mesh_create(earshot_context* c, const earshot_mesh_settin
     if (!s.vertices) return argError(env, kFn, "settings->vertices is NULL");
     if (!s.indices) return argError(env, kFn, "settings->indices is NULL");
     if (!s.material_names) return argError(env, kFn, "settings->material_names is NULL");
-    if (s.motion != EARSHOT_MESH_STATIC && s.motion != EARSHOT_MESH_MOVABLE)
-      return argError(env, kFn, "settings->motion " + std::to_string(int(s.motion)) + " is not an earshot_mesh_motion");
+    const int64_t motion = rawEnum(s.motion);
+    if (motion != EARSHOT_MESH_STATIC && motion != EARSHOT_MESH_MOVABLE)
+      return argError(env, kFn, "settings->motion " + std::to_string(motion) + " is not an earshot_mesh_motion");
     const std::string name = s.name ? s.name : "";
     const std::string prefix = "mesh \"" + name + "\": ";
     AffineTransform transform;
@@ -424,7 +425,7 @@ earshot_status earshot_mesh_create(earshot_context* c, const earshot_mesh_settin
     m->hasData = true;
     m->data = std::move(mesh);
     m->materialNames = std::move(names);
-    m->motion = s.motion == EARSHOT_MESH_MOVABLE ? MeshMotion::kMovable : MeshMotion::kStatic;
+    m->motion = motion == EARSHOT_MESH_MOVABLE ? MeshMotion::kMovable : MeshMotion::kStatic;
     m->transform = transform;
     *out = m;
     return EARSHOT_OK;

@@ -5,6 +5,8 @@
 
 #include <cmath>
 #include <cstdint>
+#include <cstring>
+#include <type_traits>
 #include <vector>
 
 #include "earshot/earshot.h"
@@ -60,6 +62,13 @@ inline earshot_mesh* makeMesh(earshot_context* c, const BoxData& b, const char* 
   earshot_mesh* m = nullptr;
   EXPECT_EQ(earshot_mesh_create(c, &s, &m), EARSHOT_OK) << earshot_last_error_message();
   return m;
+}
+
+/** Stores any integer in a C enum field, as a C caller may (a C++ cast to the
+ *  enum would be undefined for values outside its enumerators). */
+template <class E>
+void storeRaw(E& field, std::underlying_type_t<E> value) {
+  std::memcpy(&field, &value, sizeof(field));
 }
 
 inline double energy(const std::vector<float>& x) {

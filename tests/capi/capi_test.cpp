@@ -164,7 +164,7 @@ TEST(CApiFuzz, ThousandInvalidCallsReturnErrorsAndChangeNothing) {
           case 7: s.image_source_order = 5 + pick(100); break;
           case 8: s.threads = 257 + pick(1000); break;
           case 9: s.max_distance_meters = pick(2) ? double(badFloat()) : 0.0; break;
-          case 10: s.log_level = earshot_log_level(4 + pick(10)); break;
+          case 10: storeRaw(s.log_level, 4 + pick(10)); break;
           case 11: s.allocate = [](void*, size_t, size_t) -> void* { return nullptr; }; break;
           case 12: s.flags = 1u << (1 + pick(31)); break;
           case 13: return earshot_context_create(nullptr, &out);
@@ -324,7 +324,7 @@ TEST(CApiFuzz, ThousandInvalidCallsReturnErrorsAndChangeNothing) {
             std::fill(transform, transform + 12, 0.0f);  // singular
             s.transform = transform;
             break;
-          default: s.motion = earshot_mesh_motion(2 + pick(100)); break;
+          default: storeRaw(s.motion, 2 + pick(100)); break;
         }
         const earshot_status st = earshot_mesh_create(ctx, &s, &out);
         EXPECT_EQ(out, nullptr);
@@ -364,7 +364,7 @@ TEST(CApiFuzz, ThousandInvalidCallsReturnErrorsAndChangeNothing) {
           case 2: s.struct_size = wrongSize(sizeof(s)); break;
           case 3: s.gain_db = pick(2) ? badFloat() : 41.0f; break;
           case 4: s.gain_db = -121.0f; break;
-          default: s.direct = earshot_direct_mode(2 + pick(100)); break;
+          default: storeRaw(s.direct, 2 + pick(100)); break;
         }
         const earshot_status st = earshot_source_create(ctx, &s, &out);
         EXPECT_EQ(out, nullptr);
