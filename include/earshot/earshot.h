@@ -344,7 +344,8 @@ EARSHOT_API earshot_status earshot_gltf_settings_init(earshot_gltf_settings* set
  *  named after the path, each movable node as a movable mesh named after
  *  the node (find them with earshot_scene_find_mesh). Positions are metres
  *  in the file's axes (no axis conversion). Unmapped glTF materials get the
- *  default material and a warning in the log. All or nothing. Errors:
+ *  default material and a warning in the log. `settings` and its strings
+ *  are only read during the call. All or nothing. Errors:
  *  NOT_FOUND (file, or a movable name that is no node with a mesh), PARSE,
  *  INVALID_ARGUMENT (bad content, named in the message). Game thread. */
 EARSHOT_API earshot_status earshot_scene_load_gltf(earshot_scene* scene, const earshot_gltf_settings* settings);
