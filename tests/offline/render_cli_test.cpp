@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "../cli/cli_test_util.h"
+#include "../support/sine_frequency.h"
 #include "earshot/core/math.h"
 #include "earshot/core/random.h"
 #include "earshot/io/wav.h"
@@ -42,19 +43,7 @@ std::vector<float> sine(double hz, double seconds) {
   return x;
 }
 
-// Frequency from zero crossings (linear interpolation between samples).
-double frequency(const std::vector<float>& x, size_t from, size_t n) {
-  double first = -1, last = -1;
-  int crossings = 0;
-  for (size_t i = from + 1; i < from + n && i < x.size(); ++i)
-    if (x[i - 1] < 0 && x[i] >= 0) {
-      const double t = double(i - 1) + double(x[i - 1]) / double(x[i - 1] - x[i]);
-      if (first < 0) first = t;
-      last = t;
-      ++crossings;
-    }
-  return crossings > 1 ? (crossings - 1) * kFs / (last - first) : 0.0;
-}
+double frequency(const std::vector<float>& x, size_t from, size_t n) { return test::sineFrequency(x, from, n, kFs); }
 
 // Largest sample-to-sample step relative to the local amplitude (the largest
 // |x| within one period either side). A steady sine of frequency f gives at

@@ -16,6 +16,7 @@
 #include "earshot/runtime/direct_voice.h"
 #include "earshot/runtime/engine.h"
 #include "earshot/scene/ray_tracer.h"
+#include "../support/sine_frequency.h"
 #include "runtime_fixture.h"
 
 namespace earshot::runtime {
@@ -23,20 +24,8 @@ namespace {
 
 using test::kFs;
 
-// Frequency of a sine in x[from, from + n) by counting zero crossings with
-// linear interpolation between samples (accurate to ~0.01 % over 0.2 s).
 double sineFrequency(const std::vector<float>& x, size_t from, size_t n) {
-  double first = -1, last = -1;
-  int crossings = 0;
-  for (size_t i = from + 1; i < from + n; ++i) {
-    if (x[i - 1] < 0 && x[i] >= 0) {
-      const double t = double(i - 1) + double(x[i - 1]) / double(x[i - 1] - x[i]);
-      if (first < 0) first = t;
-      last = t;
-      ++crossings;
-    }
-  }
-  return crossings > 1 ? (crossings - 1) * kFs / (last - first) : 0.0;
+  return earshot::test::sineFrequency(x, from, n, kFs);
 }
 
 double energy(const float* x, size_t n) {
