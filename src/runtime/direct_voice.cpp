@@ -135,6 +135,7 @@ Result<std::unique_ptr<DirectVoice>> DirectVoice::create(const DirectVoiceSettin
     v->mHistory[e].assign(taps - 1 + kChunk, 0.0f);
   }
   v->mScratch.assign(kChunk, 0.0f);
+  v->mScratchNext.assign(kChunk, 0.0f);
   return v;
 }
 
@@ -201,19 +202,31 @@ void DirectVoice::processChunk(const float* input, float* left, float* right, si
       const double g = from.gain + (to.gain - from.gain) * a;
       hist[taps - 1 + i] = float(g * readDelayed(double(base + i) - d));
     }
+    // FIR by taps over the chunk (the inner loop runs over output frames, so
+    // it vectorises; a per-output dot product is a serial float reduction).
     const float* h = mTaps[e].data();
-    const float* hn = mTapsNext[e].data();
-    for (size_t i = 0; i < frames; ++i) {
-      float y = 0.0f;
-      for (size_t j = 0; j < taps; ++j) y += h[j] * hist[i + j];
-      if (crossfade) {
-        float yn = 0.0f;
-        for (size_t j = 0; j < taps; ++j) yn += hn[j] * hist[i + j];
-        const float c = float(double(offset + i + 1) / double(total));
-        y += c * (yn - y);
-      }
-      out[e][i] += y;
+    float* y = mScratch.data();
+    std::fill(y, y + frames, 0.0f);
+    for (size_t j = 0; j < taps; ++j) {
+      const float c = h[j];
+      const float* x = hist + j;
+      for (size_t i = 0; i < frames; ++i) y[i] += c * x[i];
     }
+    if (crossfade) {
+      const float* hn = mTapsNext[e].data();
+      float* yn = mScratchNext.data();
+      std::fill(yn, yn + frames, 0.0f);
+      for (size_t j = 0; j < taps; ++j) {
+        const float c = hn[j];
+        const float* x = hist + j;
+        for (size_t i = 0; i < frames; ++i) yn[i] += c * x[i];
+      }
+      for (size_t i = 0; i < frames; ++i) {
+        const float a = float(double(offset + i + 1) / double(total));
+        y[i] += a * (yn[i] - y[i]);
+      }
+    }
+    for (size_t i = 0; i < frames; ++i) out[e][i] += y[i];
     std::memmove(hist, hist + frames, (taps - 1) * sizeof(float));
   }
 }
