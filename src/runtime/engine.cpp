@@ -70,6 +70,7 @@ Result<std::unique_ptr<Engine>> Engine::create(const EngineSettings& s, std::sha
   cs.maxIrFrames = size_t(std::ceil(s.maxIrSeconds * s.sampleRateHz));
   cs.channels = 2;
   cs.fadeFrames = s.fadeFrames;
+  cs.maxPartitionFrames = s.maxPartitionFrames;
   auto mixer = ConvolutionMixer::create(cs, s.maxSources);
   if (!mixer.isOk()) return Status(mixer.status().code(), "engine: " + mixer.status().message());
   e->mMixer = std::move(mixer.value());

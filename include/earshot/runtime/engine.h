@@ -52,6 +52,11 @@ struct EngineSettings {
   size_t maxSources = 32;         ///< [1, 4096] source slots, allocated up front
   double maxIrSeconds = 3.0;      ///< IRs are cut here with a 10 ms fade, (0, 60]
   size_t fadeFrames = 0;          ///< IR crossfade (frames); 0: one block
+  /** Largest convolution partition (frames; 0: the convolver's automatic
+   *  choice). Every source's partitions of one size fall due on the same
+   *  block, so a smaller largest partition trades average cost for a lower
+   *  worst block (see `earshot bench runtime --max-partition`). */
+  size_t maxPartitionFrames = 0;
   OmniIrSettings simulation;      ///< rays, bounces, ISM order, air, seed... (rate taken from sampleRateHz)
   unsigned threads = 0;           ///< simulation worker threads (0: all cores)
   double maxDistanceMeters = 343.0;  ///< direct-path delay line capacity
