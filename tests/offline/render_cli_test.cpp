@@ -238,3 +238,33 @@ TEST(RenderCli, ThreadCountDoesNotChangeTheOutput) {
 }
 
 }  // namespace earshot
+
+namespace earshot {
+
+// --from/--to: a window that starts within the 2 s pre-roll is exactly that
+// part of the full render (the same blocks, updates and reverberation); a
+// window ending before it starts is an error.
+TEST(RenderCli, FromToWindowIsTheSamePartOfTheFullRender) {
+  TempDir dir("render_window");
+  writeMono(dir / "sine.wav", sine(330.0, 2.0));
+  std::ofstream(dir / "scene.json") << R"({"geometry": ")" << kSamples << R"(shoebox/shoebox.gltf",
+    "material_map": ")" << kSamples << R"(shoebox/materials_map.json",
+    "listener": {"position": [7, 3.5, 1.5], "forward": [-1, 0, 0], "up": [0, 0, 1]},
+    "sources": [{"name": "s", "audio": "sine.wav", "path": [{"t": 0, "position": [2, 2, 1.5]}, {"t": 2.5, "position": [4, 5, 1.5]}]}],
+    "settings": {"quality": "draft", "duration": 2.5, "update_rate_hz": 10}})";
+  auto full = runEarshot("render " + dir / "scene.json" + " -o " + dir / "full.wav --quiet");
+  auto part = runEarshot("render " + dir / "scene.json" + " -o " + dir / "part.wav --quiet --from 1 --to 2");
+  ASSERT_EQ(full.exitCode, 0) << full.output;
+  ASSERT_EQ(part.exitCode, 0) << part.output;
+  const AudioBuffer f = read(dir / "full.wav"), p = read(dir / "part.wav");
+  ASSERT_EQ(p.frameCount(), size_t(kFs));
+  for (int ear = 0; ear < 2; ++ear)
+    for (size_t i = 0; i < p.frameCount(); ++i)
+      ASSERT_EQ(p.channels[ear][i], f.channels[ear][size_t(kFs) + i]) << "ear " << ear << " frame " << i;
+  auto bad = runEarshot("render " + dir / "scene.json" + " -o " + dir / "bad.wav --quiet --from 2 --to 1");
+  EXPECT_EQ(bad.exitCode, 2) << bad.output;
+  EXPECT_NE(bad.output.find("--from"), std::string::npos) << bad.output;
+  EXPECT_FALSE(std::filesystem::exists(dir / "bad.wav"));
+}
+
+}  // namespace earshot
