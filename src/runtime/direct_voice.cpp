@@ -204,23 +204,19 @@ void DirectVoice::processChunk(const float* input, float* left, float* right, si
     }
     // FIR by taps over the chunk (the inner loop runs over output frames, so
     // it vectorises; a per-output dot product is a serial float reduction).
-    const float* h = mTaps[e].data();
-    float* y = mScratch.data();
-    std::fill(y, y + frames, 0.0f);
-    for (size_t j = 0; j < taps; ++j) {
-      const float c = h[j];
-      const float* x = hist + j;
-      for (size_t i = 0; i < frames; ++i) y[i] += c * x[i];
-    }
-    if (crossfade) {
-      const float* hn = mTapsNext[e].data();
-      float* yn = mScratchNext.data();
-      std::fill(yn, yn + frames, 0.0f);
+    auto fir = [&](const float* h, float* y) {
+      std::fill(y, y + frames, 0.0f);
       for (size_t j = 0; j < taps; ++j) {
-        const float c = hn[j];
+        const float c = h[j];
         const float* x = hist + j;
-        for (size_t i = 0; i < frames; ++i) yn[i] += c * x[i];
+        for (size_t i = 0; i < frames; ++i) y[i] += c * x[i];
       }
+    };
+    float* y = mScratch.data();
+    fir(mTaps[e].data(), y);
+    if (crossfade) {
+      float* yn = mScratchNext.data();
+      fir(mTapsNext[e].data(), yn);
       for (size_t i = 0; i < frames; ++i) {
         const float a = float(double(offset + i + 1) / double(total));
         y[i] += a * (yn[i] - y[i]);

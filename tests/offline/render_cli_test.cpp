@@ -58,6 +58,17 @@ double maxRelativeStep(const std::vector<float>& x, size_t from, size_t to, size
   return m;
 }
 
+// A source walking from (2, 2) to (4, 5) in the shoebox over `seconds`,
+// playing sine.wav from the scene's folder, draft quality, 10 Hz updates.
+void writeWalkInShoebox(const std::string& path, double seconds) {
+  std::ofstream(path) << R"({"geometry": ")" << kSamples << R"(shoebox/shoebox.gltf",
+    "material_map": ")" << kSamples << R"(shoebox/materials_map.json",
+    "listener": {"position": [7, 3.5, 1.5], "forward": [-1, 0, 0], "up": [0, 0, 1]},
+    "sources": [{"name": "s", "audio": "sine.wav", "path": [{"t": 0, "position": [2, 2, 1.5]}, {"t": )"
+                      << seconds << R"(, "position": [4, 5, 1.5]}]}],
+    "settings": {"quality": "draft", "duration": )" << seconds << R"(, "update_rate_hz": 10}})";
+}
+
 std::string vec(double x, double y, double z) {
   return "[" + std::to_string(x) + ", " + std::to_string(y) + ", " + std::to_string(z) + "]";
 }
@@ -225,11 +236,7 @@ TEST(RenderCli, BadScenesAreOneClearErrorAndLeaveTheOutputAlone) {
 TEST(RenderCli, ThreadCountDoesNotChangeTheOutput) {
   TempDir dir("render_threads");
   writeMono(dir / "sine.wav", sine(250.0, 1.0));
-  std::ofstream(dir / "scene.json") << R"({"geometry": ")" << kSamples << R"(shoebox/shoebox.gltf",
-    "material_map": ")" << kSamples << R"(shoebox/materials_map.json",
-    "listener": {"position": [7, 3.5, 1.5], "forward": [-1, 0, 0], "up": [0, 0, 1]},
-    "sources": [{"name": "s", "audio": "sine.wav", "path": [{"t": 0, "position": [2, 2, 1.5]}, {"t": 1.5, "position": [4, 5, 1.5]}]}],
-    "settings": {"quality": "draft", "duration": 1.5, "update_rate_hz": 10}})";
+  writeWalkInShoebox(dir / "scene.json", 1.5);
   auto a = runEarshot("render " + dir / "scene.json" + " -o " + dir / "a.wav --quiet --threads 1");
   auto b = runEarshot("render " + dir / "scene.json" + " -o " + dir / "b.wav --quiet --threads 2");
   ASSERT_EQ(a.exitCode, 0) << a.output;
@@ -237,21 +244,13 @@ TEST(RenderCli, ThreadCountDoesNotChangeTheOutput) {
   EXPECT_TRUE(readFile(dir / "a.wav") == readFile(dir / "b.wav"));
 }
 
-}  // namespace earshot
-
-namespace earshot {
-
 // --from/--to: a window that starts within the 2 s pre-roll is exactly that
 // part of the full render (the same blocks, updates and reverberation); a
 // window ending before it starts is an error.
 TEST(RenderCli, FromToWindowIsTheSamePartOfTheFullRender) {
   TempDir dir("render_window");
   writeMono(dir / "sine.wav", sine(330.0, 2.0));
-  std::ofstream(dir / "scene.json") << R"({"geometry": ")" << kSamples << R"(shoebox/shoebox.gltf",
-    "material_map": ")" << kSamples << R"(shoebox/materials_map.json",
-    "listener": {"position": [7, 3.5, 1.5], "forward": [-1, 0, 0], "up": [0, 0, 1]},
-    "sources": [{"name": "s", "audio": "sine.wav", "path": [{"t": 0, "position": [2, 2, 1.5]}, {"t": 2.5, "position": [4, 5, 1.5]}]}],
-    "settings": {"quality": "draft", "duration": 2.5, "update_rate_hz": 10}})";
+  writeWalkInShoebox(dir / "scene.json", 2.5);
   auto full = runEarshot("render " + dir / "scene.json" + " -o " + dir / "full.wav --quiet");
   auto part = runEarshot("render " + dir / "scene.json" + " -o " + dir / "part.wav --quiet --from 1 --to 2");
   ASSERT_EQ(full.exitCode, 0) << full.output;
