@@ -166,6 +166,27 @@ inline void butterflies2(double* __restrict r0, double* __restrict i0, double* _
   }
 }
 
+// From the squared magnitudes of two spectra (logA, logB: bins 0..N/2 on
+// entry) to the log spectra of their minimum-phase versions in re/im (packed
+// as one complex FFT, Hermitian halves): log magnitude with a floor of
+// `floorRatio` times each peak (keeps log finite at spectral zeros; a silent
+// input gets 0 so it cannot spoil the other), real cepstrum, fold, FFT.
+// logA/logB hold the floored log magnitudes afterwards.
+void minimumPhaseLogSpectra(const Fft& fft, std::vector<double>& re, std::vector<double>& im,
+                            std::vector<double>& logA, std::vector<double>& logB, double peakA, double peakB,
+                            bool liveA, bool liveB, double floorRatio) {
+  const std::size_t n = fft.size(), half = n / 2;
+  const double floorA = peakA * floorRatio, floorB = peakB * floorRatio;
+  for (std::size_t k = 0; k <= half; ++k) {
+    logA[k] = liveA ? 0.5 * std::log(std::max(logA[k], floorA)) : 0.0;
+    logB[k] = liveB ? 0.5 * std::log(std::max(logB[k], floorB)) : 0.0;
+    joinHermitian(re.data(), im.data(), k, n, logA[k], 0.0, logB[k], 0.0);
+  }
+  fft.inverse(re.data(), im.data());
+  foldToMinimumPhaseCepstrum(re, im);
+  fft.forward(re.data(), im.data());
+}
+
 }  // namespace
 
 template <bool kInverse>
@@ -231,17 +252,8 @@ void MinimumPhase::computePair(const float* a, const float* b, float* outA, floa
     peakB = std::max(peakB, mLogB[k]);
   }
   const bool liveA = peakA > 0.0, liveB = peakB > 0.0;
-  // Log magnitude with a floor 100 dB below the peak (keeps log finite at
-  // spectral zeros); a silent input gets 0 so it cannot spoil the other.
-  const double floorA = peakA * 1e-10, floorB = peakB * 1e-10;
-  for (std::size_t k = 0; k <= half; ++k) {
-    mLogA[k] = liveA ? 0.5 * std::log(std::max(mLogA[k], floorA)) : 0.0;
-    mLogB[k] = liveB ? 0.5 * std::log(std::max(mLogB[k], floorB)) : 0.0;
-    joinHermitian(mRe.data(), mIm.data(), k, n, mLogA[k], 0.0, mLogB[k], 0.0);
-  }
-  mFft.inverse(mRe.data(), mIm.data());
-  foldToMinimumPhaseCepstrum(mRe, mIm);
-  mFft.forward(mRe.data(), mIm.data());
+  // Floor 100 dB below the peak.
+  minimumPhaseLogSpectra(mFft, mRe, mIm, mLogA, mLogB, peakA, peakB, liveA, liveB, 1e-10);
   // Minimum-phase spectra exp(FFT(folded cepstrum)), Hermitian like the cepstra are real.
   for (std::size_t k = 0; k <= half; ++k) {
     const Split z = split(mRe.data(), mIm.data(), k, n);
@@ -298,17 +310,8 @@ void OnsetEstimator::onsetPair(const float* a, const float* b, double* onsetA, d
   }
   const bool liveA = energyA > 0.0 && peakA > 0.0, liveB = energyB > 0.0 && peakB > 0.0;
 
-  // Real cepstrum of log|X|, with a floor 120 dB below the peak so that
-  // spectral zeros do not produce -inf; folded, its FFT is log Hmin.
-  const double floorA = peakA * 1e-12, floorB = peakB * 1e-12;
-  for (std::size_t k = 0; k <= half; ++k) {
-    mLogA[k] = liveA ? 0.5 * std::log(std::max(mLogA[k], floorA)) : 0.0;
-    mLogB[k] = liveB ? 0.5 * std::log(std::max(mLogB[k], floorB)) : 0.0;
-    joinHermitian(mRe.data(), mIm.data(), k, n, mLogA[k], 0.0, mLogB[k], 0.0);
-  }
-  mFft.inverse(mRe.data(), mIm.data());
-  foldToMinimumPhaseCepstrum(mRe, mIm);
-  mFft.forward(mRe.data(), mIm.data());
+  // log Hmin from the real cepstrum of log|X|, floor 120 dB below the peak.
+  minimumPhaseLogSpectra(mFft, mRe, mIm, mLogA, mLogB, peakA, peakB, liveA, liveB, 1e-12);
   // Cross-spectra w X conj(Hmin) = w |X|^2 e^{i(excess phase)}, Gaussian-weighted.
   for (std::size_t k = 0; k <= half; ++k) {
     const Split z = split(mRe.data(), mIm.data(), k, n);

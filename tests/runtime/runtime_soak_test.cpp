@@ -77,7 +77,9 @@ TEST(EngineSoak, OneHourOfAudioKeepsItsLevelAndItsMemory) {
     }
     const double t = double((k + 1) * block) / fs;
     ASSERT_TRUE(e.setSourcePosition(*b, circling(t)).isOk());
-    if (k % updateEvery == 0) ASSERT_TRUE(e.simulate(std::vector<uint32_t>{*b}).isOk());
+    if (k % updateEvery == 0) {
+      ASSERT_TRUE(e.simulate(std::vector<uint32_t>{*b}).isOk());
+    }
     e.process(inputs.data(), left.data(), right.data(), block);
     for (size_t i = 0; i < block; ++i) {
       ASSERT_TRUE(std::isfinite(left[i]) && std::isfinite(right[i])) << "block " << k;
