@@ -24,7 +24,7 @@ DirectPath computeDirectPath(const RayTracer* tracer, const MaterialTable& mater
     // Walk every surface on the segment listener -> source, multiplying transmission.
     const Vec3f dir = Vec3f(d.directionFromListener);
     const float eps = tracer->surfaceEpsilon();
-    Ray ray{Vec3f(listener), 0.0f, dir, float(d.distanceMeters)};
+    Ray ray{listener, 0.0f, dir, float(d.distanceMeters)};
     Hit hit;
     // A segment through a mesh crosses each surface once; 1024 guards against
     // pathological stacks of coincident triangles.

@@ -50,7 +50,7 @@ struct Validator {
     const Vec3d delta = point - from;
     const double dist = length(delta);
     if (!(dist > 0)) return false;
-    Ray ray{Vec3f(from), fromSurface ? 4 * eps : 0.0f, Vec3f(delta / dist), float(dist) + 8 * eps};
+    Ray ray{from, fromSurface ? 4 * eps : 0.0f, Vec3f(delta / dist), float(dist) + 8 * eps};
     Hit hit;
     if (!tracer.intersect(ray, hit)) return false;
     if (std::fabs(double(hit.t) - dist) > 8.0 * eps) return false;  // blocked before, or missed the wall
@@ -74,7 +74,7 @@ struct Validator {
     const double dist = length(delta);
     if (!(dist > 0)) return true;
     const float eps = tracer.surfaceEpsilon();
-    Ray ray{Vec3f(from), float(eps), Vec3f(delta / dist), float(dist) - 2 * eps};
+    Ray ray{from, float(eps), Vec3f(delta / dist), float(dist) - 2 * eps};
     return ray.tFar <= ray.tNear || !tracer.occluded(ray);
   }
 
@@ -176,7 +176,7 @@ Result<ImageSourceResult> findImageSources(const RayTracer& tracer, const Materi
       Vec3d d = fibonacciDirection(i, settings.candidateRays);
       const double c = std::cos(rotation * 6.283185307179586), s = std::sin(rotation * 6.283185307179586);
       d = {c * d.x - s * d.y, s * d.x + c * d.y, d.z};
-      Ray ray{Vec3f(source), 0.0f, Vec3f(d), 1e30f};
+      Ray ray{source, 0.0f, Vec3f(d), 1e30f};
       PlaneSequence seq;
       seq.fill(kUnused);
       for (uint32_t k = 0; k < settings.maxOrder; ++k) {
@@ -187,7 +187,7 @@ Result<ImageSourceResult> findImageSources(const RayTracer& tracer, const Materi
         candidates.insert(seq);
         Vec3f n = hit.normal;
         if (dot(n, ray.direction) > 0) n = -n;
-        ray.origin = ray.origin + ray.direction * hit.t + n * eps;
+        ray.origin = ray.origin + Vec3d(ray.direction) * double(hit.t) + Vec3d(n * eps);
         ray.direction = normalize(ray.direction - n * (2.0f * dot(ray.direction, n)));
       }
     }

@@ -141,7 +141,7 @@ double autoReceiverRadius(const RayTracer& tracer, const Vec3d& listener) {
   double nearest = 1e30;
   const uint32_t probes = 64;
   for (uint32_t i = 0; i < probes; ++i) {
-    Ray ray{Vec3f(listener), 0.0f, Vec3f(fibonacciDirection(i, probes)), 1e30f};
+    Ray ray{listener, 0.0f, Vec3f(fibonacciDirection(i, probes)), 1e30f};
     Hit hit;
     if (tracer.intersect(ray, hit)) nearest = std::min(nearest, double(hit.t));
   }
@@ -214,7 +214,6 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
   stats.receiverRadiusMeters = R;
   const float sphereR2 = float(R * R);
   const float invSphereVolume = float(1.0 / (4.0 / 3.0 * kPi * R * R * R));
-  const Vec3f L(listener);
   const float invC = float(1.0 / settings.speedOfSound);
   const float invBin = float(1.0 / settings.binSeconds);
   const float minD2 = float(settings.minDistanceMeters * settings.minDistanceMeters);
@@ -304,7 +303,11 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
       Pcg32 rng(settings.seed, rayIndex);
       float energy[kNumBands];
       for (float& e : energy) e = rayEnergy;
-      Ray ray{Vec3f(source), 0.0f, Vec3f(rot.apply(fibonacciDirection(rayIndex, settings.rays))), 1e30f};
+      // Positions (ray origins, hit points) in double world coordinates: in
+      // float they are ~8 mm apart at 1e5 m, and a hit point near an edge
+      // could round to beyond the neighbouring wall. Directions and
+      // distances stay float.
+      Ray ray{source, 0.0f, Vec3f(rot.apply(fibonacciDirection(rayIndex, settings.rays))), 1e30f};
       float pathLength = 0;
       bool detectSegment = false;  // last event specular/transmission after a reflection
       bool reflected = false;
@@ -318,7 +321,7 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
         const float segment = hasHit ? hit.t : 1e30f;
         if (detectSegment) {
           // Chord of this segment through the receiver sphere.
-          const Vec3f oc = ray.origin - L;
+          const Vec3f oc(ray.origin - listener);
           const float bq = dot(oc, ray.direction);
           const float disc = bq * bq - (dot(oc, oc) - sphereR2);
           if (disc > 0) {
@@ -362,12 +365,13 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
           for (int b = 0; b < kNumBands; ++b) c.energy[b] = energy[b] * std::min(1.0f, m.reflect[b] + m.transmit[b]);
           break;
         }
-        const Vec3f p = ray.origin + ray.direction * hit.t;
+        const Vec3d p = ray.origin + Vec3d(ray.direction) * double(hit.t);
         Vec3f n = hit.normal;
         if (dot(n, ray.direction) > 0) n = -n;  // face the incoming ray
+        const Vec3d offset(n * eps);          // leaves the surface along n
 
         // Next-event estimation of the diffusely reflected part.
-        const Vec3f toL = L - p;
+        const Vec3f toL(listener - p);
         const float d2 = dot(toL, toL);
         const float cosL = dot(n, toL);
         if (cosL > 0) {
@@ -379,11 +383,11 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
           }
           if (any) {
             const float d = std::sqrt(d2);
-            Ray shadow{p + n * eps, 0.0f, toL / d, d - eps};
+            Ray shadow{p + offset, 0.0f, toL / d, d - eps};
             ++a.shadows;
             if (shadow.tFar <= 0 || !tracer.occluded(shadow)) {
               const float w = (cosL / d) / (float(kPi) * std::max(d2, minD2));
-              deposit(a, pathLength + d, scattered, w, (p - L) / d, order + 1);
+              deposit(a, pathLength + d, scattered, w, -toL / d, order + 1);
             }
           }
         }
@@ -393,7 +397,7 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
         float maxEnergy = 0;
         if (pT > 0 && rng.uniform() < pT) {
           for (int b = 0; b < kNumBands; ++b) maxEnergy = std::max(maxEnergy, energy[b] *= m.transmit[b] / pT);
-          ray.origin = p - n * eps;  // direction unchanged
+          ray.origin = p - offset;  // direction unchanged
           detectSegment = reflected;
           pureSpecular = false;
         } else {
@@ -417,7 +421,7 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
             detectSegment = false;
             pureSpecular = false;
           }
-          ray.origin = p + n * eps;
+          ray.origin = p + offset;
           reflected = true;
         }
         if (!(maxEnergy > 0)) break;

@@ -6,6 +6,12 @@
 // geometry stays watertight) and one instance per movable mesh. BVHs below
 // the root are committed once and never touched again, so snapshots share
 // them and old snapshots keep answering while a new root is built.
+//
+// The frame (RayTracer::frameOrigin): the static BVH holds world positions
+// minus the centre of the static meshes' bounds, and every snapshot over it
+// traces in that frame; a movable mesh's BVH stays in the mesh's own frame
+// and its instance transform is "world -> frame" after "mesh -> world",
+// composed in double.
 #include "earshot/scene/dynamic_scene.h"
 
 #include <embree3/rtcore.h>
@@ -164,6 +170,7 @@ struct MeshEntry {
 /** All static meshes in world space, and their BVH. */
 struct StaticPart {
   TriangleMesh world;  // materialIds are taken from the entries at each commit
+  Vec3d frameOrigin;   // of `world`'s bounds (detail::frameOriginOf); the BVH holds positions minus it
   std::shared_ptr<const detail::TriangleBvh> bvh;
   std::vector<detail::PlaneEntry> planeEntries;  // of `world`, sorted by offset
   std::vector<Vec3f> normals;                    // per triangle of `world` (instance hits)
@@ -232,8 +239,7 @@ Result<MeshId> DynamicScene::addMesh(TriangleMesh mesh, MeshMotion motion, const
   e.name = name;
   e.motion = motion;
   e.transform = transform;
-  float unusedEpsilon;
-  detail::meshBounds(mesh, &e.lo, &e.hi, &unusedEpsilon);
+  detail::meshBounds(mesh, &e.lo, &e.hi);
   EARSHOT_RETURN_IF_ERROR(checkTransform(transform, mesh, e.lo, e.hi, what));
   if (s.nextId == std::numeric_limits<MeshId>::max()) return outOfRange(what + ": mesh ids exhausted");
   e.mesh = std::move(mesh);
@@ -297,6 +303,7 @@ Result<std::shared_ptr<const RayTracer>> DynamicScene::commit() {
     rt->mPlanes = prev.mPlanes;
     rt->mMin = prev.mMin;
     rt->mMax = prev.mMax;
+    rt->mFrameOrigin = prev.mFrameOrigin;  // the BVHs below were built for it
     rt->mEpsilon = prev.mEpsilon;
     rt->mImpl = std::make_unique<RayTracer::Impl>(*prev.mImpl);
     return finish(std::move(rt));
@@ -314,7 +321,10 @@ Result<std::shared_ptr<const RayTracer>> DynamicScene::commit() {
     auto part = std::make_shared<StaticPart>();
     for (const auto& [id, e] : s.meshes)
       if (e.motion == MeshMotion::kStatic) appendPlaced(part->world, e.mesh, e.transform);
-    auto bvh = detail::buildTriangleBvh(device, part->world);
+    Vec3f lo, hi;
+    detail::meshBounds(part->world, &lo, &hi);
+    part->frameOrigin = detail::frameOriginOf(lo, hi);
+    auto bvh = detail::buildTriangleBvh(device, part->world, part->frameOrigin);
     if (!bvh) return Status(bvh.status().code(), "commit: static meshes: " + bvh.status().message());
     part->bvh = std::move(bvh).value();
     part->planeEntries = detail::sortedPlaneEntries(part->world);
@@ -326,7 +336,7 @@ Result<std::shared_ptr<const RayTracer>> DynamicScene::commit() {
   // A BVH of its own for each movable mesh seen for the first time.
   for (auto& [id, e] : s.meshes) {
     if (e.motion != MeshMotion::kMovable || e.bvh) continue;
-    auto bvh = detail::buildTriangleBvh(device, e.mesh);
+    auto bvh = detail::buildTriangleBvh(device, e.mesh, Vec3d{});  // in the mesh's own frame
     if (!bvh) return Status(bvh.status().code(), "commit: " + label(id, e.name) + ": " + bvh.status().message());
     e.bvh = std::move(bvh).value();
     ++s.stats.meshBvhBuilds;
@@ -350,7 +360,11 @@ Result<std::shared_ptr<const RayTracer>> DynamicScene::commit() {
     appendPlaced(world, e.mesh, e.transform);
   }
   world.materialIds = s.materialIds();  // the entries' current materials (setMaterial)
-  detail::meshBounds(world, &rt->mMin, &rt->mMax, &rt->mEpsilon);
+  detail::meshBounds(world, &rt->mMin, &rt->mMax);
+  // The static BVH's frame; without static meshes nothing shared fixes it,
+  // and the snapshot centres on its own bounds.
+  rt->mFrameOrigin = sp.world.positions.empty() ? detail::frameOriginOf(rt->mMin, rt->mMax) : sp.frameOrigin;
+  rt->mEpsilon = detail::surfaceEpsilonOf(rt->mMin, rt->mMax, rt->mFrameOrigin);
   // groupCoplanarTriangles(world), with the static triangles' entries sorted once.
   const std::vector<detail::PlaneEntry> movableEntries = detail::sortedPlaneEntries(world, sp.world.triangles.size());
   std::vector<detail::PlaneEntry> planeEntries(sp.planeEntries.size() + movableEntries.size());
@@ -389,9 +403,13 @@ Result<std::shared_ptr<const RayTracer>> DynamicScene::commit() {
       impl->instances[geomId] = {firstTriangle, bvh.get()};
       impl->instanced.push_back(bvh);
     };
+    // The static BVH is in the frame already; a movable mesh goes from its
+    // own frame to the world (its transform), then to the frame.
+    const AffineTransform worldToFrame = AffineTransform::translation(-rt->mFrameOrigin);
     if (!sp.bvh->primToTriangle.empty()) attach(sp.bvh, AffineTransform::identity(), 0);
     for (const Placed& p : movable)
-      if (!p.entry->bvh->primToTriangle.empty()) attach(p.entry->bvh, p.entry->transform, p.firstTriangle);
+      if (!p.entry->bvh->primToTriangle.empty())
+        attach(p.entry->bvh, worldToFrame * p.entry->transform, p.firstTriangle);
     rtcCommitScene(impl->root);
     const std::string error = device->takeError();
     if (!error.empty()) return Status(StatusCode::kInternal, "commit: " + error);

@@ -51,7 +51,7 @@ Status validateMesh(const TriangleMesh& mesh) {
   return Status::ok();
 }
 
-void meshBounds(const TriangleMesh& mesh, Vec3f* loOut, Vec3f* hiOut, float* epsilon) {
+void meshBounds(const TriangleMesh& mesh, Vec3f* loOut, Vec3f* hiOut) {
   Vec3f lo{1e30f, 1e30f, 1e30f}, hi{-1e30f, -1e30f, -1e30f};
   for (const Vec3f& p : mesh.positions) {
     lo = {std::min(lo.x, p.x), std::min(lo.y, p.y), std::min(lo.z, p.z)};
@@ -60,24 +60,35 @@ void meshBounds(const TriangleMesh& mesh, Vec3f* loOut, Vec3f* hiOut, float* eps
   if (mesh.positions.empty()) lo = hi = Vec3f{};
   *loOut = lo;
   *hiOut = hi;
-  // Offset: well above float rounding at the largest coordinate (ulp ~ 6e-8 * |x|),
-  // and small against any room: 1e-5 of the extent, at least 1e-5 m.
-  const float maxAbs = std::max({std::fabs(lo.x), std::fabs(lo.y), std::fabs(lo.z), std::fabs(hi.x), std::fabs(hi.y),
-                                 std::fabs(hi.z)});
+}
+
+Vec3d frameOriginOf(const Vec3f& lo, const Vec3f& hi) {
+  return Vec3d(Vec3f((Vec3d(lo) + Vec3d(hi)) * 0.5));
+}
+
+float surfaceEpsilonOf(const Vec3f& lo, const Vec3f& hi, const Vec3d& origin) {
+  // Offset: well above float rounding at the largest frame coordinate (ulp ~
+  // 6e-8 * |x|), and small against any room: 1e-5 of the extent, at least 1e-5 m.
+  const Vec3d a = Vec3d(lo) - origin, b = Vec3d(hi) - origin;
+  const double maxAbs =
+      std::max({std::fabs(a.x), std::fabs(a.y), std::fabs(a.z), std::fabs(b.x), std::fabs(b.y), std::fabs(b.z)});
   const float extent = length(hi - lo);
-  *epsilon = std::max({1e-5f, 1e-5f * extent, 64.0f * 6e-8f * maxAbs});
+  return std::max({1e-5f, 1e-5f * extent, float(64.0 * 6e-8 * maxAbs)});
 }
 
 Result<std::shared_ptr<const TriangleBvh>> buildTriangleBvh(const std::shared_ptr<EmbreeDevice>& device,
-                                                            const TriangleMesh& mesh) {
+                                                            const TriangleMesh& mesh, const Vec3d& offset) {
   auto bvh = std::make_shared<TriangleBvh>();
   bvh->device = device;
+  // The positions Embree sees; degeneracy and normals are judged on them.
+  std::vector<Vec3f> local(mesh.positions.size());
+  for (size_t i = 0; i < local.size(); ++i) local[i] = Vec3f(Vec3d(mesh.positions[i]) - offset);
   // Keep non-degenerate triangles only.
   std::vector<uint32_t> idx;
   idx.reserve(mesh.triangles.size() * 3);
   for (size_t t = 0; t < mesh.triangles.size(); ++t) {
     const auto& tri = mesh.triangles[t];
-    Vec3f n = cross(mesh.positions[tri[1]] - mesh.positions[tri[0]], mesh.positions[tri[2]] - mesh.positions[tri[0]]);
+    Vec3f n = cross(local[tri[1]] - local[tri[0]], local[tri[2]] - local[tri[0]]);
     if (!(dot(n, n) > 0.0f)) continue;
     bvh->primToTriangle.push_back(uint32_t(t));
     bvh->normals.push_back(normalize(n));
@@ -102,10 +113,10 @@ Result<std::shared_ptr<const TriangleBvh>> buildTriangleBvh(const std::shared_pt
       rtcReleaseGeometry(geom);
       return Status(StatusCode::kInternal, "embree buffer allocation failed: " + device->takeError());
     }
-    for (size_t i = 0; i < mesh.positions.size(); ++i) {
-      vb[3 * i] = mesh.positions[i].x;
-      vb[3 * i + 1] = mesh.positions[i].y;
-      vb[3 * i + 2] = mesh.positions[i].z;
+    for (size_t i = 0; i < local.size(); ++i) {
+      vb[3 * i] = local[i].x;
+      vb[3 * i + 1] = local[i].y;
+      vb[3 * i + 2] = local[i].z;
     }
     std::copy(idx.begin(), idx.end(), ib);
     rtcCommitGeometry(geom);

@@ -42,12 +42,12 @@ class EmbreeDevice {
 };
 
 /** A committed, immutable Embree scene over the non-degenerate triangles of
- *  one mesh, in the mesh's own frame. */
+ *  one mesh, in the mesh's own frame moved by -offset (buildTriangleBvh). */
 struct TriangleBvh {
   std::shared_ptr<EmbreeDevice> device;  // declared first: released last
   RTCScene scene = nullptr;
   std::vector<uint32_t> primToTriangle;  // Embree primID -> triangle of the mesh (degenerates dropped)
-  std::vector<Vec3f> normals;            // per primID: unit (v1-v0) x (v2-v0), in the mesh's frame
+  std::vector<Vec3f> normals;            // per primID: unit (v1-v0) x (v2-v0) (a translation leaves it)
   ~TriangleBvh();
 };
 
@@ -55,14 +55,24 @@ struct TriangleBvh {
  *  RayTracer::create has always given them ("vertex 3 is not finite"). */
 Status validateMesh(const TriangleMesh& mesh);
 
-/** Bounds of the vertices (empty mesh: both zero) and the surface offset
- *  derived from them (RayTracer::surfaceEpsilon). */
-void meshBounds(const TriangleMesh& mesh, Vec3f* lo, Vec3f* hi, float* epsilon);
+/** Bounds of the vertices (empty mesh: both zero). */
+void meshBounds(const TriangleMesh& mesh, Vec3f* lo, Vec3f* hi);
+
+/** The origin of the frame a scene with world bounds lo..hi is traced in
+ *  (RayTracer::frameOrigin): the centre of the bounds, rounded to float. For a
+ *  scene far from 0 a vertex minus it is then exact in float. */
+Vec3d frameOriginOf(const Vec3f& lo, const Vec3f& hi);
+
+/** RayTracer::surfaceEpsilon of a scene with world bounds lo..hi traced in
+ *  the frame at `origin`: from the scene's extent and the magnitude of its
+ *  frame coordinates (not of its world coordinates). */
+float surfaceEpsilonOf(const Vec3f& lo, const Vec3f& hi, const Vec3d& origin);
 
 /** Builds the BVH of a mesh that passed validateMesh (MEDIUM quality,
- *  robust traversal). */
+ *  robust traversal), its vertex buffer holding each position minus `offset`
+ *  (metres; computed in double, rounded to float). */
 Result<std::shared_ptr<const TriangleBvh>> buildTriangleBvh(const std::shared_ptr<EmbreeDevice>& device,
-                                                            const TriangleMesh& mesh);
+                                                            const TriangleMesh& mesh, const Vec3d& offset);
 
 }  // namespace detail
 

@@ -13,12 +13,14 @@ Result<std::unique_ptr<RayTracer>> RayTracer::create(const TriangleMesh& mesh) {
   EARSHOT_RETURN_IF_ERROR(detail::validateMesh(mesh));
   std::unique_ptr<RayTracer> rt(new RayTracer());
   rt->mMesh = mesh;
-  detail::meshBounds(mesh, &rt->mMin, &rt->mMax, &rt->mEpsilon);
+  detail::meshBounds(mesh, &rt->mMin, &rt->mMax);
+  rt->mFrameOrigin = detail::frameOriginOf(rt->mMin, rt->mMax);
+  rt->mEpsilon = detail::surfaceEpsilonOf(rt->mMin, rt->mMax, rt->mFrameOrigin);
   rt->mPlanes = groupCoplanarTriangles(mesh);
 
   auto device = detail::EmbreeDevice::create();
   if (!device) return device.status();
-  auto bvh = detail::buildTriangleBvh(*device, mesh);
+  auto bvh = detail::buildTriangleBvh(*device, mesh, rt->mFrameOrigin);
   if (!bvh) return bvh.status();
   rt->mImpl = std::make_unique<Impl>();
   rt->mImpl->device = std::move(device).value();
@@ -35,9 +37,10 @@ bool RayTracer::intersect(const Ray& ray, Hit& hit) const {
   RTCIntersectContext ctx;
   rtcInitIntersectContext(&ctx);
   RTCRayHit rh;
-  rh.ray.org_x = ray.origin.x;
-  rh.ray.org_y = ray.origin.y;
-  rh.ray.org_z = ray.origin.z;
+  const Vec3f org(ray.origin - mFrameOrigin);  // Embree's frame (class comment)
+  rh.ray.org_x = org.x;
+  rh.ray.org_y = org.y;
+  rh.ray.org_z = org.z;
   rh.ray.tnear = ray.tNear;
   rh.ray.dir_x = ray.direction.x;
   rh.ray.dir_y = ray.direction.y;
@@ -56,7 +59,7 @@ bool RayTracer::intersect(const Ray& ray, Hit& hit) const {
   }
   hit.t = rh.ray.tfar;
   if (rh.hit.instID[0] == RTC_INVALID_GEOMETRY_ID) {
-    // The root's own triangles: its mesh frame is the world frame.
+    // The root's own triangles: normals do not change with the frame's translation.
     hit.triangle = mImpl->flat->primToTriangle[rh.hit.primID];
     hit.normal = mImpl->flat->normals[rh.hit.primID];
   } else {
@@ -73,9 +76,10 @@ bool RayTracer::occluded(const Ray& ray) const {
   RTCIntersectContext ctx;
   rtcInitIntersectContext(&ctx);
   RTCRay r;
-  r.org_x = ray.origin.x;
-  r.org_y = ray.origin.y;
-  r.org_z = ray.origin.z;
+  const Vec3f org(ray.origin - mFrameOrigin);  // Embree's frame (class comment)
+  r.org_x = org.x;
+  r.org_y = org.y;
+  r.org_z = org.z;
   r.tnear = ray.tNear;
   r.dir_x = ray.direction.x;
   r.dir_y = ray.direction.y;

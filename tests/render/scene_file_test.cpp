@@ -480,7 +480,7 @@ std::vector<double> stepsThroughSurfaces(const Trajectory& walk, const RayTracer
     const double len = length(b - a);
     if (len <= 0) continue;
     Ray ray;
-    ray.origin = Vec3f(a);
+    ray.origin = a;
     ray.direction = Vec3f((b - a) / len);
     ray.tFar = float(len);
     if (tracer.occluded(ray)) crossed.push_back(t);
@@ -552,7 +552,7 @@ TEST(SampleScenes, TwoRoomsTalkerWalksThroughTheOpenDoor) {
   auto visible = [&](double t) {
     const Vec3d d = walk.at(t).position - ear;
     Ray ray;
-    ray.origin = Vec3f(ear);
+    ray.origin = ear;
     ray.direction = Vec3f(d / length(d));
     ray.tFar = float(length(d));
     return !open->occluded(ray);

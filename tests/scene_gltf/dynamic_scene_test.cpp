@@ -85,7 +85,7 @@ std::vector<Ray> probeRays() {
   const Vec3d origins[] = {{3.0, 2.5, 1.5}, {1.0, 4.0, 0.5}, {5.5, 2.6, 1.0}, {9.2, 2.5, 1.5}, {6.9, 2.9, 2.0}};
   const uint32_t n = 600;
   for (const Vec3d& o : origins)
-    for (uint32_t i = 0; i < n; ++i) rays.push_back({Vec3f(o), 0.0f, Vec3f(fibonacciDirection(i, n)), 1e30f});
+    for (uint32_t i = 0; i < n; ++i) rays.push_back({o, 0.0f, Vec3f(fibonacciDirection(i, n)), 1e30f});
   return rays;
 }
 
@@ -183,7 +183,7 @@ TEST(DynamicScene, MovedMeshIsHitWhereItIsAndItsPlanesAndNormalsFollow) {
 
   // Through the doorway from A: the closed door is hit at its face x = 6.08;
   // the open one is not, and the ray crosses into room B.
-  const Ray through{Vec3f(kSourceInA), 0.0f, Vec3f(1, 0, 0), 1e30f};
+  const Ray through{kSourceInA, 0.0f, Vec3f(1, 0, 0), 1e30f};
   Hit h;
   ASSERT_TRUE(closed->intersect(through, h));
   EXPECT_EQ(closed->materialOf(h.triangle), doorWood);
@@ -195,7 +195,7 @@ TEST(DynamicScene, MovedMeshIsHitWhereItIsAndItsPlanesAndNormalsFollow) {
 
   // In room B, looking south at the swung door: its face is at y = 2.02 with
   // a world normal along y (it was along x when closed).
-  const Ray south{Vec3f(6.6f, 3.5f, 1.0f), 0.0f, Vec3f(0, -1, 0), 1e30f};
+  const Ray south{Vec3d(6.6, 3.5, 1.0), 0.0f, Vec3f(0, -1, 0), 1e30f};
   ASSERT_TRUE(open->intersect(south, h));
   EXPECT_EQ(open->materialOf(h.triangle), doorWood);
   EXPECT_NEAR(h.t, 3.5 - 2.02, 1e-4);
@@ -310,7 +310,7 @@ TEST(DynamicScene, RemovingAMeshRemovesItsHits) {
   for (uint32_t id : without->mesh().materialIds) EXPECT_NE(id, idOf("door_wood"));
   EXPECT_EQ(rooms.scene->stats().staticBvhBuilds, 1u);  // removing a movable mesh leaves the static BVH
 
-  const Ray through{Vec3f(kSourceInA), 0.0f, Vec3f(1, 0, 0), 1e30f};
+  const Ray through{kSourceInA, 0.0f, Vec3f(1, 0, 0), 1e30f};
   Hit h;
   ASSERT_TRUE(without->intersect(through, h));
   EXPECT_NEAR(h.t, 12.2 - kSourceInA.x, 1e-4);
@@ -341,7 +341,7 @@ TEST(DynamicScene, SetMaterialChangesMaterialsAndRebuildsNoBvh) {
   EXPECT_EQ(s1.topLevelBuilds, s0.topLevelBuilds);
   EXPECT_EQ(s1.commits, s0.commits + 1);
 
-  const Ray through{Vec3f(kSourceInA), 0.0f, Vec3f(1, 0, 0), 1e30f};
+  const Ray through{kSourceInA, 0.0f, Vec3f(1, 0, 0), 1e30f};
   Hit h;
   ASSERT_TRUE(after->intersect(through, h));
   EXPECT_EQ(after->materialOf(h.triangle), concrete);
@@ -377,7 +377,7 @@ TEST(DynamicScene, StaticBvhIsRebuiltOnlyWhenStaticMeshesChange) {
   EXPECT_EQ(scene.stats().meshBvhBuilds, 1u);
   EXPECT_EQ(scene.stats().topLevelBuilds, 1u);
   // The crate at x in [2.5, 3.5] blocks a ray along x at y = 3, z = 0.5 from x = 1.
-  const Ray ray{Vec3f(1, 3, 0.5f), 0.0f, Vec3f(1, 0, 0), 1e30f};
+  const Ray ray{Vec3d(1, 3, 0.5), 0.0f, Vec3f(1, 0, 0), 1e30f};
   Hit h;
   ASSERT_TRUE(s2->intersect(ray, h));
   EXPECT_NEAR(h.t, 1.5, 1e-5);

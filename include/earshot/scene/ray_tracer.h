@@ -15,9 +15,11 @@ namespace earshot {
 
 /** A ray: points origin + t * direction for t in [tNear, tFar]. direction
  *  need not be unit length, but earshot always passes unit vectors so t is in
- *  metres. */
+ *  metres. The origin is in world coordinates (metres) in double, so that a
+ *  caller can carry hit points (origin + t * direction) without the float
+ *  rounding of world coordinates far from 0 (see RayTracer's frame). */
 struct Ray {
-  Vec3f origin;
+  Vec3d origin;
   float tNear = 0.0f;
   Vec3f direction;
   float tFar = 1e30f;
@@ -33,6 +35,15 @@ struct Hit {
 
 /** Immutable acceleration structure over one TriangleMesh. All queries are
  *  const and thread-safe: call them from any number of threads at once.
+ *
+ *  The frame: Embree traces in float coordinates relative to frameOrigin(),
+ *  a point at the scene's centre (create(): the centre of the mesh's bounds;
+ *  a DynamicScene snapshot: that of its static meshes). A query converts
+ *  `ray.origin - frameOrigin()` to float, so float precision scales with the
+ *  scene's size, not with its distance from the world's origin (a room at
+ *  1e5 m traces as well as one at 0, where world floats are ~8 mm apart).
+ *  Everything a caller sees stays in world coordinates: Ray::origin, the
+ *  mesh, planes, normals and bounds; Hit::t is a distance and frame-free.
  *
  *  Made either by create() (one BVH over the mesh) or by
  *  DynamicScene::commit() (a snapshot: a top-level BVH over instances of
@@ -66,8 +77,13 @@ class RayTracer {
   Vec3f boundsMin() const { return mMin; }
   Vec3f boundsMax() const { return mMax; }
   /** Offset (metres) for leaving a surface without hitting it again, from the
-   *  scene's extent and float precision. */
+   *  scene's extent and float precision in the frame (see the class comment;
+   *  the same for a scene far from 0 as for one at 0). */
   float surfaceEpsilon() const { return mEpsilon; }
+  /** The world point (metres) that Embree's float coordinates are relative
+   *  to; each component is a float value. Callers need not use it: queries
+   *  take and give world coordinates. */
+  const Vec3d& frameOrigin() const { return mFrameOrigin; }
 
  private:
   friend class DynamicScene;  // builds snapshots over shared BVHs
@@ -81,6 +97,7 @@ class RayTracer {
   TriangleMesh mMesh;
   PlaneSet mPlanes;
   Vec3f mMin, mMax;
+  Vec3d mFrameOrigin;  // Embree's vertices and ray origins are relative to it
   float mEpsilon = 1e-4f;
 };
 
