@@ -143,13 +143,13 @@ TEST(PhysicsExtremes, FarFromTheOriginTheSameDecay) {
   EXPECT_NEAR(b.tail.t60Seconds[3], a.tail.t60Seconds[3], 0.05 * a.tail.t60Seconds[3]);
 }
 
-// KNOWN GAP (disabled; --gtest_also_run_disabled_tests): 126 of 16384 rays
-// leak from the closed box at 1e5 m. Hit points are computed in float world
-// coordinates, ~8 mm apart there: near an edge a hit point can round to
-// outside the neighbouring wall, and the next segment leaves through it.
-// Fix: trace in a frame centred on the scene (RayTracer keeps an origin; the
-// propagation code works relative to it).
-TEST(PhysicsExtremes, DISABLED_KnownGap_FarFromTheOriginNoLeaks) {
+// No ray leaks from the closed box at 1e5 m. It used to lose 126 of 16384
+// rays: hit points were computed in float world coordinates, ~8 mm apart
+// there, so near an edge a hit point could round to outside the neighbouring
+// wall and the next segment left through it. Now RayTracer traces in a frame
+// centred on the scene (RayTracer::frameOrigin) and the tracer carries ray
+// origins and hit points in double world coordinates.
+TEST(PhysicsExtremes, FarFromTheOriginNoLeaks) {
   Scene far = box(kFar, kFar + Vec3d{10, 7, 3}, 0.2f, 1.0f);
   auto b = run(far, kSrc + kFar, kLis + kFar);
   EXPECT_EQ(b.traceStats.raysEscaped, 0u);
