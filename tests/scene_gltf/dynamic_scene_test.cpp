@@ -409,6 +409,87 @@ TEST(DynamicScene, StaticBvhIsRebuiltOnlyWhenStaticMeshesChange) {
   EXPECT_EQ(scene.stats().meshBvhBuilds, 1u);
 }
 
+// A room with a movable crate, and the same scene moved by 1e5 m (where
+// world floats are ~8 mm apart): every probe ray, shifted alike, hits the
+// same triangle at the same distance, through moves, material edits and the
+// loss of the static part. This holds only when the snapshot traces in a
+// frame near the scene (the static BVH's vertices and each instance's
+// transform relative to RayTracer::frameOrigin) and the ray origins are
+// double (with float origins the distances differ by millimetres).
+TEST(DynamicScene, SceneFarFromTheOriginAnswersLikeTheSameSceneAtTheOrigin) {
+  const Vec3d far{1e5, 1e5, 1e5};
+  struct Pair {
+    std::unique_ptr<DynamicScene> scene;
+    MeshId room = 0, crate = 0;
+  };
+  const AffineTransform crateAt = AffineTransform::translation({3, 3, 0}) * AffineTransform::rotation({0, 0, 1}, 0.3);
+  auto make = [&](const Vec3d& shift) {
+    Pair p;
+    auto created = DynamicScene::create();
+    EXPECT_TRUE(created.isOk());
+    p.scene = std::move(created).value();
+    const AffineTransform move = AffineTransform::translation(shift);
+    auto room = p.scene->addMesh(makeBox({0, 0, 0}, {10, 7, 3}, 1), MeshMotion::kStatic, move, "room");
+    auto crate = p.scene->addMesh(makeBox({-0.5, -0.5, 0}, {0.5, 0.5, 1}, 2), MeshMotion::kMovable, move * crateAt,
+                                  "crate");
+    EXPECT_TRUE(room.isOk() && crate.isOk());
+    if (room && crate) p.room = *room, p.crate = *crate;
+    return p;
+  };
+  Pair nearScene = make({}), farScene = make(far);
+  ASSERT_NE(nearScene.crate, 0u);
+  ASSERT_NE(farScene.crate, 0u);
+
+  // Origins that are not float values at 1e5 m, in the room and by the crate.
+  const Vec3d origins[] = {{2.3001, 3.1003, 0.7007}, {5.5501, 1.2003, 2.2009}, {3.9003, 3.3001, 0.4003}};
+  const uint32_t n = 400;
+  // `roomHit`: every probe must hit (the closed room is there).
+  auto compare = [&](const char* stage, bool roomHit) {
+    auto a = commitOk(*nearScene.scene), b = commitOk(*farScene.scene);
+    ASSERT_TRUE(a && b);
+    ASSERT_EQ(a->mesh().triangleCount(), b->mesh().triangleCount());
+    // The offset follows the scene's size, not its distance from 0 (it was
+    // 0.38 m here); the world-space bounds it uses are float, hence 1e-3.
+    EXPECT_NEAR(b->surfaceEpsilon(), a->surfaceEpsilon(), 1e-3 * a->surfaceEpsilon()) << stage;
+    int crateHits = 0, mismatches = 0;
+    for (const Vec3d& o : origins)
+      for (uint32_t i = 0; i < n; ++i) {
+        const Vec3f dir(fibonacciDirection(i, n));
+        Hit ha, hb;
+        const bool hitA = a->intersect({o, 0.0f, dir, 1e30f}, ha);
+        const bool hitB = b->intersect({o + far, 0.0f, dir, 1e30f}, hb);
+        ASSERT_EQ(hitA, hitB) << stage << " ray " << i;
+        if (roomHit) {
+          ASSERT_TRUE(hitA) << stage << " ray " << i;
+        }
+        if (!hitA) continue;
+        mismatches += ha.triangle != hb.triangle || std::fabs(ha.t - hb.t) > 1e-3f;
+        EXPECT_EQ(ha.triangle, hb.triangle) << stage << " ray " << i;
+        EXPECT_NEAR(ha.t, hb.t, 1e-3) << stage << " ray " << i;
+        EXPECT_EQ(a->materialOf(ha.triangle), b->materialOf(hb.triangle));
+        crateHits += a->materialOf(ha.triangle) == 2u;
+        // Short of the hit the two agree on occlusion; just past it, blocked.
+        EXPECT_EQ(a->occluded({o, 0.0f, dir, ha.t * 0.5f}), b->occluded({o + far, 0.0f, dir, hb.t * 0.5f})) << stage;
+        EXPECT_TRUE(b->occluded({o + far, 0.0f, dir, hb.t + 1e-3f})) << stage;
+      }
+    EXPECT_GT(crateHits, 0) << stage;  // the instanced crate is among the hits
+    EXPECT_EQ(mismatches, 0) << stage;
+  };
+
+  compare("first commit", true);
+  const AffineTransform turned = AffineTransform::translation({6, 4, 0}) * AffineTransform::rotation({0, 0, 1}, 1.1);
+  ASSERT_TRUE(nearScene.scene->setTransform(nearScene.crate, turned).isOk());
+  ASSERT_TRUE(farScene.scene->setTransform(farScene.crate, AffineTransform::translation(far) * turned).isOk());
+  compare("crate moved", true);
+  ASSERT_TRUE(nearScene.scene->setMaterial(nearScene.room, 3).isOk());
+  ASSERT_TRUE(farScene.scene->setMaterial(farScene.room, 3).isOk());
+  compare("room's material changed (no rebuild)", true);
+  EXPECT_EQ(farScene.scene->stats().staticBvhBuilds, 1u);
+  ASSERT_TRUE(nearScene.scene->removeMesh(nearScene.room).isOk());
+  ASSERT_TRUE(farScene.scene->removeMesh(farScene.room).isOk());
+  compare("crate alone", false);
+}
+
 TEST(DynamicScene, BadInputsGiveErrorsNamingTheMeshAndTheProblem) {
   auto created = DynamicScene::create();
   ASSERT_TRUE(created.isOk());
