@@ -17,10 +17,10 @@ double msSince(std::chrono::steady_clock::time_point t) {
 
 const std::vector<QualityPreset>& qualityPresets() {
   static const std::vector<QualityPreset> presets = {
-      {"draft", 2048, 8, 2, 0.002},
-      {"balanced", 16384, 12, 3, 0.001},
-      {"high", 65536, 24, 3, 0.001},
-      {"reference", 262144, 64, 3, 0.0005},
+      {"draft", 2048, 8, 2, 0.002, 512},
+      {"balanced", 16384, 12, 3, 0.001, 4096},
+      {"high", 65536, 24, 3, 0.001, 16384},
+      {"reference", 262144, 64, 3, 0.0005, 65536},
   };
   return presets;
 }
@@ -36,6 +36,7 @@ void apply(const QualityPreset& p, OmniIrSettings& s) {
   s.bounces = p.bounces;
   s.imageSourceOrder = p.imageSourceOrder;
   s.binSeconds = p.binSeconds;
+  s.tailProbes = p.tailProbes;
 }
 
 std::vector<Arrival> arrivalsOf(const OmniIrResult& r, bool includeDirect) {
@@ -119,6 +120,8 @@ Result<OmniIrResult> computeIr(const RayTracer& tracer, const MaterialTable& mat
     rs.air = s.air;
     rs.binSeconds = s.binSeconds;
     rs.receiverRadiusMeters = s.receiverRadiusMeters;
+    rs.tailProbes = s.completeTail ? s.tailProbes : 0;
+    rs.russianRoulette = s.russianRoulette;
     if (s.lengthSeconds > 0) rs.maxTimeSeconds = s.lengthSeconds;
     rs.excludedSpecular = excluded;
     rs.excludedMaxOrder = excluded ? s.imageSourceOrder : 0;

@@ -109,7 +109,9 @@ struct alignas(64) Accumulator {
   int64_t escaped[kNumBands] = {};
   int64_t late[kNumBands] = {};
   std::vector<int64_t> pathEnergy, pathRetained;  // [free-path bin][band]
-  uint64_t raysEscaped = 0, segments = 0, shadows = 0, raysCut = 0, rouletted = 0, excluded = 0;
+  std::vector<int64_t> probeAliveDiff;       // as aliveDiff, tail probes past their cut
+  int64_t probeCut[kNumBands] = {};
+  uint64_t raysEscaped = 0, segments = 0, shadows = 0, raysCut = 0, rouletted = 0, excluded = 0, probeSegments = 0;
 };
 
 // A rotation matrix from a random unit quaternion (Shoemake 1992).
@@ -244,6 +246,11 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
 
   std::vector<CutRay> cutRays(settings.rays);  // slot per ray: deterministic
   std::vector<uint8_t> wasCut(settings.rays, 0);
+  // Tail probes: every probeStride-th ray; a slot each for where it ended.
+  const uint32_t probeStride = settings.tailProbes > 0 ? std::max(1u, settings.rays / settings.tailProbes) : 0;
+  const uint32_t probeSlots = probeStride > 0 ? (settings.rays + probeStride - 1) / probeStride : 0;
+  std::vector<CutRay> probeEnds(probeSlots);
+  std::vector<uint8_t> probeEnded(probeSlots, 0);
   std::vector<Accumulator> acc(pool.threadCount());
   for (auto& a : acc) {
     a.hist.assign(bins * EnergyHistogram::kStride, 0);
@@ -251,6 +258,7 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
     a.aliveDiff.assign((bins + 1) * kNumBands, 0);
     a.pathEnergy.assign(kFreePathBins * kNumBands, 0);
     a.pathRetained.assign(kFreePathBins * kNumBands, 0);
+    if (probeStride > 0) a.probeAliveDiff.assign((bins + 1) * kNumBands, 0);
   }
   const uint32_t lossFromOrder = std::max(1u, maxOrder / 2);  // the later half of the bounces
   const float rouletteThreshold = rayEnergy * 1e-6f;          // 60 dB down
@@ -282,15 +290,15 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
     addSat(h[kNumBands + 2], toFixed(mean * doa.z));
   };
   // Energy in flight over [from, to) bins (air applied at the segment's start).
-  auto alive = [&](Accumulator& a, float fromLength, float toLength, const float* energy) {
+  auto alive = [&](std::vector<int64_t>& diff, float fromLength, float toLength, const float* energy) {
     const size_t b0 = binOf(fromLength), b1 = binOf(toLength);
     if (b0 >= b1) return;
     float f[kNumBands];
     air.factors(fromLength, f);
     for (int b = 0; b < kNumBands; ++b) {
       const int64_t q = toFixed(double(energy[b]) * f[b]);
-      addSat(a.aliveDiff[b0 * kNumBands + b], q);
-      addSat(a.aliveDiff[b1 * kNumBands + b], -q);
+      addSat(diff[b0 * kNumBands + b], q);
+      addSat(diff[b1 * kNumBands + b], -q);
     }
   };
 
@@ -312,14 +320,17 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
       bool detectSegment = false;  // last event specular/transmission after a reflection
       bool reflected = false;
       bool pureSpecular = true;    // every event so far a specular reflection
+      const bool isProbe = probeStride > 0 && rayIndex % probeStride == 0;
+      bool probing = false;        // a tail probe past the bounce limit: no detections
       PlaneSequence planes;
       planes.fill(0xFFFFFFFFu);
       for (uint32_t order = 0;; ++order) {
         Hit hit;
         ++a.segments;
+        a.probeSegments += probing;
         const bool hasHit = tracer.intersect(ray, hit);
         const float segment = hasHit ? hit.t : 1e30f;
-        if (detectSegment) {
+        if (detectSegment && !probing) {
           // Chord of this segment through the receiver sphere.
           const Vec3f oc(ray.origin - listener);
           const float bq = dot(oc, ray.direction);
@@ -339,6 +350,7 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
           }
         }
         if (!hasHit) {
+          if (probing) break;  // counted when it was cut
           ++a.raysEscaped;
           for (int b = 0; b < kNumBands; ++b) {
             addSat(a.escaped[b], toFixed(energy[b] / (4.0 * kPi)));
@@ -346,9 +358,9 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
           }
           break;
         }
-        alive(a, pathLength, pathLength + hit.t, energy);
+        alive(probing ? a.probeAliveDiff : a.aliveDiff, pathLength, pathLength + hit.t, energy);
         const MatFactors& m = mats[tracer.materialOf(hit.triangle)];
-        if (order >= lossFromOrder) {
+        if (order >= lossFromOrder && !probing) {
           const size_t fb = freePathBin(hit.t) * kNumBands;
           for (int b = 0; b < kNumBands; ++b) {
             addSat(a.pathEnergy[fb + b], toFixed(energy[b]));
@@ -363,6 +375,17 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
           wasCut[rayIndex] = 1;
           c.pathMeters = pathLength;
           for (int b = 0; b < kNumBands; ++b) c.energy[b] = energy[b] * std::min(1.0f, m.reflect[b] + m.transmit[b]);
+          if (!isProbe) break;
+          // A tail probe carries on, undetected, to measure the decay.
+          probing = true;
+          float f[kNumBands];
+          air.factors(pathLength, f);
+          for (int b = 0; b < kNumBands; ++b) addSat(a.probeCut[b], toFixed(double(c.energy[b]) * f[b]));
+        } else if (probing && (order == maxOrder + kMaxProbeBounces || binOf(pathLength) >= bins)) {
+          CutRay& c = probeEnds[rayIndex / probeStride];
+          probeEnded[rayIndex / probeStride] = 1;
+          c.pathMeters = pathLength;
+          for (int b = 0; b < kNumBands; ++b) c.energy[b] = energy[b] * std::min(1.0f, m.reflect[b] + m.transmit[b]);
           break;
         }
         const Vec3d p = ray.origin + Vec3d(ray.direction) * double(hit.t);
@@ -374,7 +397,7 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
         const Vec3f toL(listener - p);
         const float d2 = dot(toL, toL);
         const float cosL = dot(n, toL);
-        if (cosL > 0) {
+        if (cosL > 0 && !probing) {
           float scattered[kNumBands];
           bool any = false;
           for (int b = 0; b < kNumBands; ++b) {
@@ -425,6 +448,16 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
           reflected = true;
         }
         if (!(maxEnergy > 0)) break;
+        if (probing && settings.russianRoulette && maxEnergy < rouletteThreshold) {
+          // A probe 60 dB down joins the virtual population here rather
+          // than play roulette: its few survivors would make the measured
+          // tail noisy where the population's rate serves as well.
+          CutRay& c = probeEnds[rayIndex / probeStride];
+          probeEnded[rayIndex / probeStride] = 1;
+          c.pathMeters = pathLength;
+          for (int b = 0; b < kNumBands; ++b) c.energy[b] = energy[b];
+          break;
+        }
         if (settings.russianRoulette && maxEnergy < rouletteThreshold) {
           if (rng.uniform() >= kSurvival) {
             ++a.rouletted;
@@ -442,6 +475,7 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
     for (size_t i = 0; i < total.hist.size(); ++i) addSat(total.hist[i], acc[w].hist[i]);
     for (size_t i = 0; i < total.perOrder.size(); ++i) addSat(total.perOrder[i], acc[w].perOrder[i]);
     for (size_t i = 0; i < total.aliveDiff.size(); ++i) addSat(total.aliveDiff[i], acc[w].aliveDiff[i]);
+    for (size_t i = 0; i < total.probeAliveDiff.size(); ++i) addSat(total.probeAliveDiff[i], acc[w].probeAliveDiff[i]);
     for (size_t i = 0; i < total.pathEnergy.size(); ++i) {
       addSat(total.pathEnergy[i], acc[w].pathEnergy[i]);
       addSat(total.pathRetained[i], acc[w].pathRetained[i]);
@@ -449,6 +483,7 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
     for (int b = 0; b < kNumBands; ++b) {
       addSat(total.escaped[b], acc[w].escaped[b]);
       addSat(total.late[b], acc[w].late[b]);
+      addSat(total.probeCut[b], acc[w].probeCut[b]);
     }
     total.raysEscaped += acc[w].raysEscaped;
     total.segments += acc[w].segments;
@@ -456,6 +491,7 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
     total.raysCut += acc[w].raysCut;
     total.rouletted += acc[w].rouletted;
     total.excluded += acc[w].excluded;
+    total.probeSegments += acc[w].probeSegments;
   }
   auto& data = result.histogram.data();
   for (size_t i = 0; i < data.size(); ++i) data[i] = double(total.hist[i]) / kFixedScale;
@@ -463,16 +499,25 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
     for (int b = 0; b < kNumBands; ++b)
       stats.detectedPerOrder[o][b] = double(total.perOrder[size_t(o) * kNumBands + b]) / kFixedScale;
   TailData& tail = result.tail;
-  tail.alive.assign(bins, BandArrayD{});
   tail.cutRays.reserve(total.raysCut);
   for (uint32_t i = 0; i < settings.rays; ++i)
     if (wasCut[i]) tail.cutRays.push_back(cutRays[i]);
-  int64_t running[kNumBands] = {};
-  for (size_t i = 0; i < bins; ++i)
-    for (int b = 0; b < kNumBands; ++b) {
-      addSat(running[b], total.aliveDiff[i * kNumBands + b]);
-      tail.alive[i][b] = double(running[b]) / kFixedScale;
-    }
+  auto integrate = [&](const std::vector<int64_t>& diff, std::vector<BandArrayD>& out) {
+    out.assign(bins, BandArrayD{});
+    int64_t running[kNumBands] = {};
+    for (size_t i = 0; i < bins; ++i)
+      for (int b = 0; b < kNumBands; ++b) {
+        addSat(running[b], diff[i * kNumBands + b]);
+        out[i][b] = double(running[b]) / kFixedScale;
+      }
+  };
+  integrate(total.aliveDiff, tail.alive);
+  if (probeStride > 0) {
+    integrate(total.probeAliveDiff, tail.probeAlive);
+    for (int b = 0; b < kNumBands; ++b) tail.probeCutEnergy[b] = double(total.probeCut[b]) / kFixedScale;
+    for (uint32_t i = 0; i < probeSlots; ++i)
+      if (probeEnded[i]) tail.probeEnds.push_back(probeEnds[i]);
+  }
   for (int b = 0; b < kNumBands; ++b) {
     stats.energyEscaped[b] = double(total.escaped[b]) / kFixedScale;
     stats.energyLate[b] = double(total.late[b]) / kFixedScale;
@@ -490,6 +535,7 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
   stats.raysCut = total.raysCut;
   stats.raysRouletted = total.rouletted;
   stats.specularExcluded = total.excluded;
+  stats.tailProbeSegments = total.probeSegments;
   stats.traceMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return result;
 }

@@ -85,8 +85,16 @@ Result<EnergyHistogram> completeTail(const EnergyHistogram& h, const TailData& t
   if (settings.lengthSeconds > 0) {
     bins = std::max<size_t>(1, size_t(std::ceil(settings.lengthSeconds / dt)));
   } else if (anyCut) {
-    const double end =
-        std::min(settings.maxAutoSeconds, lastCut + settings.dynamicRangeDb / 10.0 * std::log(10.0) / slowest);
+    // The probes' decay may be slower than the population's rate: cover
+    // where they were still in flight, and where the last of them ended.
+    double lastProbe = 0;
+    for (size_t i = 0; i < tail.probeAlive.size(); ++i)
+      for (int b = 0; b < kNumBands; ++b)
+        if (tail.probeAlive[i][b] > 0) lastProbe = double(i + 1) * dt;
+    for (const CutRay& c : tail.probeEnds)
+      lastProbe = std::max(lastProbe, double(c.pathMeters) / settings.speedOfSound);
+    const double end = std::min(settings.maxAutoSeconds, std::max(lastCut, lastProbe) +
+                                                             settings.dynamicRangeDb / 10.0 * std::log(10.0) / slowest);
     bins = std::max(bins, size_t(std::ceil(end / dt)));
   } else {
     bins = size_t(std::max(1L, h.lastNonEmptyBin() + 1));
@@ -94,18 +102,36 @@ Result<EnergyHistogram> completeTail(const EnergyHistogram& h, const TailData& t
 
   std::vector<BandArrayD> virtualEnergy(bins, BandArrayD{});
   if (anyCut) {
-    std::vector<BandArrayD> joining(bins, BandArrayD{});  // energy cut in each bin, air applied
-    for (const CutRay& c : tail.cutRays) {
-      const size_t bin = size_t(double(c.pathMeters) / settings.speedOfSound / dt);
-      if (bin >= bins) continue;
-      for (int b = 0; b < kNumBands; ++b) joining[bin][b] += double(c.energy[b]) * std::exp(-m[b] * c.pathMeters);
-    }
+    // Energy (air applied) joining the virtual population in each bin: rays
+    // cut by the bounce limit, or probes stopped by their own limits.
+    auto joiningOf = [&](const std::vector<CutRay>& rays) {
+      std::vector<BandArrayD> joining(bins, BandArrayD{});
+      for (const CutRay& c : rays) {
+        const size_t bin = size_t(double(c.pathMeters) / settings.speedOfSound / dt);
+        if (bin >= bins) continue;
+        for (int b = 0; b < kNumBands; ++b) joining[bin][b] += double(c.energy[b]) * std::exp(-m[b] * c.pathMeters);
+      }
+      return joining;
+    };
+    BandArrayD cutTotal{};  // all the energy the rays were cut with
+    for (const CutRay& c : tail.cutRays)
+      for (int b = 0; b < kNumBands; ++b) cutTotal[b] += double(c.energy[b]) * std::exp(-m[b] * c.pathMeters);
+    const std::vector<BandArrayD> cut = joiningOf(tail.cutRays);
+    const std::vector<BandArrayD> probeEnds = joiningOf(tail.probeEnds);
     for (int b = 0; b < kNumBands; ++b) {
+      // With tail probes: their measured energy in flight, scaled from the
+      // energy they were cut with to all cut rays' (beyond the probes' own
+      // end, at the population's rate). Without: every cut ray at that rate.
+      const bool probed = !tail.probeAlive.empty() && tail.probeCutEnergy[b] > 0;
+      const double scale = probed ? cutTotal[b] / tail.probeCutEnergy[b] : 1.0;
+      const std::vector<BandArrayD>& joining = probed ? probeEnds : cut;
+      info.probed[b] = probed;
       const double step = std::exp(-delta[b] * dt);
       double v = 0;
       for (size_t i = 0; i < bins; ++i) {
         v *= step;
-        virtualEnergy[i][b] = v;  // a ray cut in bin i is in flight from bin i + 1
+        const double measured = probed && i < tail.probeAlive.size() ? tail.probeAlive[i][b] : 0.0;
+        virtualEnergy[i][b] = scale * (measured + v);  // a ray cut in bin i is in flight from bin i + 1
         v += joining[i][b];
       }
     }

@@ -42,16 +42,21 @@ const Vec3d kSource{2, 3.5, 1.5}, kListener{7, 3.5, 1.5};
 
 // The default budget (16384 rays x 12 bounces) plus completion gives the
 // decay of a trace that covers it all (150 bounces): T30 within 5 % (1 JND)
-// and the -20 dB point of the EDC within 5 %.
+// and the -20 dB point of the EDC within 5 %; with tail probes (the default)
+// and with the population's rate alone.
 TEST(TailCompletion, TwelveBouncesPlusCompletionMatchAFullTrace) {
+  for (uint32_t probes : {4096u, 0u})
   for (float alpha : {0.1f, 0.3f}) {
+    SCOPED_TRACE("probes " + std::to_string(probes));
     Room room(alpha, 1.0f);
     ThreadPool pool(2);
     ReflectionSettings s;
     s.maxTimeSeconds = 4.0;
     s.bounces = 150;
+    s.tailProbes = 0;
     auto full = traceReflections(*room.tracer, room.materials, kSource, kListener, s, pool);
     s.bounces = 12;
+    s.tailProbes = probes;
     auto cut = traceReflections(*room.tracer, room.materials, kSource, kListener, s, pool);
     ASSERT_TRUE(full.isOk() && cut.isOk());
     EXPECT_GT(cut->stats.raysCut, 0u);
@@ -73,6 +78,65 @@ TEST(TailCompletion, TwelveBouncesPlusCompletionMatchAFullTrace) {
     // exponential tail at least T60 minus the time to the tail's start.
     EXPECT_GT(info.lengthSeconds, 0.9 * info.t60Seconds[0]);
     EXPECT_LT(info.lengthSeconds, 1.2 * info.t60Seconds[0] + info.startSeconds[0]);
+  }
+}
+
+// A tail probe is the ray it was, carried on: with every ray a probe (and no
+// roulette, which would end probes 60 dB down), the traced energy in flight
+// plus the probes' equals, bin by bin, the energy in flight of a trace whose
+// bounce limit is the probes' (same paths, same random numbers; detections
+// do not draw any).
+TEST(TailCompletion, ProbesCarryTheirRaysOnExactly) {
+  Room room(0.2f, 0.5f);  // scattering draws random numbers: the streams must agree
+  ThreadPool pool(2);
+  ReflectionSettings s;
+  s.rays = 2000;
+  s.maxTimeSeconds = 2.0;
+  s.russianRoulette = false;
+  s.tailProbes = s.rays;
+  auto probed = traceReflections(*room.tracer, room.materials, kSource, kListener, s, pool);
+  s.bounces = 12 + kMaxProbeBounces;
+  s.tailProbes = 0;
+  auto full = traceReflections(*room.tracer, room.materials, kSource, kListener, s, pool);
+  ASSERT_TRUE(probed.isOk() && full.isOk());
+  EXPECT_LE(probed->stats.segmentsTraced, full->stats.segmentsTraced);  // probes stop at the histogram's end
+  EXPECT_GT(probed->stats.tailProbeSegments, probed->stats.segmentsTraced / 2);
+  ASSERT_EQ(probed->tail.probeAlive.size(), full->tail.alive.size());
+  double peak = 0;
+  for (const auto& a : full->tail.alive) peak = std::max(peak, a[0]);
+  for (size_t i = 0; i < full->tail.alive.size(); ++i)
+    for (int b = 0; b < kNumBands; ++b)
+      ASSERT_NEAR(probed->tail.alive[i][b] + probed->tail.probeAlive[i][b], full->tail.alive[i][b], 1e-12 * peak)
+          << "bin " << i << " band " << b;
+}
+
+// A specular box decays as a mixture of exponentials (each direction class of
+// rays at its own rate), slower late than any one rate. Probes measure that:
+// 12 bounces plus completion give the T30 of a 200-bounce trace within 5 %;
+// the population's one rate alone is over 10 % short (the test can fail).
+TEST(TailCompletion, ProbesFollowTheSlowerLateDecayOfASpecularBox) {
+  Room room(0.3f, 0.0f);
+  ThreadPool pool(2);
+  ReflectionSettings s;
+  s.bounces = 200;
+  s.tailProbes = 0;
+  auto full = traceReflections(*room.tracer, room.materials, kSource, kListener, s, pool);
+  ASSERT_TRUE(full.isOk());
+  for (uint32_t probes : {4096u, 0u}) {
+    s.bounces = 12;
+    s.tailProbes = probes;
+    auto cut = traceReflections(*room.tracer, room.materials, kSource, kListener, s, pool);
+    ASSERT_TRUE(cut.isOk());
+    auto completed = completeTail(cut->histogram, cut->tail, TailCompletionSettings{});
+    ASSERT_TRUE(completed.isOk());
+    for (int b = 1; b < 6; ++b) {
+      const double want = t30(full->histogram, b), got = t30(*completed, b);
+      if (probes > 0) {
+        EXPECT_NEAR(got, want, 0.05 * want) << "band " << b;
+      } else {
+        EXPECT_LT(got, 0.9 * want) << "band " << b;
+      }
+    }
   }
 }
 

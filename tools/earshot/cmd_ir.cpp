@@ -41,6 +41,7 @@ struct IrOptions {
   double receiverRadius = 0.0;
   std::string quality = "balanced";
   uint32_t ismOrder = 3;
+  uint32_t tailProbes = 4096;
 };
 
 double msSince(std::chrono::steady_clock::time_point t) {
@@ -69,6 +70,7 @@ int run(const IrOptions& o, const CLI::App& cmd) {
   if (cmd.count("--bounces")) settings.bounces = o.bounces;
   if (cmd.count("--ism-order")) settings.imageSourceOrder = o.ismOrder;
   if (cmd.count("--bin-ms")) settings.binSeconds = o.binMs / 1000.0;
+  if (cmd.count("--tail-probes")) settings.tailProbes = o.tailProbes;
   settings.sampleRateHz = o.rate;
   settings.seed = o.seed;
   settings.air = *air;
@@ -120,7 +122,8 @@ int run(const IrOptions& o, const CLI::App& cmd) {
   stats["receiver"] = o.receiver;
   stats["settings"] = {{"rays", settings.rays},           {"bounces", settings.bounces},
                        {"ism_order", settings.imageSourceOrder}, {"bin_ms", settings.binSeconds * 1000.0},
-                       {"seed", settings.seed},           {"sample_rate_hz", settings.sampleRateHz}};
+                       {"seed", settings.seed},           {"sample_rate_hz", settings.sampleRateHz},
+                       {"tail_probes", settings.tailProbes}};
   stats["threads"] = pool.threadCount();
   stats["direct"] = {{"distance_m", r.direct.distanceMeters}, {"delay_s", r.direct.delaySeconds},
                      {"surfaces_crossed", r.direct.surfacesCrossed}, {"audible", r.direct.audible}};
@@ -133,12 +136,14 @@ int run(const IrOptions& o, const CLI::App& cmd) {
   stats["rays_cut_by_bounce_limit"] = st.raysCut;
   stats["rays_ended_by_roulette"] = st.raysRouletted;
   stats["segments_traced"] = st.segmentsTraced;
+  stats["tail_probe_segments"] = st.tailProbeSegments;
   stats["shadow_rays"] = st.shadowRays;
   stats["specular_detections_left_to_image_sources"] = st.specularExcluded;
   stats["energy_escaped_fraction"] = st.energyEscaped;
   stats["receiver_radius_m"] = st.receiverRadiusMeters;
   stats["tail"] = {{"extended", r.tail.extended},
                    {"t60_s", r.tail.t60Seconds},
+                   {"measured_by_probes", r.tail.probed},
                    {"start_s", r.tail.startSeconds},
                    {"mean_loss_per_reflection", r.tail.meanLoss},
                    {"mean_free_path_m", r.tail.meanFreePathMeters}};
@@ -189,6 +194,10 @@ const Registrar registrar([](CLI::App& root) {
       ->capture_default_str();
   cmd->add_option("--ism-order", o->ismOrder, "Image-source order of early specular reflections (0 = none)")
       ->check(CLI::Range(0u, kMaxImageSourceOrder));
+  cmd->add_option("--tail-probes", o->tailProbes,
+                  "Rays that carry on past the bounce limit, undetected, to measure the tail's decay "
+                  "(balanced: 4096; 0 = extrapolate at one rate)")
+      ->check(CLI::Range(0u, 100000000u));
   cmd->callback([o, cmd] { setExitCode(run(*o, *cmd)); });
 });
 

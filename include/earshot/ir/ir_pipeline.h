@@ -34,6 +34,10 @@ struct OmniIrSettings {
   double binSeconds = 0.001;
   double receiverRadiusMeters = 0.0;  ///< 0: automatic
   bool completeTail = true;
+  /** Rays that carry on past the bounce limit to measure the tail's decay
+   *  (ReflectionSettings::tailProbes); 0: extrapolate at one rate. */
+  uint32_t tailProbes = 4096;
+  bool russianRoulette = true;     ///< end rays 60 dB down (unbiased; ReflectionSettings)
   bool includeDirect = true;       ///< false: reflections only (the runtime renders the direct path per block)
 };
 
@@ -43,11 +47,12 @@ struct BinauralReceiver {
   ListenerOrientation orientation;
 };
 
-/** Named quality presets: rays, bounces, image-source order, histogram bin. */
+/** Named quality presets: rays, bounces, image-source order, histogram bin, tail probes. */
 struct QualityPreset {
   std::string name;
   uint32_t rays, bounces, imageSourceOrder;
   double binSeconds;
+  uint32_t tailProbes;
 };
 /** "draft", "balanced" (the defaults), "high", "reference". */
 Result<QualityPreset> qualityPreset(const std::string& name);

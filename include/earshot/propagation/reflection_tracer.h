@@ -59,7 +59,20 @@ struct ReflectionSettings {
   const PlaneSequenceSet* excludedSpecular = nullptr;
   uint32_t excludedMaxOrder = 0;      ///< orders 1..this are checked against excludedSpecular
   bool russianRoulette = true;        ///< stop rays 60 dB down (unbiased)
+  /** Tail probes: about this many rays (every rays/tailProbes-th) carry on
+   *  past the bounce limit without detections until they are 60 dB down
+   *  (where roulette would start; not without roulette), escape, reach the histogram's end or
+   *  make kMaxProbeBounces more reflections; their energy in flight is the
+   *  measured shape of the late decay that tail completion scales to all
+   *  cut rays (beyond the probes' ends, at the population's rate). A specular
+   *  room decays as a mixture of rates that no one rate extrapolates.
+   *  0: none (the whole tail at the population's rate). Probes > rays: every
+   *  ray. */
+  uint32_t tailProbes = 4096;
 };
+
+/** Reflections a tail probe makes past the bounce limit, at most. */
+constexpr uint32_t kMaxProbeBounces = 2000;
 
 /** A ray stopped by the bounce limit: what it would have carried on with. */
 struct CutRay {
@@ -76,6 +89,15 @@ struct TailData {
    *  path in that bin, and e times the fraction the reflection keeps. Escapes
    *  count in `pathEnergy` of the last bin and keep nothing. */
   std::vector<BandArrayD> pathEnergy, pathRetained;
+  /** Tail probes (ReflectionSettings::tailProbes): their energy in flight
+   *  after their cut, per bin (air applied), and the energy they were cut
+   *  with (air applied). Empty / zero without probes. */
+  std::vector<BandArrayD> probeAlive;
+  BandArrayD probeCutEnergy{};
+  /** Probes stopped 60 dB down, at the histogram's end or at
+   *  kMaxProbeBounces: what they would have carried on with (energy without
+   *  air, as CutRay). */
+  std::vector<CutRay> probeEnds;
 };
 
 /** Free-path bins: log-spaced, 64 per octave from 1/1024 m up (~10 km at
@@ -95,6 +117,7 @@ struct ReflectionStats {
   uint64_t raysCut = 0;               ///< rays stopped by the bounce limit
   uint64_t raysRouletted = 0;         ///< rays ended by Russian roulette
   uint64_t specularExcluded = 0;      ///< detections left to the image sources
+  uint64_t tailProbeSegments = 0;     ///< of segmentsTraced: tail probes past the bounce limit
   double receiverRadiusMeters = 0.0;
   double traceMs = 0.0;               ///< wall time of the tracing
 };

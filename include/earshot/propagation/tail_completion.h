@@ -20,6 +20,8 @@
  *  and their own decay rate, and a specular flat room decays as a mixture of
  *  exponentials, slower late than one rate says (T30 -2.5 JND against exact
  *  image sources at alpha 0.3; tests/regression). */
+#include <array>
+
 #include "earshot/core/status.h"
 #include "earshot/propagation/air_absorption.h"
 #include "earshot/propagation/energy_histogram.h"
@@ -48,6 +50,9 @@ struct TailInfo {
   BandArrayD kappa{};                ///< detections per unit energy in flight
   BandArrayD meanLoss{};             ///< energy-weighted loss per reflection
   BandArrayD meanFreePathMeters{};   ///< energy-weighted mean free path
+  /** Per band: the virtual energy is the tail probes' measured energy in
+   *  flight (ReflectionSettings::tailProbes), not the population's rate. */
+  std::array<bool, kNumBands> probed{};
   double lengthSeconds = 0.0;        ///< of the returned histogram
 };
 
