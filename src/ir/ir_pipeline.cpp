@@ -86,7 +86,10 @@ Result<OmniIrResult> computeIr(const RayTracer& tracer, const MaterialTable& mat
   out.direct = computeDirectPath(&tracer, materials, source, listener, ds);
   out.timings.directMs = msSince(t);
   if (tracer.empty()) out.skipped.push_back("reflections: no geometry");
-  if (out.direct.surfacesCrossed == 0 && !tracer.empty()) out.skipped.push_back("transmission: nothing between source and listener");
+  if (!tracer.empty() && !out.direct.occlusionTested)
+    out.skipped.push_back("direct-path occlusion test: no surface's plane separates source and listener");
+  else if (out.direct.surfacesCrossed == 0 && !tracer.empty())
+    out.skipped.push_back("transmission: nothing between source and listener");
 
   // Early specular reflections.
   const PlaneSequenceSet* excluded = nullptr;
@@ -128,6 +131,8 @@ Result<OmniIrResult> computeIr(const RayTracer& tracer, const MaterialTable& mat
     auto r = traceReflections(tracer, materials, source, listener, rs, pool);
     if (!r.isOk()) return r.status();
     out.traceStats = r->stats;
+    if (r->stats.shadowRaysSkipped > 0 && r->stats.shadowRays == 0)
+      out.skipped.push_back("occlusion tests of diffuse reflections: the room is convex around the listener");
     out.timings.traceMs = r->stats.traceMs;
     t = std::chrono::steady_clock::now();
     if (s.completeTail) {

@@ -20,7 +20,8 @@ DirectPath computeDirectPath(const RayTracer* tracer, const MaterialTable& mater
   BandArrayD energy{};
   for (int b = 0; b < kNumBands; ++b) energy[b] = std::pow(10.0, -airDb[b] * d.distanceMeters / 10.0);
 
-  if (tracer && !tracer->empty() && d.distanceMeters > 0) {
+  if (tracer && !tracer->empty() && d.distanceMeters > 0 && !tracer->nothingBetween(listener, source)) {
+    d.occlusionTested = true;
     // Walk every surface on the segment listener -> source, multiplying transmission.
     const Vec3f dir = Vec3f(d.directionFromListener);
     const float eps = tracer->surfaceEpsilon();

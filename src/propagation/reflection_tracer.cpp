@@ -111,7 +111,8 @@ struct alignas(64) Accumulator {
   std::vector<int64_t> pathEnergy, pathRetained;  // [free-path bin][band]
   std::vector<int64_t> probeAliveDiff;       // as aliveDiff, tail probes past their cut
   int64_t probeCut[kNumBands] = {};
-  uint64_t raysEscaped = 0, segments = 0, shadows = 0, raysCut = 0, rouletted = 0, excluded = 0, probeSegments = 0;
+  uint64_t raysEscaped = 0, segments = 0, shadows = 0, raysCut = 0, rouletted = 0, excluded = 0, probeSegments = 0,
+           shadowsSkipped = 0;
 };
 
 // A rotation matrix from a random unit quaternion (Shoemake 1992).
@@ -220,6 +221,9 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
   const float invBin = float(1.0 / settings.binSeconds);
   const float minD2 = float(settings.minDistanceMeters * settings.minDistanceMeters);
   const float eps = tracer.surfaceEpsilon();
+  // A convex room around the listener blocks no path from its surface to
+  // the listener: next-event estimation needs no occlusion test.
+  const bool shadowsNeeded = !tracer.convexAround(listener);
   // Paths longer than the histogram covers are counted as late whatever their air.
   const AirTable air(airEnergyAttenuationPerMeter(settings.air), settings.maxTimeSeconds * settings.speedOfSound);
   const Rotation rot = randomRotation(mix64(settings.seed));
@@ -406,9 +410,15 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
           }
           if (any) {
             const float d = std::sqrt(d2);
-            Ray shadow{p + offset, 0.0f, toL / d, d - eps};
-            ++a.shadows;
-            if (shadow.tFar <= 0 || !tracer.occluded(shadow)) {
+            bool visible = true;
+            if (shadowsNeeded) {
+              Ray shadow{p + offset, 0.0f, toL / d, d - eps};
+              ++a.shadows;
+              visible = shadow.tFar <= 0 || !tracer.occluded(shadow);
+            } else {
+              ++a.shadowsSkipped;
+            }
+            if (visible) {
               const float w = (cosL / d) / (float(kPi) * std::max(d2, minD2));
               deposit(a, pathLength + d, scattered, w, -toL / d, order + 1);
             }
@@ -488,6 +498,7 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
     total.raysEscaped += acc[w].raysEscaped;
     total.segments += acc[w].segments;
     total.shadows += acc[w].shadows;
+    total.shadowsSkipped += acc[w].shadowsSkipped;
     total.raysCut += acc[w].raysCut;
     total.rouletted += acc[w].rouletted;
     total.excluded += acc[w].excluded;
@@ -532,6 +543,7 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
   stats.raysEscaped = total.raysEscaped;
   stats.segmentsTraced = total.segments;
   stats.shadowRays = total.shadows;
+  stats.shadowRaysSkipped = total.shadowsSkipped;
   stats.raysCut = total.raysCut;
   stats.raysRouletted = total.rouletted;
   stats.specularExcluded = total.excluded;

@@ -305,6 +305,7 @@ Result<std::shared_ptr<const RayTracer>> DynamicScene::commit() {
     rt->mMax = prev.mMax;
     rt->mFrameOrigin = prev.mFrameOrigin;  // the BVHs below were built for it
     rt->mEpsilon = prev.mEpsilon;
+    rt->mConvexSides = prev.mConvexSides;
     rt->mImpl = std::make_unique<RayTracer::Impl>(*prev.mImpl);
     return finish(std::move(rt));
   }
@@ -371,6 +372,7 @@ Result<std::shared_ptr<const RayTracer>> DynamicScene::commit() {
   std::merge(sp.planeEntries.begin(), sp.planeEntries.end(), movableEntries.begin(), movableEntries.end(),
              planeEntries.begin(), detail::byOffset);
   rt->mPlanes = detail::groupSortedPlaneEntries(planeEntries, world.triangles.size());
+  rt->mConvexSides = convexSides(world, rt->mPlanes, rt->mEpsilon);
 
   auto impl = std::make_unique<RayTracer::Impl>();
   impl->device = device;

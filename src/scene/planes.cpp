@@ -88,4 +88,27 @@ PlaneSet groupCoplanarTriangles(const TriangleMesh& mesh, double angleTol, doubl
   return detail::groupSortedPlaneEntries(detail::sortedPlaneEntries(mesh), mesh.triangles.size(), angleTol, offsetTol);
 }
 
+std::vector<int8_t> convexSides(const TriangleMesh& mesh, const PlaneSet& planes, double tolerance) {
+  std::vector<int8_t> sides(planes.planes.size(), 0);
+  for (size_t i = 0; i < planes.planes.size(); ++i) {
+    bool above = false, below = false;
+    for (const Vec3f& v : mesh.positions) {
+      const double d = planes.planes[i].distance(Vec3d(v));
+      above |= d > tolerance;
+      below |= d < -tolerance;
+      if (above && below) return {};
+    }
+    sides[i] = below ? -1 : 1;
+  }
+  return sides;
+}
+
+bool segmentCrossesNoPlane(const PlaneSet& planes, const Vec3d& a, const Vec3d& b, double tolerance) {
+  for (const Plane& p : planes.planes) {
+    const double da = p.distance(a), db = p.distance(b);
+    if (!((da > tolerance && db > tolerance) || (da < -tolerance && db < -tolerance))) return false;
+  }
+  return true;
+}
+
 }  // namespace earshot

@@ -17,6 +17,7 @@ Result<std::unique_ptr<RayTracer>> RayTracer::create(const TriangleMesh& mesh) {
   rt->mFrameOrigin = detail::frameOriginOf(rt->mMin, rt->mMax);
   rt->mEpsilon = detail::surfaceEpsilonOf(rt->mMin, rt->mMax, rt->mFrameOrigin);
   rt->mPlanes = groupCoplanarTriangles(mesh);
+  rt->mConvexSides = convexSides(mesh, rt->mPlanes, rt->mEpsilon);
 
   auto device = detail::EmbreeDevice::create();
   if (!device) return device.status();
@@ -91,6 +92,18 @@ bool RayTracer::occluded(const Ray& ray) const {
   r.flags = 0;
   rtcOccluded1(mImpl->root, &ctx, &r);
   return r.tfar < 0.0f;  // Embree sets tfar to -inf on a hit
+}
+
+bool RayTracer::convexAround(const Vec3d& p) const {
+  if (mConvexSides.empty()) return false;
+  for (size_t i = 0; i < mPlanes.planes.size(); ++i)
+    if (!(mPlanes.planes[i].distance(p) * mConvexSides[i] > mEpsilon)) return false;
+  return true;
+}
+
+bool RayTracer::nothingBetween(const Vec3d& a, const Vec3d& b) const {
+  if (mPlanes.planes.size() > 256) return false;
+  return segmentCrossesNoPlane(mPlanes, a, b, mEpsilon);
 }
 
 }  // namespace earshot

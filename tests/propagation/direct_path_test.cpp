@@ -67,4 +67,25 @@ TEST(DirectPath, EachWallCrossedMultipliesEnergyByItsTransmission) {
   EXPECT_FALSE(computeDirectPath(rt2->get(), materials, {3, 0.3, 0.2}, {0, 0.1, 0}, s).audible);
 }
 
+// The occlusion test is made only where a surface could be in the way: not
+// between two points inside a box (no plane separates them), but between
+// two points on either side of a wall.
+TEST(DirectPath, OcclusionIsTestedOnlyWhereASurfaceCouldBlock) {
+  MaterialTable materials;
+  auto box = RayTracer::create(makeBox({0, 0, 0}, {10, 7, 3}, 0));
+  ASSERT_TRUE(box.isOk());
+  DirectPathSettings s;
+  DirectPath inside = computeDirectPath(box->get(), materials, {2, 3.5, 1.5}, {7, 3.5, 1.5}, s);
+  EXPECT_FALSE(inside.occlusionTested);
+  EXPECT_TRUE(inside.audible);
+  EXPECT_EQ(inside.surfacesCrossed, 0);
+  EXPECT_TRUE((*box)->nothingBetween({2, 3.5, 1.5}, {7, 3.5, 1.5}));
+  // One point outside: the wall x = 10 separates them; it is tested and blocks.
+  DirectPath through = computeDirectPath(box->get(), materials, {12, 3.5, 1.5}, {7, 3.5, 1.5}, s);
+  EXPECT_TRUE(through.occlusionTested);
+  EXPECT_EQ(through.surfacesCrossed, 1);
+  // A point on a wall is not provably clear.
+  EXPECT_FALSE((*box)->nothingBetween({10, 3.5, 1.5}, {7, 3.5, 1.5}));
+}
+
 }  // namespace earshot

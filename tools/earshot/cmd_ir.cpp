@@ -126,7 +126,8 @@ int run(const IrOptions& o, const CLI::App& cmd) {
                        {"tail_probes", settings.tailProbes}};
   stats["threads"] = pool.threadCount();
   stats["direct"] = {{"distance_m", r.direct.distanceMeters}, {"delay_s", r.direct.delaySeconds},
-                     {"surfaces_crossed", r.direct.surfacesCrossed}, {"audible", r.direct.audible}};
+                     {"surfaces_crossed", r.direct.surfacesCrossed}, {"audible", r.direct.audible},
+                     {"occlusion_tested", r.direct.occlusionTested}};
   stats["early_reflections"] = {{"paths", r.early.size()},
                                 {"candidates", r.imageSourceCandidates},
                                 {"exhaustive", r.imageSourcesExhaustive}};
@@ -138,6 +139,7 @@ int run(const IrOptions& o, const CLI::App& cmd) {
   stats["segments_traced"] = st.segmentsTraced;
   stats["tail_probe_segments"] = st.tailProbeSegments;
   stats["shadow_rays"] = st.shadowRays;
+  stats["shadow_rays_skipped"] = st.shadowRaysSkipped;
   stats["specular_detections_left_to_image_sources"] = st.specularExcluded;
   stats["energy_escaped_fraction"] = st.energyEscaped;
   stats["receiver_radius_m"] = st.receiverRadiusMeters;

@@ -22,6 +22,7 @@ struct DirectPath {
   double spreadingGain = 1.0;       ///< pressure: 1 / max(r, minDistance) (1.0 at 1 m)
   BandArrayD bandGain{};            ///< pressure factor per band: air x transmission (spreading excluded)
   int surfacesCrossed = 0;          ///< occluders between source and listener
+  bool occlusionTested = false;     ///< false: no geometry, or provably nothing between (RayTracer::nothingBetween)
   bool audible = true;              ///< false when fully blocked (some band gain > 0 otherwise)
   Vec3d directionFromListener;      ///< unit vector from the listener toward the source (world frame)
 };

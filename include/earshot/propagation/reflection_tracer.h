@@ -111,6 +111,7 @@ struct ReflectionStats {
   uint64_t raysEscaped = 0;           ///< rays that left the geometry
   uint64_t segmentsTraced = 0;        ///< intersection queries
   uint64_t shadowRays = 0;            ///< occlusion queries
+  uint64_t shadowRaysSkipped = 0;     ///< not needed: a convex room around the listener (RayTracer::convexAround)
   BandArrayD energyEscaped{};         ///< fraction of emitted energy that escaped, per band
   BandArrayD energyLate{};            ///< detected energy arriving after maxTimeSeconds
   std::vector<BandArrayD> detectedPerOrder;  ///< detected energy by reflection order (index 0 unused)

@@ -33,4 +33,15 @@ bool pointOnTriangle(const TriangleMesh& mesh, uint32_t t, const Vec3d& p, doubl
 PlaneSet groupCoplanarTriangles(const TriangleMesh& mesh, double angleTolerance = 1e-5,
                                 double offsetTolerance = 1e-4);
 
+/** Per plane, the side (+1 or -1) on which every vertex of `mesh` lies
+ *  (vertices within `tolerance` metres of a plane count as on both sides);
+ *  empty when some plane has vertices beyond `tolerance` on both sides, or
+ *  there are no planes. Non-empty means the mesh lies in the intersection of
+ *  those half-spaces: a convex region whose boundary holds every triangle. */
+std::vector<int8_t> convexSides(const TriangleMesh& mesh, const PlaneSet& planes, double tolerance);
+
+/** True when no plane has a and b on opposite sides or within `tolerance`
+ *  of it: then the segment a-b crosses no triangle of the planes' mesh. */
+bool segmentCrossesNoPlane(const PlaneSet& planes, const Vec3d& a, const Vec3d& b, double tolerance);
+
 }  // namespace earshot

@@ -84,6 +84,15 @@ class RayTracer {
    *  to; each component is a float value. Callers need not use it: queries
    *  take and give world coordinates. */
   const Vec3d& frameOrigin() const { return mFrameOrigin; }
+  /** True when the mesh bounds a convex region (convexSides) and p lies in
+   *  it, surfaceEpsilon() from every plane: then nothing blocks the segment
+   *  from p to any point on the mesh's surface, and occlusion tests toward p
+   *  can be skipped. Cheap: one dot product per plane. */
+  bool convexAround(const Vec3d& p) const;
+  /** True when provably nothing lies between a and b (no plane of the mesh
+   *  separates them or touches the segment); false when it cannot tell
+   *  cheaply (then ask occluded()). Tests at most 256 planes. */
+  bool nothingBetween(const Vec3d& a, const Vec3d& b) const;
 
  private:
   friend class DynamicScene;  // builds snapshots over shared BVHs
@@ -98,6 +107,7 @@ class RayTracer {
   PlaneSet mPlanes;
   Vec3f mMin, mMax;
   Vec3d mFrameOrigin;  // Embree's vertices and ray origins are relative to it
+  std::vector<int8_t> mConvexSides;  // convexSides(mMesh, mPlanes, mEpsilon)
   float mEpsilon = 1e-4f;
 };
 
