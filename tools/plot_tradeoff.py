@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
 """Plot the CSV of `earshot tradeoff`: error (JND, log y) against compute time
-(s, log x), one line per metric plus the worst metric (max), points labelled
-rays x bounces. Usage: plot_tradeoff.py IN.csv OUT.svg
+(s, log x), one line per metric plus the worst metric (max). A grid CSV has
+points labelled rays x bounces, one line style per bounce limit; a --presets
+CSV (a `preset` column first) has one point per preset, labelled with its name.
+Usage: plot_tradeoff.py IN.csv OUT.svg
 
 Exit codes: 0 ok, 2 an error (one line on stderr). The SVG is written to a
 temporary file in the same folder and renamed, so a failure leaves no partial
@@ -36,9 +38,10 @@ def main():
     try:
         with open(src, newline="") as f:
             reader = csv.DictReader(f)
-            if reader.fieldnames != COLUMNS:
-                fail(f"{src}: header is {reader.fieldnames}, expected {COLUMNS}")
-            rows = [{k: float(v) for k, v in r.items()} for r in reader]
+            presets = reader.fieldnames == ["preset"] + COLUMNS
+            if reader.fieldnames != COLUMNS and not presets:
+                fail(f"{src}: header is {reader.fieldnames}, expected {COLUMNS} or {['preset'] + COLUMNS}")
+            rows = [{k: (v if k == "preset" else float(v)) for k, v in r.items()} for r in reader]
     except (OSError, ValueError) as e:
         fail(f"{src}: {e}")
     if not rows:
@@ -47,7 +50,9 @@ def main():
     # colour = metric, line style and marker = bounce limit.
     from matplotlib.lines import Line2D
     styles = [("-", "o"), ("--", "s"), (":", "^"), ("-.", "D")]
-    bounce_values = sorted({int(r["bounces"]) for r in rows})
+    # A preset CSV is drawn as one group (one line per metric through the
+    # presets in order of cost); a grid CSV as one group per bounce limit.
+    bounce_values = [None] if presets else sorted({int(r["bounces"]) for r in rows})
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     fig, ax = plt.subplots(figsize=(10, 6.5))
 
@@ -56,7 +61,8 @@ def main():
 
     xs_all = []
     for bi, b in enumerate(bounce_values):
-        group = sorted((r for r in rows if int(r["bounces"]) == b), key=lambda r: r["rays"])
+        group = sorted((r for r in rows if b is None or int(r["bounces"]) == b),
+                       key=lambda r: r["seconds_median"] if b is None else r["rays"])
         ls, mk = styles[bi % len(styles)]
         xs = [max(r["seconds_median"], 1e-6) for r in group]
         xs_all += xs
@@ -66,11 +72,11 @@ def main():
         ys = [y_of(r["max_jnd"]) for r in group]
         ax.plot(xs, ys, linestyle=ls, marker=mk, markersize=6, linewidth=2.2, color="black")
         for x, y, r in zip(xs, ys, group):
-            ax.annotate(f"{int(r['rays'])}x{int(r['bounces'])}", (x, y), textcoords="offset points",
-                        xytext=(4, 4), fontsize=7)
+            label = r["preset"] if presets else f"{int(r['rays'])}x{int(r['bounces'])}"
+            ax.annotate(label, (x, y), textcoords="offset points", xytext=(4, 4), fontsize=7)
     handles = [Line2D([], [], color=colors[mi % len(colors)], label=name) for mi, (_, name) in enumerate(METRICS)]
     handles.append(Line2D([], [], color="black", linewidth=2.2, label="max (worst metric)"))
-    for bi, b in enumerate(bounce_values):
+    for bi, b in enumerate(bounce_values if not presets else []):
         ls, mk = styles[bi % len(styles)]
         handles.append(Line2D([], [], color="grey", linestyle=ls, marker=mk, label=f"{b} bounces"))
     ax.legend(handles=handles, fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
@@ -84,7 +90,8 @@ def main():
     ax.tick_params(axis="x", which="minor", labelsize=7)
     ax.set_xlabel("wall time per IR, median (s)")
     ax.set_ylabel("error vs reference: mean |JND| over 250 Hz - 4 kHz")
-    ax.set_title(f"earshot tradeoff: {os.path.basename(src)} (points: rays x bounces)")
+    points = "quality presets" if presets else "rays x bounces"
+    ax.set_title(f"earshot tradeoff: {os.path.basename(src)} (points: {points})")
     ax.grid(True, which="both", alpha=0.3)
     fig.tight_layout()
 

@@ -1,5 +1,6 @@
-// `earshot tradeoff` end to end: a tiny sweep against a reference IR made
-// first with `earshot ir`, and the error paths (exit 2, no partial output).
+// `earshot tradeoff` end to end: a tiny sweep and a --presets run against a
+// reference IR made first with `earshot ir`, and the error paths (exit 2, no
+// partial output).
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -12,6 +13,8 @@
 #include <sstream>
 #include <string>
 #include <vector>
+
+#include "earshot/ir/ir_pipeline.h"
 
 namespace {
 
@@ -66,15 +69,46 @@ std::vector<std::vector<std::string>> readCsv(const std::string& path, std::stri
   return rows;
 }
 
+/** Checks a CSV row's numbers from `first` on (seconds_median, the seven
+ *  <metric>_jnd, max_jnd): time > 0, errors finite and >= 0, max_jnd the
+ *  worst of the seven. Returns max_jnd. */
+double expectSaneNumbers(const std::vector<std::string>& row, size_t first) {
+  EXPECT_GT(std::stod(row.at(first)), 0.0) << "a run takes some time";
+  double worst = 0;
+  for (size_t c = first + 1; c <= first + 8; ++c) {
+    const double v = std::stod(row.at(c));
+    EXPECT_TRUE(std::isfinite(v)) << row[0] << " column " << c << ": " << row[c];
+    EXPECT_GE(v, 0.0) << row[0] << " column " << c;
+    if (c < first + 8) worst = std::max(worst, v);
+  }
+  const double maxJnd = std::stod(row.at(first + 8));
+  EXPECT_DOUBLE_EQ(maxJnd, worst) << "max_jnd is the worst of the seven metrics";
+  return maxJnd;
+}
+
+/** Makes a reference IR of `referenceRays` rays with `earshot ir` in `dir`,
+ *  runs `earshot tradeoff <scene> <args>` against it and reads the CSV. A
+ *  failed command is a test failure and gives no rows. */
+std::vector<std::vector<std::string>> tradeoffAgainstAReference(const TempDir& dir, int referenceRays,
+                                                                const std::string& args, std::string& header) {
+  auto ref = runEarshot("ir " + kScene + " --receiver omni --rays " + std::to_string(referenceRays) + " -o '" +
+                        dir / "ref.wav'");
+  if (ref.exitCode != 0) {
+    ADD_FAILURE() << "earshot ir: " << ref.output;
+    return {};
+  }
+  auto r = runEarshot("tradeoff " + kScene + " " + args + " --reference '" + dir / "ref.wav' -o '" + dir / "out.csv'");
+  if (r.exitCode != 0) {
+    ADD_FAILURE() << "earshot tradeoff: " << r.output;
+    return {};
+  }
+  return readCsv(dir / "out.csv", header);
+}
+
 TEST(TradeoffCli, TinySweepAgainstAGivenReference) {
   TempDir dir("sweep");
-  auto ref = runEarshot("ir " + kScene + " --receiver omni --rays 20000 -o '" + dir / "ref.wav'");
-  ASSERT_EQ(ref.exitCode, 0) << ref.output;
-  auto r = runEarshot("tradeoff " + kScene + " --rays 500,2000 --bounces 4 --repeats 1 --reference '" +
-                      dir / "ref.wav' -o '" + dir / "out.csv'");
-  ASSERT_EQ(r.exitCode, 0) << r.output;
   std::string header;
-  auto rows = readCsv(dir / "out.csv", header);
+  auto rows = tradeoffAgainstAReference(dir, 20000, "--rays 500,2000 --bounces 4 --repeats 1", header);
   EXPECT_EQ(header, kHeader);
   ASSERT_EQ(rows.size(), 2u);
   double maxJnd[2] = {0, 0};
@@ -82,22 +116,51 @@ TEST(TradeoffCli, TinySweepAgainstAGivenReference) {
     ASSERT_EQ(rows[i].size(), 11u);
     EXPECT_EQ(rows[i][0], i == 0 ? "500" : "2000");
     EXPECT_EQ(rows[i][1], "4");
-    EXPECT_GT(std::stod(rows[i][2]), 0.0) << "a run takes some time";
-    for (size_t c = 3; c < 11; ++c) {
-      const double v = std::stod(rows[i][c]);
-      EXPECT_TRUE(std::isfinite(v)) << "row " << i << " column " << c << ": " << rows[i][c];
-      EXPECT_GE(v, 0.0) << "row " << i << " column " << c;
-    }
-    maxJnd[i] = std::stod(rows[i][10]);
-    double worst = 0;
-    for (size_t c = 3; c < 10; ++c) worst = std::max(worst, std::stod(rows[i][c]));
-    EXPECT_DOUBLE_EQ(maxJnd[i], worst) << "max_jnd is the worst of the seven metrics";
+    maxJnd[i] = expectSaneNumbers(rows[i], 2);
   }
   // Monte Carlo noise falls as 1/sqrt(rays): 4x the rays should about halve
   // the random part of the error (the 4-bounce bias is the same in both).
   // 3x leaves room for one unlucky seed without hiding an error that grows
   // with the ray count.
   EXPECT_LE(maxJnd[1], 3.0 * maxJnd[0]) << "2000 rays: " << maxJnd[1] << ", 500 rays: " << maxJnd[0];
+}
+
+TEST(TradeoffCli, PresetsGiveOneRowPerPresetWithItsSettings) {
+  TempDir dir("presets");
+  std::string header;
+  auto rows = tradeoffAgainstAReference(dir, 4000, "--presets draft,balanced --repeats 1", header);
+  EXPECT_EQ(header, "preset," + kHeader);
+  ASSERT_EQ(rows.size(), 2u);
+  const char* names[2] = {"draft", "balanced"};
+  for (size_t i = 0; i < rows.size(); ++i) {
+    ASSERT_EQ(rows[i].size(), 12u);
+    EXPECT_EQ(rows[i][0], names[i]) << "rows in the order given";
+    auto preset = earshot::qualityPreset(names[i]);
+    ASSERT_TRUE(preset.isOk());
+    EXPECT_EQ(rows[i][1], std::to_string(preset->rays)) << "the preset's own ray count, not the grid's";
+    EXPECT_EQ(rows[i][2], std::to_string(preset->bounces));
+    expectSaneNumbers(rows[i], 3);
+  }
+}
+
+TEST(TradeoffCli, UnknownPresetOrPresetsWithAGridAreExit2BeforeAnyWork) {
+  TempDir dir("badpreset");
+  auto r = runEarshot("tradeoff " + kScene + " --presets draft,ultra -o '" + dir / "out.csv'");
+  EXPECT_EQ(r.exitCode, 2) << r.output;
+  EXPECT_NE(r.output.find("--presets"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("'ultra'"), std::string::npos) << "names the bad preset: " << r.output;
+  EXPECT_NE(r.output.find("draft, balanced, high, reference"), std::string::npos) << "lists the valid ones: "
+                                                                                    << r.output;
+  EXPECT_EQ(r.output.find("reference run"), std::string::npos) << "no work before the error: " << r.output;
+  EXPECT_FALSE(fs::exists(dir / "out.csv"));
+  r = runEarshot("tradeoff " + kScene + " --presets draft, -o '" + dir / "out.csv'");
+  EXPECT_EQ(r.exitCode, 2) << r.output;
+  EXPECT_NE(r.output.find("--presets"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(dir / "out.csv"));
+  r = runEarshot("tradeoff " + kScene + " --presets draft --rays 500 -o '" + dir / "out.csv'");
+  EXPECT_EQ(r.exitCode, 2) << r.output;
+  EXPECT_NE(r.output.find("--rays"), std::string::npos) << "the grid and --presets exclude each other: " << r.output;
+  EXPECT_FALSE(fs::exists(dir / "out.csv"));
 }
 
 TEST(TradeoffCli, MissingGeometryIsExit2AndNoCsv) {
@@ -127,6 +190,7 @@ TEST(TradeoffCli, HelpDescribesTheOptions) {
   EXPECT_EQ(r.exitCode, 0) << r.output;
   EXPECT_NE(r.output.find("--reference"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("--repeats"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("--presets"), std::string::npos) << r.output;
 }
 
 }  // namespace

@@ -1,13 +1,12 @@
-// `earshot tradeoff`: accuracy against cost of the IR pipeline over a grid of
-// (rays, bounces). Each point runs computeOmniIr (the one implementation
-// behind `earshot ir`) --repeats times with different seeds, takes the median
-// wall time, and measures the error of each run against a reference IR as
-// ISO 3382-1 just-noticeable differences (analysis/compare.h): per metric, the
-// mean |JND| over the 250 Hz .. 4 kHz octave bands, averaged over the repeats.
-// max_jnd is the largest of those seven per-metric means (the worst metric).
-//
-// The loaders below (material map, air) duplicate the small ones private to
-// cmd_ir.cpp on purpose: that file belongs to another command.
+// `earshot tradeoff`: accuracy against cost of the IR pipeline, over a grid of
+// (rays, bounces) or, with --presets, per named quality preset (all of its
+// settings: rays, bounces, image-source order, histogram bin, tail probes).
+// Each point runs computeOmniIr (the one implementation behind `earshot ir`)
+// --repeats times with different seeds, takes the median wall time, and
+// measures the error of each run against a reference IR as ISO 3382-1
+// just-noticeable differences (analysis/compare.h): per metric, the mean |JND|
+// over the 250 Hz .. 4 kHz octave bands, averaged over the repeats. max_jnd is
+// the largest of those seven per-metric means (the worst metric).
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -47,6 +46,7 @@ struct TradeoffOptions {
   std::array<double, 3> source{}, listener{};
   std::string rays = "1000,4000,16000,64000";
   std::string bounces = "6,12,24";
+  std::string presets;  ///< non-empty: evaluate these quality presets instead of the grid
   std::string reference;
   int repeats = 3;
   unsigned threads = 0;
@@ -83,6 +83,24 @@ Result<std::vector<uint32_t>> parseList(const std::string& option, const std::st
   return out;
 }
 
+/** --presets: comma-separated names of quality presets, or "all" for every
+ *  preset in qualityPresets() order. An unknown or empty name is an error
+ *  naming it and the valid ones. */
+Result<std::vector<QualityPreset>> parsePresets(const std::string& text) {
+  std::vector<QualityPreset> out;
+  if (text == "all") return qualityPresets();
+  std::stringstream ss(text);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    auto p = qualityPreset(item);
+    if (!p.isOk()) return invalidArgument("--presets: '" + text + "': " + p.status().message() + " (or 'all')");
+    out.push_back(*p);
+  }
+  if (out.empty() || text.back() == ',')
+    return invalidArgument("--presets: '" + text + "' is not a comma-separated list of quality presets");
+  return out;
+}
+
 /** Runs a shell command quietly; returns its exit status (-1 if it did not run). */
 int runQuiet(const std::string& command) {
   int status = std::system((command + " >/dev/null 2>&1").c_str());
@@ -105,6 +123,7 @@ std::string formatNumber(double v) {
 }
 
 struct PointResult {
+  std::string preset;  ///< empty in grid mode
   uint32_t rays = 0, bounces = 0;
   double secondsMedian = 0;
   std::array<double, an::kMetricCount> jnd{};  ///< mean |JND| over bands, averaged over repeats
@@ -141,6 +160,39 @@ Result<std::array<double, an::kMetricCount>> errorPerMetric(const std::vector<an
   return mean;
 }
 
+/** Runs the pipeline with `settings` `repeats` times (seeds 1..repeats) and
+ *  scores each IR against `reference` (metrics at `rateHz`): the median wall
+ *  time of the pipeline call and the per-metric error averaged over the
+ *  repeats. `label` names the point in errors; n/a values are counted in
+ *  `naCount` (errorPerMetric). */
+Result<PointResult> evaluatePoint(const RayTracer& tracer, const MaterialTable& materials, const Vec3d& source,
+                                  const Vec3d& listener, const OmniIrSettings& settings, int repeats,
+                                  ThreadPool& pool, const std::vector<an::BandMetrics>& reference, double rateHz,
+                                  const std::string& label, int& naCount) {
+  PointResult p;
+  std::vector<double> seconds;
+  std::array<double, an::kMetricCount> sum{};
+  for (int i = 0; i < repeats; ++i) {
+    OmniIrSettings s = settings;
+    s.seed = uint64_t(i + 1);
+    const auto t0 = std::chrono::steady_clock::now();
+    auto r = computeOmniIr(tracer, materials, source, listener, s, pool);
+    seconds.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+    if (!r.isOk()) return Status(r.status().code(), label + ": " + r.status().message());
+    auto m = an::analyzeIr(r->ir.channels[0], rateHz);
+    if (!m.isOk()) return Status(m.status().code(), "IR at " + label + ": " + m.status().message());
+    auto e = errorPerMetric(*m, reference, naCount);
+    if (!e.isOk()) return e.status();
+    for (int k = 0; k < an::kMetricCount; ++k) sum[size_t(k)] += (*e)[size_t(k)];
+  }
+  p.secondsMedian = median(seconds);
+  for (int k = 0; k < an::kMetricCount; ++k) {
+    p.jnd[size_t(k)] = sum[size_t(k)] / repeats;
+    if (!std::isnan(p.jnd[size_t(k)])) p.maxJnd = std::max(p.maxJnd, p.jnd[size_t(k)]);
+  }
+  return p;
+}
+
 int run(const TradeoffOptions& o) {
   // Everything that can be checked before the (long) sweep is checked first,
   // so an error never leaves a CSV or plot behind.
@@ -148,6 +200,12 @@ int run(const TradeoffOptions& o) {
   if (!check(rays.status())) return 2;
   auto bounces = parseList("--bounces", o.bounces, 0);
   if (!check(bounces.status())) return 2;
+  std::vector<QualityPreset> presets;
+  if (!o.presets.empty()) {
+    auto parsed = parsePresets(o.presets);
+    if (!check(parsed.status())) return 2;
+    presets = std::move(*parsed);
+  }
   auto air = parseCliAir(o.air);
   if (!check(air.status())) return 2;
   std::string python;
@@ -189,7 +247,7 @@ int run(const TradeoffOptions& o) {
   const Vec3d source{o.source[0], o.source[1], o.source[2]};
   const Vec3d listener{o.listener[0], o.listener[1], o.listener[2]};
 
-  OmniIrSettings base;  // the balanced preset's defaults; rays and bounces are swept
+  OmniIrSettings base;  // the balanced preset's defaults; rays and bounces are swept, or a preset applied
   base.air = *air;
 
   // Reference IR: a file, or the 'reference' quality preset.
@@ -228,44 +286,42 @@ int run(const TradeoffOptions& o) {
 
   std::vector<PointResult> points;
   int naCount = 0;
-  for (uint32_t b : *bounces) {
-    for (uint32_t n : *rays) {
+  auto evaluate = [&](PointResult p, const OmniIrSettings& settings, const std::string& label) -> bool {
+    const int naBefore = naCount;
+    auto e = evaluatePoint(*tracer, materials, source, listener, settings, o.repeats, pool, *refMetrics, rateHz,
+                           label, naCount);
+    if (!check(e.status())) return false;
+    p.secondsMedian = e->secondsMedian;
+    p.jnd = e->jnd;
+    p.maxJnd = e->maxJnd;
+    std::cerr << "earshot: tradeoff: " << label << ": " << formatNumber(p.secondsMedian) << " s, max "
+              << formatNumber(p.maxJnd) << " JND";
+    if (naCount > naBefore) std::cerr << " (" << naCount - naBefore << " metric/band values n/a, left out)";
+    std::cerr << "\n";
+    points.push_back(p);
+    return true;
+  };
+  if (!presets.empty()) {
+    for (const QualityPreset& preset : presets) {
+      OmniIrSettings s = base;
+      apply(preset, s);
       PointResult p;
-      p.rays = n;
-      p.bounces = b;
-      std::vector<double> seconds;
-      const int naBefore = naCount;
-      std::array<double, an::kMetricCount> sum{};
-      for (int i = 0; i < o.repeats; ++i) {
+      p.preset = preset.name;
+      p.rays = s.rays;
+      p.bounces = s.bounces;
+      if (!evaluate(p, s, "preset " + preset.name)) return 2;
+    }
+  } else {
+    for (uint32_t b : *bounces) {
+      for (uint32_t n : *rays) {
         OmniIrSettings s = base;
         s.rays = n;
         s.bounces = b;
-        s.seed = uint64_t(i + 1);
-        const auto t0 = std::chrono::steady_clock::now();
-        auto r = computeOmniIr(*tracer, materials, source, listener, s, pool);
-        seconds.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
-        if (!check(r.status())) return 2;
-        auto m = an::analyzeIr(r->ir.channels[0], rateHz);
-        if (!m.isOk()) {
-          printError("IR at " + std::to_string(n) + " rays x " + std::to_string(b) + " bounces: " +
-                     m.status().message());
-          return 2;
-        }
-        auto e = errorPerMetric(*m, *refMetrics, naCount);
-        if (!check(e.status())) return 2;
-        for (int k = 0; k < an::kMetricCount; ++k) sum[size_t(k)] += (*e)[size_t(k)];
+        PointResult p;
+        p.rays = n;
+        p.bounces = b;
+        if (!evaluate(p, s, std::to_string(n) + " rays x " + std::to_string(b) + " bounces")) return 2;
       }
-      p.secondsMedian = median(seconds);
-      p.maxJnd = 0;
-      for (int k = 0; k < an::kMetricCount; ++k) {
-        p.jnd[size_t(k)] = sum[size_t(k)] / o.repeats;
-        if (!std::isnan(p.jnd[size_t(k)])) p.maxJnd = std::max(p.maxJnd, p.jnd[size_t(k)]);
-      }
-      std::cerr << "earshot: tradeoff: " << n << " rays x " << b << " bounces: " << formatNumber(p.secondsMedian)
-                << " s, max " << formatNumber(p.maxJnd) << " JND";
-      if (naCount > naBefore) std::cerr << " (" << naCount - naBefore << " metric/band values n/a, left out)";
-      std::cerr << "\n";
-      points.push_back(p);
     }
   }
   if (naCount > 0)
@@ -273,8 +329,10 @@ int run(const TradeoffOptions& o) {
               << " metric/band value(s) in all were n/a in a sweep IR but not in the reference (e.g. decay range too "
                  "short for T30); left out of the means\n";
 
-  std::string csv = "rays,bounces,seconds_median,edt_jnd,t20_jnd,t30_jnd,c50_jnd,c80_jnd,d50_jnd,ts_jnd,max_jnd\n";
+  std::string csv = presets.empty() ? "" : "preset,";
+  csv += "rays,bounces,seconds_median,edt_jnd,t20_jnd,t30_jnd,c50_jnd,c80_jnd,d50_jnd,ts_jnd,max_jnd\n";
   for (const auto& p : points) {
+    if (!presets.empty()) csv += p.preset + ",";
     csv += std::to_string(p.rays) + "," + std::to_string(p.bounces) + "," + formatNumber(p.secondsMedian);
     for (double v : p.jnd) csv += "," + formatNumber(v);
     csv += "," + formatNumber(p.maxJnd) + "\n";
@@ -295,15 +353,24 @@ int run(const TradeoffOptions& o) {
 const Registrar registrar([](CLI::App& root) {
   auto o = std::make_shared<TradeoffOptions>();
   CLI::App* cmd = root.add_subcommand(
-      "tradeoff", "Error (JND vs a reference IR) against compute time over a grid of rays x bounces");
+      "tradeoff",
+      "Error (JND vs a reference IR) against compute time over a grid of rays x bounces, or per quality preset");
   cmd->add_option("geometry", o->geometry, "Scene geometry (glTF 2.0, .gltf or .glb)")->required()->check(CLI::ExistingFile);
   addVec3Option(*cmd, "--source", o->source, "Source position in metres")->required();
   addVec3Option(*cmd, "--listener", o->listener, "Listener position in metres")->required();
-  cmd->add_option("-o,--output", o->output, "Output CSV (rays,bounces,seconds_median,<metric>_jnd...,max_jnd)")->required();
+  cmd->add_option("-o,--output", o->output,
+                  "Output CSV (rays,bounces,seconds_median,<metric>_jnd...,max_jnd; with --presets a preset column "
+                  "first)")
+      ->required();
   cmd->add_option("--materials", o->materials, "Materials JSON (default: the built-in materials/default.json)");
   cmd->add_option("--material-map", o->materialMap, "JSON object mapping glTF material names to acoustic materials");
-  cmd->add_option("--rays", o->rays, "Comma-separated ray counts")->capture_default_str();
-  cmd->add_option("--bounces", o->bounces, "Comma-separated bounce limits")->capture_default_str();
+  auto* raysOpt = cmd->add_option("--rays", o->rays, "Comma-separated ray counts")->capture_default_str();
+  auto* bouncesOpt = cmd->add_option("--bounces", o->bounces, "Comma-separated bounce limits")->capture_default_str();
+  cmd->add_option("--presets", o->presets,
+                  "Instead of the grid, one row per quality preset (all its settings): comma-separated names of "
+                  "draft, balanced, high, reference, or 'all'")
+      ->excludes(raysOpt)
+      ->excludes(bouncesOpt);
   cmd->add_option("--reference", o->reference,
                   "Reference IR (mono WAV; its rate is used for the sweep); default: a run of the 'reference' preset")
       ->check(CLI::ExistingFile);
