@@ -125,12 +125,17 @@ Result<OmniIrResult> computeIr(const RayTracer& tracer, const MaterialTable& mat
     rs.receiverRadiusMeters = s.receiverRadiusMeters;
     rs.tailProbes = s.completeTail ? s.tailProbes : 0;
     rs.russianRoulette = s.russianRoulette;
+    rs.convergenceDb = s.convergenceDb;
     if (s.lengthSeconds > 0) rs.maxTimeSeconds = s.lengthSeconds;
     rs.excludedSpecular = excluded;
     rs.excludedMaxOrder = excluded ? s.imageSourceOrder : 0;
     auto r = traceReflections(tracer, materials, source, listener, rs, pool);
     if (!r.isOk()) return r.status();
     out.traceStats = r->stats;
+    if (r->stats.raysTraced < s.rays)
+      out.skipped.push_back("rays: " + std::to_string(s.rays - r->stats.raysTraced) + " of " + std::to_string(s.rays) +
+                            " not traced, the histogram had converged to " + std::to_string(r->stats.estimatedErrorDb) +
+                            " dB");
     if (r->stats.shadowRaysSkipped > 0 && r->stats.shadowRays == 0)
       out.skipped.push_back("occlusion tests of diffuse reflections: the room is convex around the listener");
     out.timings.traceMs = r->stats.traceMs;

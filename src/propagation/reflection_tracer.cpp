@@ -137,6 +137,70 @@ Rotation randomRotation(uint64_t seed) {
   return r;
 }
 
+constexpr uint32_t kConvergenceRounds = 16;
+
+// r's bits reversed within log2(n) bits (n a power of two).
+uint32_t bitReverse(uint32_t r, uint32_t n) {
+  uint32_t out = 0;
+  for (uint32_t bit = 1; bit < n; bit <<= 1) out = (out << 1) | ((r & bit) ? 1u : 0u);
+  return out;
+}
+
+// The late histogram's error, estimated from the spread of the rounds: each
+// round is an independent estimate of the same histogram (its rays spread
+// over the whole sphere), so over m rounds the relative standard error of
+// their mean in a window is sd / (mean sqrt(m)). Windows of 10 ms, within
+// 20 dB of the band's strongest window; the error is the worst window's, in
+// dB (10 log10(1 + relative error)). Fixed-point sums: exact, so the
+// estimate does not depend on the thread count.
+class ConvergenceMonitor {
+ public:
+  ConvergenceMonitor(size_t bins, double binSeconds, uint32_t rounds)
+      : mBins(bins), mPerWindow(std::max<size_t>(1, size_t(std::lround(0.01 / binSeconds)))),
+        mPrevious(bins * kNumBands, 0) {
+    mRounds.reserve(rounds);
+  }
+  void addRound(const std::vector<const std::vector<int64_t>*>& hists) {
+    const size_t windows = (mBins + mPerWindow - 1) / mPerWindow;
+    std::vector<double> round(windows * kNumBands, 0.0);
+    for (size_t i = 0; i < mBins; ++i)
+      for (int b = 0; b < kNumBands; ++b) {
+        int64_t now = 0;
+        for (const auto* h : hists) addSat(now, (*h)[i * EnergyHistogram::kStride + b]);
+        round[(i / mPerWindow) * kNumBands + b] += double(now - mPrevious[i * kNumBands + b]);
+        mPrevious[i * kNumBands + b] = now;
+      }
+    mRounds.push_back(std::move(round));
+  }
+  double errorDb() const {
+    const size_t m = mRounds.size();
+    if (m < 4) return 1e9;  // too few rounds to estimate a spread
+    const size_t cells = mRounds[0].size();
+    double worst = 0;
+    for (int b = 0; b < kNumBands; ++b) {
+      double peak = 0;
+      std::vector<double> mean(cells / kNumBands, 0.0);
+      for (size_t w = 0; w < mean.size(); ++w) {
+        for (const auto& r : mRounds) mean[w] += r[w * kNumBands + size_t(b)] / double(m);
+        peak = std::max(peak, mean[w]);
+      }
+      for (size_t w = 0; w < mean.size(); ++w) {
+        if (!(mean[w] > 1e-2 * peak)) continue;
+        double var = 0;
+        for (const auto& r : mRounds) var += std::pow(r[w * kNumBands + size_t(b)] - mean[w], 2);
+        var /= double(m - 1);
+        worst = std::max(worst, std::sqrt(var / double(m)) / mean[w]);
+      }
+    }
+    return 10.0 * std::log10(1.0 + worst);
+  }
+
+ private:
+  size_t mBins, mPerWindow;
+  std::vector<int64_t> mPrevious;           // [bin][band]: the totals after the last round
+  std::vector<std::vector<double>> mRounds;  // per round: [window][band] energy (fixed-point units)
+};
+
 // Automatic receiver radius: 0.5 m, but at most 90 % of the distance to the
 // nearest surface seen from the listener (a sphere cut by a wall would
 // under-count), and at least 1 cm.
@@ -189,6 +253,8 @@ Status validate(const ReflectionSettings& s) {
   if (s.maxTimeSeconds / s.binSeconds > 5e7) return invalidArgument("histogram of over 5e7 bins requested");
   if (!(s.receiverRadiusMeters >= 0 && s.receiverRadiusMeters <= 1e3))
     return invalidArgument("receiver radius " + std::to_string(s.receiverRadiusMeters) + " m is outside [0, 1000]");
+  if (!(s.convergenceDb >= 0 && s.convergenceDb <= 20))
+    return invalidArgument("convergence target " + std::to_string(s.convergenceDb) + " dB is outside [0, 20]");
   if (!(s.minDistanceMeters > 0 && s.minDistanceMeters <= 10))
     return invalidArgument("minimum distance " + std::to_string(s.minDistanceMeters) + " m is outside (0, 10]");
   return validate(s.air);
@@ -306,178 +372,203 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
     }
   };
 
-  const uint32_t tasks = (settings.rays + kRaysPerTask - 1) / kRaysPerTask;
-  pool.parallelFor(tasks, [&](size_t task, unsigned worker) {
-    Accumulator& a = acc[worker];
-    const uint32_t first = uint32_t(task) * kRaysPerTask;
-    const uint32_t last = std::min(settings.rays, first + kRaysPerTask);
-    for (uint32_t rayIndex = first; rayIndex < last; ++rayIndex) {
-      Pcg32 rng(settings.seed, rayIndex);
-      float energy[kNumBands];
-      for (float& e : energy) e = rayEnergy;
-      // Positions (ray origins, hit points) in double world coordinates: in
-      // float they are ~8 mm apart at 1e5 m, and a hit point near an edge
-      // could round to beyond the neighbouring wall. Directions and
-      // distances stay float.
-      Ray ray{source, 0.0f, Vec3f(rot.apply(fibonacciDirection(rayIndex, settings.rays))), 1e30f};
-      float pathLength = 0;
-      bool detectSegment = false;  // last event specular/transmission after a reflection
-      bool reflected = false;
-      bool pureSpecular = true;    // every event so far a specular reflection
-      const bool isProbe = probeStride > 0 && rayIndex % probeStride == 0;
-      bool probing = false;        // a tail probe past the bounce limit: no detections
-      PlaneSequence planes;
-      planes.fill(0xFFFFFFFFu);
-      for (uint32_t order = 0;; ++order) {
-        Hit hit;
-        ++a.segments;
-        a.probeSegments += probing;
-        const bool hasHit = tracer.intersect(ray, hit);
-        const float segment = hasHit ? hit.t : 1e30f;
-        if (detectSegment && !probing) {
-          // Chord of this segment through the receiver sphere.
-          const Vec3f oc(ray.origin - listener);
-          const float bq = dot(oc, ray.direction);
-          const float disc = bq * bq - (dot(oc, oc) - sphereR2);
-          if (disc > 0) {
-            const float root = std::sqrt(disc);
-            const float t0 = std::max(0.0f, -bq - root), t1 = std::min(segment, -bq + root);
-            if (t1 > t0) {
-              if (pureSpecular && order <= settings.excludedMaxOrder && settings.excludedSpecular &&
-                  settings.excludedSpecular->count(planes)) {
-                ++a.excluded;
-              } else {
-                const float tc = std::clamp(-bq, t0, t1);
-                deposit(a, pathLength + tc, energy, (t1 - t0) * invSphereVolume, -ray.direction, order);
+  // Rays go in rounds: round r traces the rays whose index is congruent to
+  // bitReverse(r) modulo the round count, so every round, and every prefix
+  // of rounds, covers the sphere evenly. With a convergence target the
+  // trace stops after the round where the late histogram's estimated error
+  // falls below it. The decision depends on completed rounds only: the
+  // same whatever the thread count.
+  const uint32_t rounds = settings.convergenceDb > 0 ? std::min(kConvergenceRounds, settings.rays) : 1u;
+  uint32_t traced = 0;
+  ConvergenceMonitor monitor(bins, settings.binSeconds, rounds);
+  for (uint32_t round = 0; round < rounds; ++round) {
+    const uint32_t residue = rounds == 1 ? 0u : bitReverse(round, rounds);
+    const uint32_t count = residue < settings.rays ? (settings.rays - residue + rounds - 1) / rounds : 0u;
+    const uint32_t tasks = (count + kRaysPerTask - 1) / kRaysPerTask;
+    pool.parallelFor(tasks, [&](size_t task, unsigned worker) {
+      Accumulator& a = acc[worker];
+      const uint32_t first = uint32_t(task) * kRaysPerTask;
+      const uint32_t last = std::min(count, first + kRaysPerTask);
+      for (uint32_t k = first; k < last; ++k) {
+        const uint32_t rayIndex = residue + k * rounds;
+        Pcg32 rng(settings.seed, rayIndex);
+        float energy[kNumBands];
+        for (float& e : energy) e = rayEnergy;
+        // Positions (ray origins, hit points) in double world coordinates: in
+        // float they are ~8 mm apart at 1e5 m, and a hit point near an edge
+        // could round to beyond the neighbouring wall. Directions and
+        // distances stay float.
+        Ray ray{source, 0.0f, Vec3f(rot.apply(fibonacciDirection(rayIndex, settings.rays))), 1e30f};
+        float pathLength = 0;
+        bool detectSegment = false;  // last event specular/transmission after a reflection
+        bool reflected = false;
+        bool pureSpecular = true;    // every event so far a specular reflection
+        const bool isProbe = probeStride > 0 && rayIndex % probeStride == 0;
+        bool probing = false;        // a tail probe past the bounce limit: no detections
+        PlaneSequence planes;
+        planes.fill(0xFFFFFFFFu);
+        for (uint32_t order = 0;; ++order) {
+          Hit hit;
+          ++a.segments;
+          a.probeSegments += probing;
+          const bool hasHit = tracer.intersect(ray, hit);
+          const float segment = hasHit ? hit.t : 1e30f;
+          if (detectSegment && !probing) {
+            // Chord of this segment through the receiver sphere.
+            const Vec3f oc(ray.origin - listener);
+            const float bq = dot(oc, ray.direction);
+            const float disc = bq * bq - (dot(oc, oc) - sphereR2);
+            if (disc > 0) {
+              const float root = std::sqrt(disc);
+              const float t0 = std::max(0.0f, -bq - root), t1 = std::min(segment, -bq + root);
+              if (t1 > t0) {
+                if (pureSpecular && order <= settings.excludedMaxOrder && settings.excludedSpecular &&
+                    settings.excludedSpecular->count(planes)) {
+                  ++a.excluded;
+                } else {
+                  const float tc = std::clamp(-bq, t0, t1);
+                  deposit(a, pathLength + tc, energy, (t1 - t0) * invSphereVolume, -ray.direction, order);
+                }
               }
             }
           }
-        }
-        if (!hasHit) {
-          if (probing) break;  // counted when it was cut
-          ++a.raysEscaped;
-          for (int b = 0; b < kNumBands; ++b) {
-            addSat(a.escaped[b], toFixed(energy[b] / (4.0 * kPi)));
-            if (order >= lossFromOrder) addSat(a.pathEnergy[(kFreePathBins - 1) * kNumBands + b], toFixed(energy[b]));
-          }
-          break;
-        }
-        alive(probing ? a.probeAliveDiff : a.aliveDiff, pathLength, pathLength + hit.t, energy);
-        const MatFactors& m = mats[tracer.materialOf(hit.triangle)];
-        if (order >= lossFromOrder && !probing) {
-          const size_t fb = freePathBin(hit.t) * kNumBands;
-          for (int b = 0; b < kNumBands; ++b) {
-            addSat(a.pathEnergy[fb + b], toFixed(energy[b]));
-            addSat(a.pathRetained[fb + b], toFixed(energy[b] * std::min(1.0f, m.reflect[b] + m.transmit[b])));
-          }
-        }
-        pathLength += hit.t;
-        if (order == maxOrder) {
-          // Stopped by the bounce limit: what it would have carried on with.
-          ++a.raysCut;
-          CutRay& c = cutRays[rayIndex];
-          wasCut[rayIndex] = 1;
-          c.pathMeters = pathLength;
-          for (int b = 0; b < kNumBands; ++b) c.energy[b] = energy[b] * std::min(1.0f, m.reflect[b] + m.transmit[b]);
-          if (!isProbe) break;
-          // A tail probe carries on, undetected, to measure the decay.
-          probing = true;
-          float f[kNumBands];
-          air.factors(pathLength, f);
-          for (int b = 0; b < kNumBands; ++b) addSat(a.probeCut[b], toFixed(double(c.energy[b]) * f[b]));
-        } else if (probing && (order == maxOrder + kMaxProbeBounces || binOf(pathLength) >= bins)) {
-          CutRay& c = probeEnds[rayIndex / probeStride];
-          probeEnded[rayIndex / probeStride] = 1;
-          c.pathMeters = pathLength;
-          for (int b = 0; b < kNumBands; ++b) c.energy[b] = energy[b] * std::min(1.0f, m.reflect[b] + m.transmit[b]);
-          break;
-        }
-        const Vec3d p = ray.origin + Vec3d(ray.direction) * double(hit.t);
-        Vec3f n = hit.normal;
-        if (dot(n, ray.direction) > 0) n = -n;  // face the incoming ray
-        const Vec3d offset(n * eps);          // leaves the surface along n
-
-        // Next-event estimation of the diffusely reflected part.
-        const Vec3f toL(listener - p);
-        const float d2 = dot(toL, toL);
-        const float cosL = dot(n, toL);
-        if (cosL > 0 && !probing) {
-          float scattered[kNumBands];
-          bool any = false;
-          for (int b = 0; b < kNumBands; ++b) {
-            scattered[b] = energy[b] * m.reflect[b] * m.scatter[b];
-            any |= scattered[b] > 0;
-          }
-          if (any) {
-            const float d = std::sqrt(d2);
-            bool visible = true;
-            if (shadowsNeeded) {
-              Ray shadow{p + offset, 0.0f, toL / d, d - eps};
-              ++a.shadows;
-              visible = shadow.tFar <= 0 || !tracer.occluded(shadow);
-            } else {
-              ++a.shadowsSkipped;
+          if (!hasHit) {
+            if (probing) break;  // counted when it was cut
+            ++a.raysEscaped;
+            for (int b = 0; b < kNumBands; ++b) {
+              addSat(a.escaped[b], toFixed(energy[b] / (4.0 * kPi)));
+              if (order >= lossFromOrder) addSat(a.pathEnergy[(kFreePathBins - 1) * kNumBands + b], toFixed(energy[b]));
             }
-            if (visible) {
-              const float w = (cosL / d) / (float(kPi) * std::max(d2, minD2));
-              deposit(a, pathLength + d, scattered, w, -toL / d, order + 1);
-            }
-          }
-        }
-
-        // Continue: through the surface, specularly, or diffusely.
-        const float pT = m.meanTransmit > 0 ? m.meanTransmit / (m.meanTransmit + m.meanReflect) : 0.0f;
-        float maxEnergy = 0;
-        if (pT > 0 && rng.uniform() < pT) {
-          for (int b = 0; b < kNumBands; ++b) maxEnergy = std::max(maxEnergy, energy[b] *= m.transmit[b] / pT);
-          ray.origin = p - offset;  // direction unchanged
-          detectSegment = reflected;
-          pureSpecular = false;
-        } else {
-          float specW = 0, total = 0;
-          for (int b = 0; b < kNumBands; ++b) {
-            energy[b] *= m.reflect[b] / (1.0f - pT);
-            specW += energy[b] * (1.0f - m.scatter[b]);
-            total += energy[b];
-          }
-          const float pSpec = total > 0 ? specW / total : 0.0f;
-          if (pSpec > 0 && rng.uniform() < pSpec) {
-            for (int b = 0; b < kNumBands; ++b)
-              maxEnergy = std::max(maxEnergy, energy[b] *= (1.0f - m.scatter[b]) / pSpec);
-            ray.direction = normalize(ray.direction - n * (2.0f * dot(ray.direction, n)));
-            detectSegment = true;
-            if (order < kMaxImageSourceOrder) planes[order] = tracer.planeOf(hit.triangle);
-          } else {
-            for (int b = 0; b < kNumBands; ++b)
-              maxEnergy = std::max(maxEnergy, energy[b] *= m.scatter[b] / (1.0f - pSpec));
-            ray.direction = cosineDirection(n, rng);
-            detectSegment = false;
-            pureSpecular = false;
-          }
-          ray.origin = p + offset;
-          reflected = true;
-        }
-        if (!(maxEnergy > 0)) break;
-        if (probing && settings.russianRoulette && maxEnergy < rouletteThreshold) {
-          // A probe 60 dB down joins the virtual population here rather
-          // than play roulette: its few survivors would make the measured
-          // tail noisy where the population's rate serves as well.
-          CutRay& c = probeEnds[rayIndex / probeStride];
-          probeEnded[rayIndex / probeStride] = 1;
-          c.pathMeters = pathLength;
-          for (int b = 0; b < kNumBands; ++b) c.energy[b] = energy[b];
-          break;
-        }
-        if (settings.russianRoulette && maxEnergy < rouletteThreshold) {
-          if (rng.uniform() >= kSurvival) {
-            ++a.rouletted;
             break;
           }
-          for (float& e : energy) e /= kSurvival;
+          alive(probing ? a.probeAliveDiff : a.aliveDiff, pathLength, pathLength + hit.t, energy);
+          const MatFactors& m = mats[tracer.materialOf(hit.triangle)];
+          if (order >= lossFromOrder && !probing) {
+            const size_t fb = freePathBin(hit.t) * kNumBands;
+            for (int b = 0; b < kNumBands; ++b) {
+              addSat(a.pathEnergy[fb + b], toFixed(energy[b]));
+              addSat(a.pathRetained[fb + b], toFixed(energy[b] * std::min(1.0f, m.reflect[b] + m.transmit[b])));
+            }
+          }
+          pathLength += hit.t;
+          if (order == maxOrder) {
+            // Stopped by the bounce limit: what it would have carried on with.
+            ++a.raysCut;
+            CutRay& c = cutRays[rayIndex];
+            wasCut[rayIndex] = 1;
+            c.pathMeters = pathLength;
+            for (int b = 0; b < kNumBands; ++b) c.energy[b] = energy[b] * std::min(1.0f, m.reflect[b] + m.transmit[b]);
+            if (!isProbe) break;
+            // A tail probe carries on, undetected, to measure the decay.
+            probing = true;
+            float f[kNumBands];
+            air.factors(pathLength, f);
+            for (int b = 0; b < kNumBands; ++b) addSat(a.probeCut[b], toFixed(double(c.energy[b]) * f[b]));
+          } else if (probing && (order == maxOrder + kMaxProbeBounces || binOf(pathLength) >= bins)) {
+            CutRay& c = probeEnds[rayIndex / probeStride];
+            probeEnded[rayIndex / probeStride] = 1;
+            c.pathMeters = pathLength;
+            for (int b = 0; b < kNumBands; ++b) c.energy[b] = energy[b] * std::min(1.0f, m.reflect[b] + m.transmit[b]);
+            break;
+          }
+          const Vec3d p = ray.origin + Vec3d(ray.direction) * double(hit.t);
+          Vec3f n = hit.normal;
+          if (dot(n, ray.direction) > 0) n = -n;  // face the incoming ray
+          const Vec3d offset(n * eps);          // leaves the surface along n
+
+          // Next-event estimation of the diffusely reflected part.
+          const Vec3f toL(listener - p);
+          const float d2 = dot(toL, toL);
+          const float cosL = dot(n, toL);
+          if (cosL > 0 && !probing) {
+            float scattered[kNumBands];
+            bool any = false;
+            for (int b = 0; b < kNumBands; ++b) {
+              scattered[b] = energy[b] * m.reflect[b] * m.scatter[b];
+              any |= scattered[b] > 0;
+            }
+            if (any) {
+              const float d = std::sqrt(d2);
+              bool visible = true;
+              if (shadowsNeeded) {
+                Ray shadow{p + offset, 0.0f, toL / d, d - eps};
+                ++a.shadows;
+                visible = shadow.tFar <= 0 || !tracer.occluded(shadow);
+              } else {
+                ++a.shadowsSkipped;
+              }
+              if (visible) {
+                const float w = (cosL / d) / (float(kPi) * std::max(d2, minD2));
+                deposit(a, pathLength + d, scattered, w, -toL / d, order + 1);
+              }
+            }
+          }
+
+          // Continue: through the surface, specularly, or diffusely.
+          const float pT = m.meanTransmit > 0 ? m.meanTransmit / (m.meanTransmit + m.meanReflect) : 0.0f;
+          float maxEnergy = 0;
+          if (pT > 0 && rng.uniform() < pT) {
+            for (int b = 0; b < kNumBands; ++b) maxEnergy = std::max(maxEnergy, energy[b] *= m.transmit[b] / pT);
+            ray.origin = p - offset;  // direction unchanged
+            detectSegment = reflected;
+            pureSpecular = false;
+          } else {
+            float specW = 0, total = 0;
+            for (int b = 0; b < kNumBands; ++b) {
+              energy[b] *= m.reflect[b] / (1.0f - pT);
+              specW += energy[b] * (1.0f - m.scatter[b]);
+              total += energy[b];
+            }
+            const float pSpec = total > 0 ? specW / total : 0.0f;
+            if (pSpec > 0 && rng.uniform() < pSpec) {
+              for (int b = 0; b < kNumBands; ++b)
+                maxEnergy = std::max(maxEnergy, energy[b] *= (1.0f - m.scatter[b]) / pSpec);
+              ray.direction = normalize(ray.direction - n * (2.0f * dot(ray.direction, n)));
+              detectSegment = true;
+              if (order < kMaxImageSourceOrder) planes[order] = tracer.planeOf(hit.triangle);
+            } else {
+              for (int b = 0; b < kNumBands; ++b)
+                maxEnergy = std::max(maxEnergy, energy[b] *= m.scatter[b] / (1.0f - pSpec));
+              ray.direction = cosineDirection(n, rng);
+              detectSegment = false;
+              pureSpecular = false;
+            }
+            ray.origin = p + offset;
+            reflected = true;
+          }
+          if (!(maxEnergy > 0)) break;
+          if (probing && settings.russianRoulette && maxEnergy < rouletteThreshold) {
+            // A probe 60 dB down joins the virtual population here rather
+            // than play roulette: its few survivors would make the measured
+            // tail noisy where the population's rate serves as well.
+            CutRay& c = probeEnds[rayIndex / probeStride];
+            probeEnded[rayIndex / probeStride] = 1;
+            c.pathMeters = pathLength;
+            for (int b = 0; b < kNumBands; ++b) c.energy[b] = energy[b];
+            break;
+          }
+          if (settings.russianRoulette && maxEnergy < rouletteThreshold) {
+            if (rng.uniform() >= kSurvival) {
+              ++a.rouletted;
+              break;
+            }
+            for (float& e : energy) e /= kSurvival;
+          }
         }
       }
+    });
+    traced += count;
+    if (rounds > 1) {
+      std::vector<const std::vector<int64_t>*> hists;
+      for (const Accumulator& a : acc) hists.push_back(&a.hist);
+      monitor.addRound(hists);
+      stats.estimatedErrorDb = monitor.errorDb();
+      if (round + 1 < rounds && stats.estimatedErrorDb <= settings.convergenceDb) break;
     }
-  });
+  }
+  stats.raysTraced = traced;
+  // Energies were emitted as 4 pi / rays per ray: scale to the rays traced.
+  const double unit = double(settings.rays) / double(traced) / kFixedScale;
 
   // Reduce in fixed point (exact, order-independent), then convert.
   Accumulator& total = acc[0];
@@ -505,40 +596,45 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
     total.probeSegments += acc[w].probeSegments;
   }
   auto& data = result.histogram.data();
-  for (size_t i = 0; i < data.size(); ++i) data[i] = double(total.hist[i]) / kFixedScale;
+  for (size_t i = 0; i < data.size(); ++i) data[i] = double(total.hist[i]) * unit;
   for (uint32_t o = 0; o <= maxOrder; ++o)
     for (int b = 0; b < kNumBands; ++b)
-      stats.detectedPerOrder[o][b] = double(total.perOrder[size_t(o) * kNumBands + b]) / kFixedScale;
+      stats.detectedPerOrder[o][b] = double(total.perOrder[size_t(o) * kNumBands + b]) * unit;
   TailData& tail = result.tail;
   tail.cutRays.reserve(total.raysCut);
+  const float rayScale = float(double(settings.rays) / double(traced));
+  auto scaled = [&](CutRay c) {
+    for (float& e : c.energy) e *= rayScale;
+    return c;
+  };
   for (uint32_t i = 0; i < settings.rays; ++i)
-    if (wasCut[i]) tail.cutRays.push_back(cutRays[i]);
+    if (wasCut[i]) tail.cutRays.push_back(scaled(cutRays[i]));
   auto integrate = [&](const std::vector<int64_t>& diff, std::vector<BandArrayD>& out) {
     out.assign(bins, BandArrayD{});
     int64_t running[kNumBands] = {};
     for (size_t i = 0; i < bins; ++i)
       for (int b = 0; b < kNumBands; ++b) {
         addSat(running[b], diff[i * kNumBands + b]);
-        out[i][b] = double(running[b]) / kFixedScale;
+        out[i][b] = double(running[b]) * unit;
       }
   };
   integrate(total.aliveDiff, tail.alive);
   if (probeStride > 0) {
     integrate(total.probeAliveDiff, tail.probeAlive);
-    for (int b = 0; b < kNumBands; ++b) tail.probeCutEnergy[b] = double(total.probeCut[b]) / kFixedScale;
+    for (int b = 0; b < kNumBands; ++b) tail.probeCutEnergy[b] = double(total.probeCut[b]) * unit;
     for (uint32_t i = 0; i < probeSlots; ++i)
-      if (probeEnded[i]) tail.probeEnds.push_back(probeEnds[i]);
+      if (probeEnded[i]) tail.probeEnds.push_back(scaled(probeEnds[i]));
   }
   for (int b = 0; b < kNumBands; ++b) {
-    stats.energyEscaped[b] = double(total.escaped[b]) / kFixedScale;
-    stats.energyLate[b] = double(total.late[b]) / kFixedScale;
+    stats.energyEscaped[b] = double(total.escaped[b]) * unit;
+    stats.energyLate[b] = double(total.late[b]) * unit;
   }
   tail.pathEnergy.assign(kFreePathBins, BandArrayD{});
   tail.pathRetained.assign(kFreePathBins, BandArrayD{});
   for (size_t i = 0; i < kFreePathBins; ++i)
     for (int b = 0; b < kNumBands; ++b) {
-      tail.pathEnergy[i][b] = double(total.pathEnergy[i * kNumBands + b]) / kFixedScale;
-      tail.pathRetained[i][b] = double(total.pathRetained[i * kNumBands + b]) / kFixedScale;
+      tail.pathEnergy[i][b] = double(total.pathEnergy[i * kNumBands + b]) * unit;
+      tail.pathRetained[i][b] = double(total.pathRetained[i * kNumBands + b]) * unit;
     }
   stats.raysEscaped = total.raysEscaped;
   stats.segmentsTraced = total.segments;

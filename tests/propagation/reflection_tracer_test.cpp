@@ -327,4 +327,59 @@ TEST(ReflectionTracer, ConvexRoomNeedsNoShadowRaysAndLosesNothing) {
   }
 }
 
+// Stopping when converged. A loose target stops early (after 4 to 15 of 16
+// rounds) with the energy of the full trace within its stated error; a
+// target no trace reaches traces every ray and changes nothing (rounds only
+// reorder the rays; the sums are exact); and the stop is the same for any
+// thread count.
+TEST(ReflectionTracer, StopsWhenTheHistogramHasConverged) {
+  Shoebox room(0.2f, 0.5f);
+  ReflectionSettings s = quietAir(16384, 12, 5);
+  s.maxTimeSeconds = 1.0;
+  ThreadPool two(2), one(1);
+  auto all = traceReflections(*room.tracer, room.materials, kSource, kListener, s, two);
+  ASSERT_TRUE(all.isOk());
+  EXPECT_EQ(all->stats.raysTraced, 16384u);
+
+  s.convergenceDb = 1e-6;  // unreachable: every round runs
+  auto strict = traceReflections(*room.tracer, room.materials, kSource, kListener, s, two);
+  ASSERT_TRUE(strict.isOk());
+  EXPECT_EQ(strict->stats.raysTraced, 16384u);
+  EXPECT_GT(strict->stats.estimatedErrorDb, 1e-6);
+  EXPECT_EQ(strict->histogram.data(), all->histogram.data());
+  EXPECT_EQ(strict->tail.alive, all->tail.alive);
+
+  s.convergenceDb = 2.0;
+  auto loose = traceReflections(*room.tracer, room.materials, kSource, kListener, s, two);
+  auto loose1 = traceReflections(*room.tracer, room.materials, kSource, kListener, s, one);
+  ASSERT_TRUE(loose.isOk() && loose1.isOk());
+  EXPECT_LT(loose->stats.raysTraced, 16384u);
+  EXPECT_GE(loose->stats.raysTraced, 4096u);
+  EXPECT_LE(loose->stats.estimatedErrorDb, 2.0);
+  EXPECT_EQ(loose1->stats.raysTraced, loose->stats.raysTraced);
+  EXPECT_EQ(loose1->histogram.data(), loose->histogram.data());
+  // Energy per 10 ms window over the first 100 ms (well within 30 dB of the
+  // peak): within 3 stated standard errors of the full trace's.
+  const double rel = std::pow(10.0, loose->stats.estimatedErrorDb / 10.0) - 1.0;
+  for (int b = 0; b < kNumBands; b += 3)
+    for (size_t w = 0; w < 10; ++w) {
+      double e1 = 0, e2 = 0;
+      for (size_t i = w * 10; i < w * 10 + 10; ++i) e1 += loose->histogram.energy(i, b), e2 += all->histogram.energy(i, b);
+      if (e2 == 0) continue;
+      EXPECT_NEAR(e1, e2, 3.0 * rel * e2 + 1e-12) << "band " << b << " window " << w;
+    }
+}
+
+TEST(ReflectionTracer, RejectsAConvergenceTargetOutOfRange) {
+  Shoebox room(0.2f, 0.5f);
+  ThreadPool pool(1);
+  ReflectionSettings s = quietAir(100, 4, 1);
+  for (double bad : {-1.0, 21.0, std::nan("")}) {
+    s.convergenceDb = bad;
+    auto r = traceReflections(*room.tracer, room.materials, kSource, kListener, s, pool);
+    ASSERT_FALSE(r.isOk());
+    EXPECT_NE(r.status().message().find("convergence target"), std::string::npos) << r.status().message();
+  }
+}
+
 }  // namespace earshot

@@ -42,6 +42,7 @@ struct IrOptions {
   std::string quality = "balanced";
   uint32_t ismOrder = 3;
   uint32_t tailProbes = 4096;
+  double convergeDb = 0.0;
 };
 
 double msSince(std::chrono::steady_clock::time_point t) {
@@ -71,6 +72,7 @@ int run(const IrOptions& o, const CLI::App& cmd) {
   if (cmd.count("--ism-order")) settings.imageSourceOrder = o.ismOrder;
   if (cmd.count("--bin-ms")) settings.binSeconds = o.binMs / 1000.0;
   if (cmd.count("--tail-probes")) settings.tailProbes = o.tailProbes;
+  settings.convergenceDb = o.convergeDb;
   settings.sampleRateHz = o.rate;
   settings.seed = o.seed;
   settings.air = *air;
@@ -138,6 +140,8 @@ int run(const IrOptions& o, const CLI::App& cmd) {
   stats["rays_ended_by_roulette"] = st.raysRouletted;
   stats["segments_traced"] = st.segmentsTraced;
   stats["tail_probe_segments"] = st.tailProbeSegments;
+  stats["rays_requested"] = tracer->empty() ? 0 : settings.rays;
+  if (settings.convergenceDb > 0) stats["estimated_error_db"] = st.estimatedErrorDb;
   stats["shadow_rays"] = st.shadowRays;
   stats["shadow_rays_skipped"] = st.shadowRaysSkipped;
   stats["specular_detections_left_to_image_sources"] = st.specularExcluded;
@@ -200,6 +204,11 @@ const Registrar registrar([](CLI::App& root) {
                   "Rays that carry on past the bounce limit, undetected, to measure the tail's decay "
                   "(balanced: 4096; 0 = extrapolate at one rate)")
       ->check(CLI::Range(0u, 100000000u));
+  cmd->add_option("--converge", o->convergeDb,
+                  "Stop tracing once the late histogram's estimated error (every 10 ms window within 20 dB of its "
+                  "peak) is below this many dB; rays_traced in --json says how many were (0 = all rays)")
+      ->check(CLI::Range(0.0, 20.0))
+      ->capture_default_str();
   cmd->callback([o, cmd] { setExitCode(run(*o, *cmd)); });
 });
 

@@ -38,6 +38,9 @@ struct OmniIrSettings {
    *  (ReflectionSettings::tailProbes); 0: extrapolate at one rate. */
   uint32_t tailProbes = 4096;
   bool russianRoulette = true;     ///< end rays 60 dB down (unbiased; ReflectionSettings)
+  /** > 0: stop tracing when the late histogram's estimated error is below
+   *  this (dB; ReflectionSettings::convergenceDb). 0: every ray. */
+  double convergenceDb = 0.0;
   bool includeDirect = true;       ///< false: reflections only (the runtime renders the direct path per block)
 };
 

@@ -69,6 +69,13 @@ struct ReflectionSettings {
    *  0: none (the whole tail at the population's rate). Probes > rays: every
    *  ray. */
   uint32_t tailProbes = 4096;
+  /** > 0: stop tracing once the histogram has converged: the rays go in 16
+   *  rounds, each spread over the whole sphere, and the trace stops after
+   *  the round (the 4th at the earliest) where the estimated standard error
+   *  of every 10 ms window within 20 dB of its band's peak is below this
+   *  many dB. Energies are scaled to the rays traced. 0: trace every ray.
+   *  [0, 20] */
+  double convergenceDb = 0.0;
 };
 
 /** Reflections a tail probe makes past the bounce limit, at most. */
@@ -107,7 +114,7 @@ size_t freePathBin(double lengthMeters);
 double freePathBinCenter(size_t bin);
 
 struct ReflectionStats {
-  uint64_t raysTraced = 0;
+  uint64_t raysTraced = 0;            ///< fewer than asked when the trace converged early
   uint64_t raysEscaped = 0;           ///< rays that left the geometry
   uint64_t segmentsTraced = 0;        ///< intersection queries
   uint64_t shadowRays = 0;            ///< occlusion queries
@@ -119,6 +126,9 @@ struct ReflectionStats {
   uint64_t raysRouletted = 0;         ///< rays ended by Russian roulette
   uint64_t specularExcluded = 0;      ///< detections left to the image sources
   uint64_t tailProbeSegments = 0;     ///< of segmentsTraced: tail probes past the bounce limit
+  /** With ReflectionSettings::convergenceDb: the histogram's estimated
+   *  standard error when the trace stopped (dB; see there). 0 otherwise. */
+  double estimatedErrorDb = 0.0;
   double receiverRadiusMeters = 0.0;
   double traceMs = 0.0;               ///< wall time of the tracing
 };
