@@ -57,6 +57,30 @@ TEST(CliIr, SampleRoomGivesByteIdenticalIrsForOneAndTwoThreads) {
     EXPECT_GE(stats["time_ms"][stage].get<double>(), 0.0) << stage;
 }
 
+// The options that model only what the scene needs, end to end: in the
+// convex sample room no occlusion test is made (and --json says so), and a
+// loose convergence target stops the trace early and says how early.
+TEST(CliIr, JsonSaysWhatWasSkippedAndWhy) {
+  TempDir dir("cli_skipped");
+  auto r = runEarshot("ir " + kShoebox + " --material-map " + kShoeboxMap +
+                      " --source 2,3.5,1.5 --listener 7,3.5,1.5 --receiver omni --rays 32768 --converge 3 --tail-probes 256"
+                      " -o " + dir / "ir.wav --json " + dir / "s.json");
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  const auto s = nlohmann::json::parse(readFile(dir / "s.json"));
+  EXPECT_EQ(s["shadow_rays"], 0);
+  EXPECT_GT(s["shadow_rays_skipped"].get<int64_t>(), 0);
+  EXPECT_EQ(s["direct"]["occlusion_tested"], false);
+  EXPECT_EQ(s["rays_requested"], 32768);
+  EXPECT_LT(s["rays_traced"].get<int64_t>(), 32768);
+  EXPECT_LE(s["estimated_error_db"].get<double>(), 3.0);
+  EXPECT_EQ(s["settings"]["tail_probes"], 256);
+  EXPECT_GT(s["tail_probe_segments"].get<int64_t>(), 0);
+  std::string skipped;
+  for (const auto& line : s["skipped"]) skipped += line.get<std::string>() + "\n";
+  EXPECT_NE(skipped.find("convex around the listener"), std::string::npos) << skipped;
+  EXPECT_NE(skipped.find("not traced, the histogram had converged"), std::string::npos) << skipped;
+}
+
 struct BadInput {
   std::string name, args, expectInMessage;
   std::string fileName = {}, fileContent = {};  // an input file the case writes first
@@ -94,7 +118,9 @@ INSTANTIATE_TEST_SUITE_P(
                  "absorption[0] = 1.5 is outside [0, 1]", "m.json",
                  R"({"bands_hz": [125, 250, 500, 1000, 2000, 4000, 8000], "materials": {"x": )"
                  R"({"absorption": [1.5, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1], "scattering": 0.1}}})"},
-        BadInput{"rays", "--rays 0 --source 1,0,0 --listener 0,0,0", "--rays"}),
+        BadInput{"rays", "--rays 0 --source 1,0,0 --listener 0,0,0", "--rays"},
+        BadInput{"converge", "--converge 25 --source 1,0,0 --listener 0,0,0", "--converge"},
+        BadInput{"probes", "--tail-probes -1 --source 1,0,0 --listener 0,0,0", "--tail-probes"}),
     [](const ::testing::TestParamInfo<BadInput>& i) { return i.param.name; });
 
 }  // namespace earshot
