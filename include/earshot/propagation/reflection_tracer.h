@@ -53,7 +53,10 @@ struct ReflectionSettings {
   AirConditions air;
   double binSeconds = 0.001;          ///< histogram resolution, [1e-5, 0.1] s
   double maxTimeSeconds = 4.0;        ///< histogram length; later arrivals are counted in stats only
-  double receiverRadiusMeters = 0.0;  ///< sphere for specular detection; 0 = automatic
+  /** Sphere for specular detection; 0 = automatic, sized from the ray
+   *  density (rays, bounces and the listener's surroundings; 0.5 - 2 m,
+   *  under 90 % of the distance to the nearest surface). [0, 1000] m */
+  double receiverRadiusMeters = 0.0;
   double minDistanceMeters = 0.1;     ///< clamp of 1/d^2 in next-event estimation
   /** Specular paths rendered elsewhere (image sources): not detected here. Not owned. */
   const PlaneSequenceSet* excludedSpecular = nullptr;
