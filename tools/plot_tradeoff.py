@@ -85,9 +85,11 @@ def main():
     ax.text(xs[0], 1.05, "1 JND", color="grey", fontsize=8)
     ax.set_xscale("log")
     ax.set_yscale("log")
+    ax.margins(x=0.08)  # room for the labels of the rightmost points
     from matplotlib.ticker import FormatStrFormatter
     ax.xaxis.set_minor_formatter(FormatStrFormatter("%g"))  # a sweep often spans less than a decade
-    ax.tick_params(axis="x", which="minor", labelsize=7)
+    ax.yaxis.set_minor_formatter(FormatStrFormatter("%g"))  # a preset run often spans less than a decade
+    ax.tick_params(axis="both", which="minor", labelsize=7)
     ax.set_xlabel("wall time per IR, median (s)")
     ax.set_ylabel("error vs reference: mean |JND| over 250 Hz - 4 kHz")
     points = "quality presets" if presets else "rays x bounces"
