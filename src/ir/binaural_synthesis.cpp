@@ -269,22 +269,25 @@ Result<AudioBuffer> synthesizeBinauralIr(const std::vector<Arrival>& arrivals, c
         for (int b = 0; b < kNumBands; ++b) gain[ear][b][bin] = float((1.0 - a) + a * rel[b]);
       }
     }
-    const std::vector<float> u = plan.noise(settings.seed, detail::kLateNoiseStream);
-    const std::vector<float> v = plan.noise(settings.seed, detail::kLateNoiseStreamIndependent);
     bool independent = false;
     for (const auto& c : model.rightIndependent()) independent = independent || c != std::complex<float>(0.0f);
+    // Levelled band noises (SpectralSynth::levelledBandNoise), added through
+    // the second sqrt(W_band).
+    const auto u = plan.levelledBandNoise(settings.seed, detail::kLateNoiseStream);
+    const auto v = independent ? plan.levelledBandNoise(settings.seed, detail::kLateNoiseStreamIndependent)
+                               : std::vector<std::vector<float>>{};
     const detail::GridFilter left{model.left().data(), grid}, rightU{model.rightCoherent().data(), grid},
         rightV{model.rightIndependent().data(), grid};
     std::vector<float> shaped = plan.shapedBuffer();
     for (int b = 0; b < kNumBands; ++b) {
       const float* gl = directional ? gain[0][b].data() : nullptr;
       const float* gr = directional ? gain[1][b].data() : nullptr;
-      if (!plan.shapeBand(u.data(), *reflections, b, gl, shaped)) continue;
-      plan.addBand(b, shaped, left, spectrum[0].data());
-      if (directional) plan.shapeBand(u.data(), *reflections, b, gr, shaped);
-      plan.addBand(b, shaped, rightU, spectrum[1].data());
-      if (independent && plan.shapeBand(v.data(), *reflections, b, gr, shaped))
-        plan.addBand(b, shaped, rightV, spectrum[1].data());
+      if (!plan.shapeBand(u[size_t(b)].data(), *reflections, b, gl, shaped)) continue;
+      plan.addBand(b, shaped, left, spectrum[0].data(), true);
+      if (directional) plan.shapeBand(u[size_t(b)].data(), *reflections, b, gr, shaped);
+      plan.addBand(b, shaped, rightU, spectrum[1].data(), true);
+      if (independent && plan.shapeBand(v[size_t(b)].data(), *reflections, b, gr, shaped))
+        plan.addBand(b, shaped, rightV, spectrum[1].data(), true);
     }
   }
 

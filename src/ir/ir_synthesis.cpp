@@ -59,12 +59,13 @@ Result<AudioBuffer> synthesizeOmniIr(const std::vector<Arrival>& arrivals, const
   detail::SpectralSynth& plan = synth.value();
   auto spectrum = plan.emptySpectrum();
   for (const Arrival& a : arrivals) plan.addArrival(a, a.delaySeconds, {}, spectrum.data());
-  // Reflections: per band, noise x sqrt(energy density), then W_b.
+  // Reflections: per band, levelled band noise x sqrt(energy density).
   if (reflections && reflections->lastNonEmptyBin() >= 0) {
-    const std::vector<float> noise = plan.noise(settings.seed, detail::kLateNoiseStream);
+    const auto noise = plan.levelledBandNoise(settings.seed, detail::kLateNoiseStream);
     std::vector<float> shaped = plan.shapedBuffer();
     for (int b = 0; b < kNumBands; ++b)
-      if (plan.shapeBand(noise.data(), *reflections, b, nullptr, shaped)) plan.addBand(b, shaped, {}, spectrum.data());
+      if (plan.shapeBand(noise[size_t(b)].data(), *reflections, b, nullptr, shaped))
+        plan.addBand(b, shaped, {}, spectrum.data(), true);
   }
   AudioBuffer out(1, 0, fs);
   plan.inverse(spectrum, out.channels[0]);

@@ -40,11 +40,15 @@ Result<SpectralSynth> SpectralSynth::create(size_t length, double fs) {
   s.mInverse.reset(kiss_fftr_alloc(int(s.mN), 1, nullptr, nullptr));
   if (!s.mForward || !s.mInverse) return Status(StatusCode::kInternal, "FFT allocation failed");
   s.mWeights.assign(kNumBands, std::vector<float>(s.mBins));
+  s.mSqrtWeights.assign(kNumBands, std::vector<float>(s.mBins));
   s.mLowerBand.resize(s.mBins);
   s.mLowerWeight.resize(s.mBins);
   for (size_t k = 0; k < s.mBins; ++k) {
     BandArrayD w = bandWeights(double(k) * fs / double(s.mN));
-    for (int b = 0; b < kNumBands; ++b) s.mWeights[b][k] = float(w[b]);
+    for (int b = 0; b < kNumBands; ++b) {
+      s.mWeights[b][k] = float(w[b]);
+      s.mSqrtWeights[b][k] = float(std::sqrt(std::max(0.0, w[b])));
+    }
     // At most two band weights are non-zero at any frequency: keep the lower one.
     int lb = kNumBands - 1;
     for (int b = 0; b < kNumBands; ++b)
@@ -181,6 +185,58 @@ std::vector<float> SpectralSynth::noise(uint64_t seed, uint64_t stream) const {
   return out;
 }
 
+std::vector<std::vector<float>> SpectralSynth::levelledBandNoise(uint64_t seed, uint64_t stream) {
+  struct Cached {
+    uint64_t seed = 0, stream = 0;
+    size_t length = 0, n = 0;
+    double fs = 0;
+    std::vector<std::vector<float>> bands;
+  };
+  static std::mutex mutex;
+  static Cached cache[2];
+  {
+    std::lock_guard<std::mutex> lock(mutex);
+    for (const Cached& c : cache)
+      if (c.seed == seed && c.stream == stream && c.length == mLength && c.n == mN && c.fs == mFs) return c.bands;
+  }
+  std::vector<float> padded(mN, 0.0f);
+  const std::vector<float> white = noise(seed, stream);
+  std::copy(white.begin(), white.end(), padded.begin());
+  std::vector<kiss_fft_cpx> spectrum(mBins), filtered(mBins);
+  kiss_fftr(mForward.get(), padded.data(), spectrum.data());
+  std::vector<std::vector<float>> bands(kNumBands, std::vector<float>(mN, 0.0f));
+  std::vector<float> time(mN);
+  std::vector<double> prefix(mLength + 1);
+  for (int b = 0; b < kNumBands; ++b) {
+    const std::vector<float>& w = mSqrtWeights[b];
+    // Average power of white noise through sqrt(W): the mean of W over the
+    // whole circle of bins.
+    double power = 0;
+    for (size_t k = 0; k < mBins; ++k) {
+      filtered[k] = {spectrum[k].r * w[k], spectrum[k].i * w[k]};
+      const double wk = double(w[k]) * w[k];
+      power += (k == 0 || (mN % 2 == 0 && k == mBins - 1)) ? wk : 2.0 * wk;
+    }
+    power /= double(mN);
+    kiss_fftri(mInverse.get(), filtered.data(), time.data());
+    const double scale = 1.0 / double(mN);  // KissFFT's inverse is unnormalised
+    prefix[0] = 0;
+    for (size_t i = 0; i < mLength; ++i) prefix[i + 1] = prefix[i] + std::pow(double(time[i]) * scale, 2);
+    const double width = 0.7071 * kBandCentersHz[size_t(b)];
+    const size_t half = std::max<size_t>(4, size_t(0.5 * kLevelWindowCycles * mFs / width));
+    std::vector<float>& out = bands[size_t(b)];
+    for (size_t i = 0; i < mLength; ++i) {
+      const size_t lo = i > half ? i - half : 0, hi = std::min(mLength, i + half + 1);
+      const double rms2 = (prefix[hi] - prefix[lo]) / double(hi - lo);
+      out[i] = rms2 > 0 ? float(double(time[i]) * scale * std::sqrt(power / rms2)) : 0.0f;
+    }
+  }
+  std::lock_guard<std::mutex> lock(mutex);
+  Cached& slot = cache[stream == kLateNoiseStream ? 0 : 1];
+  slot = Cached{seed, stream, mLength, mN, mFs, bands};
+  return bands;
+}
+
 bool SpectralSynth::shapeBand(const float* noise, const EnergyHistogram& h, int band, const float* gain,
                               std::vector<float>& shaped) const {
   const double binSamples = h.binSeconds() * mFs;
@@ -214,10 +270,10 @@ bool SpectralSynth::shapeBand(const float* noise, const EnergyHistogram& h, int 
 }
 
 void SpectralSynth::addBand(int band, const std::vector<float>& shaped, const GridFilter& h,
-                            std::complex<double>* spectrum) {
+                            std::complex<double>* spectrum, bool preFiltered) {
   if (h.values) prepareGrid(h.gridSize);
   kiss_fftr(mForward.get(), shaped.data(), mScratch.data());
-  const std::vector<float>& w = mWeights[band];
+  const std::vector<float>& w = preFiltered ? mSqrtWeights[band] : mWeights[band];
   for (size_t k = 0; k < mBins; ++k) {
     if (w[k] == 0.0f) continue;
     const std::complex<double> x(mScratch[k].r, mScratch[k].i);

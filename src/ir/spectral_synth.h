@@ -50,6 +50,19 @@ class SpectralSynth {
   /** `length` samples of white Gaussian noise (unit variance) from a seed and stream. */
   std::vector<float> noise(uint64_t seed, uint64_t stream) const;
 
+  /** Per band, the noise of (seed, stream) through sqrt(W_band), with its
+   *  slow fluctuations of level taken out: divided by its RMS over a moving
+   *  window of kLevelWindowCycles periods of the band's width, times the
+   *  RMS it has on average. A noise realisation's level wanders (over the
+   *  first 10 dB of a 1 s decay an octave band holds only B x 0.17 s degrees
+   *  of freedom: EDT scattered by 2 JND at 250 Hz between seeds); levelled,
+   *  the band carries the histogram's envelope much more closely, while its
+   *  fine structure stays noise. Pass a band's noise to shapeBand and the
+   *  result to addBand with preFiltered = true (the second sqrt(W_band)
+   *  completes W_band). n samples each (zero beyond length()); cached for the
+   *  last two (seed, stream) pairs of each frame size. */
+  std::vector<std::vector<float>> levelledBandNoise(uint64_t seed, uint64_t stream);
+
   /** shaped[i] = noise[i] * sqrt(density_band(i) * gain(bin of i)), the
    *  density the histogram's energy per sample, linear between bin centres;
    *  gainPerHistogramBin may be null (1). Returns false if all zero. */
@@ -57,8 +70,10 @@ class SpectralSynth {
                  std::vector<float>& shaped) const;
 
   /** spectrum += W_band(f) * H(f) * FFT(shaped); shaped has n samples (the
-   *  tail beyond length() zero). */
-  void addBand(int band, const std::vector<float>& shaped, const GridFilter& h, std::complex<double>* spectrum);
+   *  tail beyond length() zero). preFiltered: shaped came from
+   *  levelledBandNoise (through sqrt(W_band) already), so sqrt(W_band) here. */
+  void addBand(int band, const std::vector<float>& shaped, const GridFilter& h, std::complex<double>* spectrum,
+               bool preFiltered = false);
 
   /** A zeroed spectrum of bins() values. */
   std::vector<std::complex<double>> emptySpectrum() const { return std::vector<std::complex<double>>(mBins, 0.0); }
@@ -77,6 +92,7 @@ class SpectralSynth {
   size_t mLength = 0, mN = 0, mBins = 0;
   FftrPtr mForward, mInverse;
   std::vector<std::vector<float>> mWeights;  // [band][bin]
+  std::vector<std::vector<float>> mSqrtWeights;  // [band][bin]
   std::vector<uint8_t> mLowerBand;           // per bin: the lower of the (at most two) non-zero bands
   std::vector<double> mLowerWeight;
   std::vector<kiss_fft_cpx> mScratch;
@@ -90,6 +106,10 @@ class SpectralSynth {
 constexpr uint64_t kLateNoiseStream = 0x1F2E3D4CULL;
 /** The binaural path's second, independent noise (V). */
 constexpr uint64_t kLateNoiseStreamIndependent = 0x5A6B7C8DULL;
+
+/** Window of levelledBandNoise: periods of the band's width (an octave band
+ *  at f is 0.71 f wide): 45 ms at 125 Hz, 5.6 ms at 1 kHz. */
+constexpr double kLevelWindowCycles = 4.0;
 
 /** IRs longer than this are refused (10 minutes at 48 kHz). */
 constexpr size_t kMaxIrSamples = size_t(48000) * 600;
