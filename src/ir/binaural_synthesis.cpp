@@ -274,19 +274,18 @@ Result<AudioBuffer> synthesizeBinauralIr(const std::vector<Arrival>& arrivals, c
     // Levelled band noises (SpectralSynth::levelledBandNoise), added through
     // the second sqrt(W_band).
     const auto u = plan.levelledBandNoise(settings.seed, detail::kLateNoiseStream);
-    const auto v = independent ? plan.levelledBandNoise(settings.seed, detail::kLateNoiseStreamIndependent)
-                               : std::vector<std::vector<float>>{};
+    const auto v = independent ? plan.levelledBandNoise(settings.seed, detail::kLateNoiseStreamIndependent) : nullptr;
     const detail::GridFilter left{model.left().data(), grid}, rightU{model.rightCoherent().data(), grid},
         rightV{model.rightIndependent().data(), grid};
     std::vector<float> shaped = plan.shapedBuffer();
     for (int b = 0; b < kNumBands; ++b) {
       const float* gl = directional ? gain[0][b].data() : nullptr;
       const float* gr = directional ? gain[1][b].data() : nullptr;
-      if (!plan.shapeBand(u[size_t(b)].data(), *reflections, b, gl, shaped)) continue;
+      if (!plan.shapeBand((*u)[size_t(b)].data(), *reflections, b, gl, shaped)) continue;
       plan.addBand(b, shaped, left, spectrum[0].data(), true);
-      if (directional) plan.shapeBand(u[size_t(b)].data(), *reflections, b, gr, shaped);
+      if (directional) plan.shapeBand((*u)[size_t(b)].data(), *reflections, b, gr, shaped);
       plan.addBand(b, shaped, rightU, spectrum[1].data(), true);
-      if (independent && plan.shapeBand(v[size_t(b)].data(), *reflections, b, gr, shaped))
+      if (independent && plan.shapeBand((*v)[size_t(b)].data(), *reflections, b, gr, shaped))
         plan.addBand(b, shaped, rightV, spectrum[1].data(), true);
     }
   }

@@ -64,7 +64,7 @@ Result<AudioBuffer> synthesizeOmniIr(const std::vector<Arrival>& arrivals, const
     const auto noise = plan.levelledBandNoise(settings.seed, detail::kLateNoiseStream);
     std::vector<float> shaped = plan.shapedBuffer();
     for (int b = 0; b < kNumBands; ++b)
-      if (plan.shapeBand(noise[size_t(b)].data(), *reflections, b, nullptr, shaped))
+      if (plan.shapeBand((*noise)[size_t(b)].data(), *reflections, b, nullptr, shaped))
         plan.addBand(b, shaped, {}, spectrum.data(), true);
   }
   AudioBuffer out(1, 0, fs);

@@ -151,6 +151,18 @@ void SpectralSynth::addArrival(const Arrival& a, double delaySeconds, const Grid
   if (mN % 2 == 0) spectrum[mBins - 1] = spectrum[mBins - 1].real();
 }
 
+std::vector<float> whiteNoise(uint64_t seed, uint64_t stream, size_t count) {
+  std::vector<float> out(count);
+  Pcg32 rng(seed, stream);
+  for (size_t i = 0; i < count; i += 2) {  // Box-Muller, two at a time
+    double u1 = std::max(rng.uniformDouble(), 1e-300), u2 = rng.uniformDouble();
+    double r = std::sqrt(-2.0 * std::log(u1));
+    out[i] = float(r * std::cos(2 * kPi * u2));
+    if (i + 1 < count) out[i + 1] = float(r * std::sin(2 * kPi * u2));
+  }
+  return out;
+}
+
 std::vector<float> SpectralSynth::noise(uint64_t seed, uint64_t stream) const {
   // Box-Muller costs a sine and a cosine per two samples; successive IRs of a
   // simulation use the same seed, so the last noise of each stream is kept
@@ -167,14 +179,7 @@ std::vector<float> SpectralSynth::noise(uint64_t seed, uint64_t stream) const {
       if (c.seed == seed && c.stream == stream && c.samples.size() >= mLength)
         return std::vector<float>(c.samples.begin(), c.samples.begin() + std::ptrdiff_t(mLength));
   }
-  std::vector<float> out(mLength);
-  Pcg32 rng(seed, stream);
-  for (size_t i = 0; i < mLength; i += 2) {  // Box-Muller, two at a time
-    double u1 = std::max(rng.uniformDouble(), 1e-300), u2 = rng.uniformDouble();
-    double r = std::sqrt(-2.0 * std::log(u1));
-    out[i] = float(r * std::cos(2 * kPi * u2));
-    if (i + 1 < mLength) out[i + 1] = float(r * std::sin(2 * kPi * u2));
-  }
+  std::vector<float> out = whiteNoise(seed, stream, mLength);
   std::lock_guard<std::mutex> lock(mutex);
   Cached& slot = cache[stream == kLateNoiseStream ? 0 : 1];
   if (!(slot.seed == seed && slot.stream == stream && slot.samples.size() >= mLength)) {
@@ -185,55 +190,65 @@ std::vector<float> SpectralSynth::noise(uint64_t seed, uint64_t stream) const {
   return out;
 }
 
-std::vector<std::vector<float>> SpectralSynth::levelledBandNoise(uint64_t seed, uint64_t stream) {
+std::shared_ptr<const std::vector<std::vector<float>>> SpectralSynth::levelledBandNoise(uint64_t seed,
+                                                                                      uint64_t stream) const {
+  // Made for a power-of-two period n >= length(), circularly filtered (so
+  // exactly stationary), and cached: IRs of similar lengths share it, and an
+  // IR's length and seed alone decide its noise.
+  size_t n = 1024;
+  while (n < mLength) n *= 2;
+  using Bands = std::vector<std::vector<float>>;
   struct Cached {
     uint64_t seed = 0, stream = 0;
-    size_t length = 0, n = 0;
+    size_t n = 0;
     double fs = 0;
-    std::vector<std::vector<float>> bands;
+    std::shared_ptr<const Bands> bands;
   };
   static std::mutex mutex;
   static Cached cache[2];
   {
     std::lock_guard<std::mutex> lock(mutex);
     for (const Cached& c : cache)
-      if (c.seed == seed && c.stream == stream && c.length == mLength && c.n == mN && c.fs == mFs) return c.bands;
+      if (c.bands && c.seed == seed && c.stream == stream && c.n == n && c.fs == mFs) return c.bands;
   }
-  std::vector<float> padded(mN, 0.0f);
-  const std::vector<float> white = noise(seed, stream);
-  std::copy(white.begin(), white.end(), padded.begin());
-  std::vector<kiss_fft_cpx> spectrum(mBins), filtered(mBins);
-  kiss_fftr(mForward.get(), padded.data(), spectrum.data());
-  std::vector<std::vector<float>> bands(kNumBands, std::vector<float>(mN, 0.0f));
-  std::vector<float> time(mN);
-  std::vector<double> prefix(mLength + 1);
+  FftrPtr forward(kiss_fftr_alloc(int(n), 0, nullptr, nullptr)), inverse(kiss_fftr_alloc(int(n), 1, nullptr, nullptr));
+  auto bands = std::make_shared<Bands>(kNumBands, std::vector<float>(n, 0.0f));
+  if (!forward || !inverse) return bands;  // allocation failed: silence rather than a crash
+  const size_t bins = n / 2 + 1;
+  std::vector<float> white = whiteNoise(seed, stream, n), time(n);
+  std::vector<kiss_fft_cpx> spectrum(bins), filtered(bins);
+  kiss_fftr(forward.get(), white.data(), spectrum.data());
+  std::vector<BandArrayD> weights(bins);
+  for (size_t k = 0; k < bins; ++k) weights[k] = bandWeights(double(k) * mFs / double(n));
+  std::vector<double> prefix(n + 1);
   for (int b = 0; b < kNumBands; ++b) {
-    const std::vector<float>& w = mSqrtWeights[b];
-    // Average power of white noise through sqrt(W): the mean of W over the
-    // whole circle of bins.
+    // Through sqrt(W); white noise keeps the mean of W over the circle.
     double power = 0;
-    for (size_t k = 0; k < mBins; ++k) {
-      filtered[k] = {spectrum[k].r * w[k], spectrum[k].i * w[k]};
-      const double wk = double(w[k]) * w[k];
-      power += (k == 0 || (mN % 2 == 0 && k == mBins - 1)) ? wk : 2.0 * wk;
+    for (size_t k = 0; k < bins; ++k) {
+      const double w = std::max(0.0, weights[k][b]);
+      const float g = float(std::sqrt(w));
+      filtered[k] = {spectrum[k].r * g, spectrum[k].i * g};
+      power += (k == 0 || k == bins - 1) ? w : 2.0 * w;
     }
-    power /= double(mN);
-    kiss_fftri(mInverse.get(), filtered.data(), time.data());
-    const double scale = 1.0 / double(mN);  // KissFFT's inverse is unnormalised
+    power /= double(n);
+    kiss_fftri(inverse.get(), filtered.data(), time.data());
+    const double scale = 1.0 / double(n);  // KissFFT's inverse is unnormalised
     prefix[0] = 0;
-    for (size_t i = 0; i < mLength; ++i) prefix[i + 1] = prefix[i] + std::pow(double(time[i]) * scale, 2);
+    for (size_t i = 0; i < n; ++i) {
+      const double x = double(time[i]) * scale;
+      prefix[i + 1] = prefix[i] + x * x;
+    }
     const double width = 0.7071 * kBandCentersHz[size_t(b)];
     const size_t half = std::max<size_t>(4, size_t(0.5 * kLevelWindowCycles * mFs / width));
-    std::vector<float>& out = bands[size_t(b)];
-    for (size_t i = 0; i < mLength; ++i) {
-      const size_t lo = i > half ? i - half : 0, hi = std::min(mLength, i + half + 1);
+    std::vector<float>& out = (*bands)[size_t(b)];
+    for (size_t i = 0; i < n; ++i) {
+      const size_t lo = i > half ? i - half : 0, hi = std::min(n, i + half + 1);
       const double rms2 = (prefix[hi] - prefix[lo]) / double(hi - lo);
       out[i] = rms2 > 0 ? float(double(time[i]) * scale * std::sqrt(power / rms2)) : 0.0f;
     }
   }
   std::lock_guard<std::mutex> lock(mutex);
-  Cached& slot = cache[stream == kLateNoiseStream ? 0 : 1];
-  slot = Cached{seed, stream, mLength, mN, mFs, bands};
+  cache[stream == kLateNoiseStream ? 0 : 1] = Cached{seed, stream, n, mFs, bands};
   return bands;
 }
 

@@ -50,7 +50,7 @@ class SpectralSynth {
   /** `length` samples of white Gaussian noise (unit variance) from a seed and stream. */
   std::vector<float> noise(uint64_t seed, uint64_t stream) const;
 
-  /** Per band, the noise of (seed, stream) through sqrt(W_band), with its
+  /** Per band, white noise of (seed, stream) through sqrt(W_band), with its
    *  slow fluctuations of level taken out: divided by its RMS over a moving
    *  window of kLevelWindowCycles periods of the band's width, times the
    *  RMS it has on average. A noise realisation's level wanders (over the
@@ -59,9 +59,10 @@ class SpectralSynth {
    *  the band carries the histogram's envelope much more closely, while its
    *  fine structure stays noise. Pass a band's noise to shapeBand and the
    *  result to addBand with preFiltered = true (the second sqrt(W_band)
-   *  completes W_band). n samples each (zero beyond length()); cached for the
-   *  last two (seed, stream) pairs of each frame size. */
-  std::vector<std::vector<float>> levelledBandNoise(uint64_t seed, uint64_t stream);
+   *  completes W_band). At least length() samples per band; made for the
+   *  power of two at or above length() and shared by every IR of that size
+   *  class (cached for the last (seed, stream) of each of the two streams). */
+  std::shared_ptr<const std::vector<std::vector<float>>> levelledBandNoise(uint64_t seed, uint64_t stream) const;
 
   /** shaped[i] = noise[i] * sqrt(density_band(i) * gain(bin of i)), the
    *  density the histogram's energy per sample, linear between bin centres;
@@ -100,6 +101,9 @@ class SpectralSynth {
   std::vector<uint32_t> mGridIndex;  // per bin: the grid point below
   std::vector<double> mGridFrac;     // per bin: position between it and the next
 };
+
+/** `count` samples of white Gaussian noise (unit variance). */
+std::vector<float> whiteNoise(uint64_t seed, uint64_t stream, size_t count);
 
 /** Noise stream of the late reflections. The binaural path's first noise (U)
  *  uses it too, so an identity HRTF reproduces the omni IR of the same seed. */
