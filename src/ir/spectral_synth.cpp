@@ -204,12 +204,14 @@ std::shared_ptr<const std::vector<std::vector<float>>> SpectralSynth::levelledBa
     double fs = 0;
     std::shared_ptr<const Bands> bands;
   };
+  // The most recent first; IRs of neighbouring size classes (a render's,
+  // the runtime's) alternate, so a few are kept, up to kMaxCachedBytes.
   static std::mutex mutex;
-  static Cached cache[2];
+  static std::vector<Cached> cache;
   {
     std::lock_guard<std::mutex> lock(mutex);
     for (const Cached& c : cache)
-      if (c.bands && c.seed == seed && c.stream == stream && c.n == n && c.fs == mFs) return c.bands;
+      if (c.seed == seed && c.stream == stream && c.n == n && c.fs == mFs) return c.bands;
   }
   FftrPtr forward(kiss_fftr_alloc(int(n), 0, nullptr, nullptr)), inverse(kiss_fftr_alloc(int(n), 1, nullptr, nullptr));
   auto bands = std::make_shared<Bands>(kNumBands, std::vector<float>(n, 0.0f));
@@ -248,7 +250,16 @@ std::shared_ptr<const std::vector<std::vector<float>>> SpectralSynth::levelledBa
     }
   }
   std::lock_guard<std::mutex> lock(mutex);
-  cache[stream == kLateNoiseStream ? 0 : 1] = Cached{seed, stream, n, mFs, bands};
+  cache.insert(cache.begin(), Cached{seed, stream, n, mFs, bands});
+  constexpr size_t kMaxCachedBytes = size_t(64) << 20;
+  size_t bytes = 0;
+  for (size_t i = 0; i < cache.size(); ++i) {
+    bytes += cache[i].n * kNumBands * sizeof(float);
+    if (i > 0 && (bytes > kMaxCachedBytes || i >= 8)) {
+      cache.resize(i);
+      break;
+    }
+  }
   return bands;
 }
 
