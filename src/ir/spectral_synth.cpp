@@ -251,11 +251,11 @@ std::shared_ptr<const std::vector<std::vector<float>>> SpectralSynth::levelledBa
   }
   std::lock_guard<std::mutex> lock(mutex);
   cache.insert(cache.begin(), Cached{seed, stream, n, mFs, bands});
-  constexpr size_t kMaxCachedBytes = size_t(64) << 20;
+  constexpr size_t kMaxCachedBytes = size_t(32) << 20;
   size_t bytes = 0;
   for (size_t i = 0; i < cache.size(); ++i) {
     bytes += cache[i].n * kNumBands * sizeof(float);
-    if (i > 0 && (bytes > kMaxCachedBytes || i >= 8)) {
+    if (i > 0 && (bytes > kMaxCachedBytes || i >= 6)) {
       cache.resize(i);
       break;
     }

@@ -61,7 +61,7 @@ class SpectralSynth {
    *  result to addBand with preFiltered = true (the second sqrt(W_band)
    *  completes W_band). At least length() samples per band; made for the
    *  power of two at or above length() and shared by every IR of that size
-   *  class (the last few (seed, stream, size class) are cached, up to 64 MB). */
+   *  class (the last few (seed, stream, size class) are cached: at most 6, 32 MB). */
   std::shared_ptr<const std::vector<std::vector<float>>> levelledBandNoise(uint64_t seed, uint64_t stream) const;
 
   /** shaped[i] = noise[i] * sqrt(density_band(i) * gain(bin of i)), the
