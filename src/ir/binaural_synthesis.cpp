@@ -282,11 +282,11 @@ Result<AudioBuffer> synthesizeBinauralIr(const std::vector<Arrival>& arrivals, c
       const float* gl = directional ? gain[0][b].data() : nullptr;
       const float* gr = directional ? gain[1][b].data() : nullptr;
       if (!plan.shapeBand((*u)[size_t(b)].data(), *reflections, b, gl, shaped)) continue;
-      plan.addBand(b, shaped, left, spectrum[0].data(), true);
+      plan.addBand(b, shaped, left, spectrum[0].data());
       if (directional) plan.shapeBand((*u)[size_t(b)].data(), *reflections, b, gr, shaped);
-      plan.addBand(b, shaped, rightU, spectrum[1].data(), true);
+      plan.addBand(b, shaped, rightU, spectrum[1].data());
       if (independent && plan.shapeBand((*v)[size_t(b)].data(), *reflections, b, gr, shaped))
-        plan.addBand(b, shaped, rightV, spectrum[1].data(), true);
+        plan.addBand(b, shaped, rightV, spectrum[1].data());
     }
   }
 

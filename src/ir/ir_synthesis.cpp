@@ -65,7 +65,7 @@ Result<AudioBuffer> synthesizeOmniIr(const std::vector<Arrival>& arrivals, const
     std::vector<float> shaped = plan.shapedBuffer();
     for (int b = 0; b < kNumBands; ++b)
       if (plan.shapeBand((*noise)[size_t(b)].data(), *reflections, b, nullptr, shaped))
-        plan.addBand(b, shaped, {}, spectrum.data(), true);
+        plan.addBand(b, shaped, {}, spectrum.data());
   }
   AudioBuffer out(1, 0, fs);
   plan.inverse(spectrum, out.channels[0]);

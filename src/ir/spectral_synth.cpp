@@ -39,25 +39,21 @@ Result<SpectralSynth> SpectralSynth::create(size_t length, double fs) {
   s.mForward.reset(kiss_fftr_alloc(int(s.mN), 0, nullptr, nullptr));
   s.mInverse.reset(kiss_fftr_alloc(int(s.mN), 1, nullptr, nullptr));
   if (!s.mForward || !s.mInverse) return Status(StatusCode::kInternal, "FFT allocation failed");
-  s.mWeights.assign(kNumBands, std::vector<float>(s.mBins));
   s.mSqrtWeights.assign(kNumBands, std::vector<float>(s.mBins));
   s.mLowerBand.resize(s.mBins);
   s.mLowerWeight.resize(s.mBins);
   for (size_t k = 0; k < s.mBins; ++k) {
     BandArrayD w = bandWeights(double(k) * fs / double(s.mN));
-    for (int b = 0; b < kNumBands; ++b) {
-      s.mWeights[b][k] = float(w[b]);
-      s.mSqrtWeights[b][k] = float(std::sqrt(std::max(0.0, w[b])));
-    }
+    for (int b = 0; b < kNumBands; ++b) s.mSqrtWeights[b][k] = float(std::sqrt(std::max(0.0, w[b])));
     // At most two band weights are non-zero at any frequency: keep the lower one.
     int lb = kNumBands - 1;
     for (int b = 0; b < kNumBands; ++b)
-      if (s.mWeights[b][k] > 0) {
+      if (float(w[b]) > 0) {
         lb = b;
         break;
       }
     s.mLowerBand[k] = uint8_t(lb);
-    s.mLowerWeight[k] = s.mWeights[lb][k];
+    s.mLowerWeight[k] = float(w[lb]);
   }
   s.mScratch.resize(s.mBins);
   return s;
@@ -159,33 +155,6 @@ std::vector<float> whiteNoise(uint64_t seed, uint64_t stream, size_t count) {
     double r = std::sqrt(-2.0 * std::log(u1));
     out[i] = float(r * std::cos(2 * kPi * u2));
     if (i + 1 < count) out[i + 1] = float(r * std::sin(2 * kPi * u2));
-  }
-  return out;
-}
-
-std::vector<float> SpectralSynth::noise(uint64_t seed, uint64_t stream) const {
-  // Box-Muller costs a sine and a cosine per two samples; successive IRs of a
-  // simulation use the same seed, so the last noise of each stream is kept
-  // (a prefix of a longer one is the same noise).
-  struct Cached {
-    uint64_t seed = 0, stream = 0;
-    std::vector<float> samples;
-  };
-  static std::mutex mutex;
-  static Cached cache[2];
-  {
-    std::lock_guard<std::mutex> lock(mutex);
-    for (const Cached& c : cache)
-      if (c.seed == seed && c.stream == stream && c.samples.size() >= mLength)
-        return std::vector<float>(c.samples.begin(), c.samples.begin() + std::ptrdiff_t(mLength));
-  }
-  std::vector<float> out = whiteNoise(seed, stream, mLength);
-  std::lock_guard<std::mutex> lock(mutex);
-  Cached& slot = cache[stream == kLateNoiseStream ? 0 : 1];
-  if (!(slot.seed == seed && slot.stream == stream && slot.samples.size() >= mLength)) {
-    slot.seed = seed;
-    slot.stream = stream;
-    slot.samples = out;
   }
   return out;
 }
@@ -296,10 +265,10 @@ bool SpectralSynth::shapeBand(const float* noise, const EnergyHistogram& h, int 
 }
 
 void SpectralSynth::addBand(int band, const std::vector<float>& shaped, const GridFilter& h,
-                            std::complex<double>* spectrum, bool preFiltered) {
+                            std::complex<double>* spectrum) {
   if (h.values) prepareGrid(h.gridSize);
   kiss_fftr(mForward.get(), shaped.data(), mScratch.data());
-  const std::vector<float>& w = preFiltered ? mSqrtWeights[band] : mWeights[band];
+  const std::vector<float>& w = mSqrtWeights[band];  // the second sqrt(W_band)
   for (size_t k = 0; k < mBins; ++k) {
     if (w[k] == 0.0f) continue;
     const std::complex<double> x(mScratch[k].r, mScratch[k].i);

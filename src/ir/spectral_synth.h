@@ -47,9 +47,6 @@ class SpectralSynth {
    *  arrival's band gains through the complementary band weights. */
   void addArrival(const Arrival& a, double delaySeconds, const GridFilter& h, std::complex<double>* spectrum);
 
-  /** `length` samples of white Gaussian noise (unit variance) from a seed and stream. */
-  std::vector<float> noise(uint64_t seed, uint64_t stream) const;
-
   /** Per band, white noise of (seed, stream) through sqrt(W_band), with its
    *  slow fluctuations of level taken out: divided by its RMS over a moving
    *  window of kLevelWindowCycles periods of the band's width, times the
@@ -58,8 +55,8 @@ class SpectralSynth {
    *  of freedom: EDT scattered by 2 JND at 250 Hz between seeds); levelled,
    *  the band carries the histogram's envelope much more closely, while its
    *  fine structure stays noise. Pass a band's noise to shapeBand and the
-   *  result to addBand with preFiltered = true (the second sqrt(W_band)
-   *  completes W_band). At least length() samples per band; made for the
+   *  result to addBand (whose second sqrt(W_band) completes
+   *  W_band). At least length() samples per band; made for the
    *  power of two at or above length() and shared by every IR of that size
    *  class (the last few (seed, stream, size class) are cached: at most 6, 32 MB). */
   std::shared_ptr<const std::vector<std::vector<float>>> levelledBandNoise(uint64_t seed, uint64_t stream) const;
@@ -70,11 +67,10 @@ class SpectralSynth {
   bool shapeBand(const float* noise, const EnergyHistogram& h, int band, const float* gainPerHistogramBin,
                  std::vector<float>& shaped) const;
 
-  /** spectrum += W_band(f) * H(f) * FFT(shaped); shaped has n samples (the
-   *  tail beyond length() zero). preFiltered: shaped came from
-   *  levelledBandNoise (through sqrt(W_band) already), so sqrt(W_band) here. */
-  void addBand(int band, const std::vector<float>& shaped, const GridFilter& h, std::complex<double>* spectrum,
-               bool preFiltered = false);
+  /** spectrum += sqrt(W_band(f)) * H(f) * FFT(shaped): shaped is a band's
+   *  levelledBandNoise (through sqrt(W_band) already) after shapeBand, n
+   *  samples (the tail beyond length() zero). */
+  void addBand(int band, const std::vector<float>& shaped, const GridFilter& h, std::complex<double>* spectrum);
 
   /** A zeroed spectrum of bins() values. */
   std::vector<std::complex<double>> emptySpectrum() const { return std::vector<std::complex<double>>(mBins, 0.0); }
@@ -92,8 +88,7 @@ class SpectralSynth {
   double mFs = 48000.0;
   size_t mLength = 0, mN = 0, mBins = 0;
   FftrPtr mForward, mInverse;
-  std::vector<std::vector<float>> mWeights;  // [band][bin]
-  std::vector<std::vector<float>> mSqrtWeights;  // [band][bin]
+  std::vector<std::vector<float>> mSqrtWeights;  // [band][bin]: sqrt of the complementary band weights
   std::vector<uint8_t> mLowerBand;           // per bin: the lower of the (at most two) non-zero bands
   std::vector<double> mLowerWeight;
   std::vector<kiss_fft_cpx> mScratch;
