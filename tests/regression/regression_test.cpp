@@ -11,6 +11,7 @@
 
 #include "earshot/analysis/compare.h"
 #include "earshot/analysis/room_acoustics.h"
+#include "earshot/core/random.h"
 #include "earshot/core/thread_pool.h"
 #include "earshot/io/wav.h"
 #include "earshot/ir/ir_pipeline.h"
@@ -155,7 +156,11 @@ TEST(Regression, LatticeImageSourcesReproducePyroomacousticsReferenceMetrics) {
 // 250 / 500 / 1000 Hz here); beyond order 3 earshot renders noise with the
 // right energy, not those paths, so per-band early metrics differ by up to
 // 8 JND while the energies agree (see the energy tests). Rendering ray-found
-// specular paths as taps would close it.
+// specular paths as taps would not close it at this budget: the ideal
+// hybrid of IrLevelAgreementWithOneSpecularIrNeedsExactPathsToAQuarterSecond
+// (below), built at these positions (worst band over 3 noise seeds, alpha
+// 0.3): with exact paths to 0.1 s EDT is off by up to 4.0 JND, to 0.15 s
+// 1.2, to 0.25 s 0.6; T30 is off by 1.6 - 2.4 JND at all three.
 TEST(Regression, DISABLED_KnownGap_AsymmetricShoeboxIrMatchesExactImageSourceIr) {
   AirConditions noAir;
   noAir.enabled = false;
@@ -199,6 +204,7 @@ TEST(Regression, DISABLED_KnownGap_AsymmetricShoeboxIrMatchesExactImageSourceIr)
 // absorption: at these symmetric points the octave-filtered IR's T30
 // depends on coherent groups of images (see above) and on the filter's
 // response to isolated late taps, which an energy method does not model.
+// What closing it would take: the next test.
 TEST(Regression, DISABLED_KnownGap_PyroomacousticsImageSourceShoeboxes) {
   AirConditions noAir;
   noAir.enabled = false;
@@ -235,6 +241,70 @@ TEST(Regression, DISABLED_KnownGap_PyroomacousticsImageSourceShoeboxes) {
   }
 }
 
+// What IR-level agreement with one exact specular IR takes, whatever the
+// late-reverb method. An "ideal hybrid" IR: the exact images up to t_c at
+// their samples (coherently), and after t_c Gaussian noise carrying exactly
+// the images' energy per 1 ms (a perfect energy method with a perfect tail),
+// analysed like ours against the exact IR at pyroomacoustics' positions.
+// With t_c = 30 ms (about where image sources to order 3 end) some band's
+// EDT misses by several JND for every noise seed although every energy is
+// exact; with t_c = 0.25 s (images up to order ~25) EDT, C80 and D50 are
+// within 1 JND. T30 at alpha 0.3 misses by several JND even then (the
+// coherent late groups). So the IR-level criteria of the known gap above
+// need exact specular paths to a quarter second; 16384 rays x 12 bounces
+// reach about 0.12 s, and finding paths from those rays (the alternative to
+// a receiver sized from the ray density) would not get there either.
+// Measured, worst band per noise seed (seeds 1 - 3), alpha 0.3 / 0.6:
+// t_c 30 ms: EDT 4.9 - 9.3 / 7.8 - 8.7 JND, C80 3.0 - 3.9 / 3.3 - 4.2;
+// t_c 0.25 s: EDT <= 0.2 / 0.0, C80 <= 0.2 / 0.0, D50 0.0 / 0.0, T30
+// 4.7 - 5.1 / 0.0.
+TEST(Regression, IrLevelAgreementWithOneSpecularIrNeedsExactPathsToAQuarterSecond) {
+  const double fs = 48000;
+  for (const PraCase& c : praCases()) {
+    const auto images = praImages(std::stof(c.alpha), c.complete);
+    analysis::AnalysisOptions opt;
+    opt.windowEndS = c.complete;
+    const auto exact = analysis::analyzeIr(reference::coherentTrain(images, 3, fs, c.complete), fs, opt);
+    ASSERT_TRUE(exact.isOk());
+    for (double tc : {0.03, 0.25}) {
+      std::vector<reference::Image> early, late;
+      for (const auto& im : images) (im.delaySeconds < tc ? early : late).push_back(im);
+      const auto lateEnvelope = reference::incoherentEnvelope(late, 3, 0.001, c.complete);
+      double bestEdt = 1e9;  // over seeds, of the worst band
+      for (uint64_t seed = 1; seed <= 3; ++seed) {
+        std::vector<float> x = reference::coherentTrain(early, 3, fs, c.complete);
+        Pcg32 rng(seed, 7);
+        for (size_t i = 0; i < x.size(); ++i) {
+          const size_t bin = size_t(double(i) / fs / 0.001);
+          if (bin >= lateEnvelope.size()) break;
+          const double u1 = 1.0 - rng.uniformDouble(), u2 = rng.uniformDouble();  // Box-Muller
+          const double gauss = std::sqrt(-2.0 * std::log(u1)) * std::cos(6.283185307179586 * u2);
+          x[i] += float(double(lateEnvelope[bin]) * gauss / std::sqrt(0.001 * fs));
+        }
+        const auto m = analysis::analyzeIr(x, fs, opt);
+        ASSERT_TRUE(m.isOk());
+        double worst[4] = {0, 0, 0, 0};
+        const Metric metrics[4] = {Metric::kEdt, Metric::kC80, Metric::kD50, Metric::kT30};
+        for (int k = 0; k < 4; ++k)
+          for (int b : kMidBands) {
+            const double d = analysis::differenceInJnd(metrics[k], (*m)[size_t(b)].value(metrics[k]),
+                                                       (*exact)[size_t(b)].value(metrics[k]));
+            if (std::isfinite(d)) worst[k] = std::max(worst[k], std::fabs(d));
+          }
+        std::printf("ideal hybrid a=%s t_c %.2f s seed %d, worst band: EDT %.1f C80 %.1f D50 %.1f T30 %.1f JND\n",
+                    c.alpha.c_str(), tc, int(seed), worst[0], worst[1], worst[2], worst[3]);
+        bestEdt = std::min(bestEdt, worst[0]);
+        if (tc > 0.2) {
+          EXPECT_LE(worst[0], 1.0) << "EDT, alpha " << c.alpha;
+          EXPECT_LE(worst[1], 1.0) << "C80, alpha " << c.alpha;
+          EXPECT_LE(worst[2], 1.0) << "D50, alpha " << c.alpha;
+        }
+      }
+      if (tc < 0.1) EXPECT_GT(bestEdt, 3.0) << "alpha " << c.alpha << ": exact energies would have been enough";
+    }
+  }
+}
+
 // Our propagated energy per band in 1 ms bins: direct + image sources (as
 // energies) + the completed late histogram, as an envelope (see
 // envelopeMetrics).
@@ -264,13 +334,13 @@ struct MultibandCase {
   nlohmann::json meta;
 };
 
-MultibandCase multibandCase() {
+MultibandCase multibandCase(const OmniIrSettings& settings = {}) {
   MultibandCase c;
   c.meta = readJson(kRef + "shoebox_multiband/meta.json");
   std::array<BandArray, 6> alpha;
   for (int w = 0; w < 6; ++w)
     for (int b = 0; b < kNumBands; ++b) alpha[w][b] = c.meta["alpha"][w][b].get<float>();
-  const OmniIrResult ours = shoeboxResult(alpha, 0.0f, AirConditions{});
+  const OmniIrResult ours = shoeboxResult(alpha, 0.0f, AirConditions{}, kSource, kListener, settings);
   const double complete = c.meta["t_complete_s"];
   std::ifstream csv(kRef + "shoebox_multiband/energy_hist_1ms.csv");
   std::string line;
@@ -299,6 +369,19 @@ MultibandCase multibandCase() {
   return c;
 }
 
+// T20/T30 where meta.json marks them converged (the exact decay is not
+// truncated by the reference's 2 s).
+void expectConvergedDecayTimesWithin(const MultibandCase& c, double jnd) {
+  for (int b : kMidBands) {
+    const auto& bm = c.meta["band_metrics"][std::to_string(int(kBandCentersHz[size_t(b)]))];
+    for (auto [m, key] : {std::pair{Metric::kT20, "T20"}, std::pair{Metric::kT30, "T30"}})
+      if (bm[std::string(key) + "_converged"].get<bool>()) {
+        const double d = analysis::differenceInJnd(m, c.mine[size_t(b)].value(m), c.exact[size_t(b)].value(m));
+        EXPECT_LE(std::fabs(d), jnd) << key << " at " << analysis::bandLabel(b) << ": " << d << " JND";
+      }
+  }
+}
+
 TEST(Regression, MultibandShoeboxEnergyMatchesExactEnergyHistogram) {
   MultibandCase c = multibandCase();
   expectWithin(c.mine, c.exact, kMidBands, {Metric::kC50, Metric::kC80, Metric::kD50}, 1.0, "multiband");
@@ -313,18 +396,31 @@ TEST(Regression, MultibandShoeboxEnergyMatchesExactEnergyHistogram) {
 // off: EDT at 1 and 2 kHz (-2.4, -1.2) and the converged T20/T30 at 4 kHz
 // (-2.1/-3.0). The early energy agrees (2 % per 20 ms window to 220 ms):
 // the deficit is the late flutter, whose exact images lie along one axis,
-// a set of directions that 16384 rays sample too thinly to follow.
+// a set of directions that 16384 rays sample too thinly to follow: at the
+// reference preset every criterion passes (the next test).
 TEST(Regression, DISABLED_KnownGap_MultibandShoeboxEdtAndConvergedDecayTimes) {
   MultibandCase c = multibandCase();
   expectWithin(c.mine, c.exact, kMidBands, {Metric::kEdt, Metric::kTs}, 1.0, "multiband");
-  for (int b : kMidBands) {
-    const auto& bm = c.meta["band_metrics"][std::to_string(int(kBandCentersHz[size_t(b)]))];
-    for (auto [m, key] : {std::pair{Metric::kT20, "T20"}, std::pair{Metric::kT30, "T30"}})
-      if (bm[std::string(key) + "_converged"].get<bool>()) {
-        const double d = analysis::differenceInJnd(m, c.mine[size_t(b)].value(m), c.exact[size_t(b)].value(m));
-        EXPECT_LE(std::fabs(d), 1.0) << key << " at " << analysis::bandLabel(b);
-      }
-  }
+  expectConvergedDecayTimesWithin(c, 1.0);
+}
+
+// The same criteria at the `reference` preset (262144 rays x 64 bounces,
+// 65536 tail probes, 0.5 ms bins), all of them within 1 JND: the method
+// converges to the exact answer, and the gap above is the default budget's
+// variance. This box's late flutter rides on a few long-lived rays near the
+// x axis, which 16384 rays sample by luck: over seeds 1 - 6 at the default
+// budget EDT at 1 kHz spans -2.4 .. +1.5 JND and T30 at 4 kHz -3.0 .. +7.6;
+// with every ray a tail probe (--tail-probes 16384, trace 1.7x longer) T30 at
+// 4 kHz spans -1.3 .. +1.2 but EDT at 1 kHz stays -2.2 .. -0.3.
+// Measured at seed 1: EDT -0.6 .. -0.2 JND, T20 at 250 Hz -0.2, T20/T30 at
+// 4 kHz -0.1 / -0.1.
+TEST(Regression, MultibandShoeboxMeetsEveryCriterionAtTheReferencePreset) {
+  OmniIrSettings s;
+  apply(*qualityPreset("reference"), s);
+  MultibandCase c = multibandCase(s);
+  expectWithin(c.mine, c.exact, kMidBands, {Metric::kEdt, Metric::kC50, Metric::kC80, Metric::kD50, Metric::kTs}, 1.0,
+               "multiband reference");
+  expectConvergedDecayTimesWithin(c, 1.0);
 }
 
 // The same, uniform alpha 0.3 and 0.6 (pyroomacoustics' rooms, no air),
