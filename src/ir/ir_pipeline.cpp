@@ -125,6 +125,7 @@ Result<OmniIrResult> computeIr(const RayTracer& tracer, const MaterialTable& mat
     rs.receiverRadiusMeters = s.receiverRadiusMeters;
     rs.tailProbes = s.completeTail ? s.tailProbes : 0;
     rs.russianRoulette = s.russianRoulette;
+    rs.flutterCones = s.flutterCones;
     rs.convergenceDb = s.convergenceDb;
     if (s.lengthSeconds > 0) rs.maxTimeSeconds = s.lengthSeconds;
     rs.excludedSpecular = excluded;

@@ -79,6 +79,23 @@ TEST(CliIr, JsonSaysWhatWasSkippedAndWhy) {
   for (const auto& line : s["skipped"]) skipped += line.get<std::string>() + "\n";
   EXPECT_NE(skipped.find("convex around the listener"), std::string::npos) << skipped;
   EXPECT_NE(skipped.find("not traced, the histogram had converged"), std::string::npos) << skipped;
+  EXPECT_EQ(s["flutter_cone_rays"], 0);  // rounds must each cover the sphere alike
+}
+
+// The sample shoebox's walls reflect enough for a flutter along its 10 m
+// axis: 1/8 of the rays sample it, unless told not to.
+TEST(CliIr, FlutterConesAreReportedAndCanBeTurnedOff) {
+  TempDir dir("cli_flutter");
+  for (const std::string flag : {"", " --no-flutter-cones"}) {
+    auto r = runEarshot("ir " + kShoebox + " --material-map " + kShoeboxMap +
+                        " --source 2,3.5,1.5 --listener 7,3.5,1.5 --receiver omni --rays 4096 --bounces 4" + flag +
+                        " -o " + dir / "ir.wav --json " + dir / "s.json");
+    ASSERT_EQ(r.exitCode, 0) << r.output;
+    const auto s = nlohmann::json::parse(readFile(dir / "s.json"));
+    EXPECT_EQ(s["settings"]["flutter_cones"], flag.empty());
+    EXPECT_EQ(s["flutter_axes"], flag.empty() ? 1 : 0);
+    EXPECT_EQ(s["flutter_cone_rays"], flag.empty() ? 512 : 0);
+  }
 }
 
 struct BadInput {

@@ -43,6 +43,7 @@ struct IrOptions {
   uint32_t ismOrder = 3;
   uint32_t tailProbes = 4096;
   double convergeDb = 0.0;
+  bool noFlutterCones = false;
 };
 
 double msSince(std::chrono::steady_clock::time_point t) {
@@ -73,6 +74,7 @@ int run(const IrOptions& o, const CLI::App& cmd) {
   if (cmd.count("--bin-ms")) settings.binSeconds = o.binMs / 1000.0;
   if (cmd.count("--tail-probes")) settings.tailProbes = o.tailProbes;
   settings.convergenceDb = o.convergeDb;
+  settings.flutterCones = !o.noFlutterCones;
   settings.sampleRateHz = o.rate;
   settings.seed = o.seed;
   settings.air = *air;
@@ -125,7 +127,7 @@ int run(const IrOptions& o, const CLI::App& cmd) {
   stats["settings"] = {{"rays", settings.rays},           {"bounces", settings.bounces},
                        {"ism_order", settings.imageSourceOrder}, {"bin_ms", settings.binSeconds * 1000.0},
                        {"seed", settings.seed},           {"sample_rate_hz", settings.sampleRateHz},
-                       {"tail_probes", settings.tailProbes}};
+                       {"tail_probes", settings.tailProbes}, {"flutter_cones", settings.flutterCones}};
   stats["threads"] = pool.threadCount();
   stats["direct"] = {{"distance_m", r.direct.distanceMeters}, {"delay_s", r.direct.delaySeconds},
                      {"surfaces_crossed", r.direct.surfacesCrossed}, {"audible", r.direct.audible},
@@ -140,6 +142,8 @@ int run(const IrOptions& o, const CLI::App& cmd) {
   stats["rays_ended_by_roulette"] = st.raysRouletted;
   stats["segments_traced"] = st.segmentsTraced;
   stats["tail_probe_segments"] = st.tailProbeSegments;
+  stats["flutter_axes"] = st.flutterAxes;
+  stats["flutter_cone_rays"] = st.coneRays;
   stats["rays_requested"] = tracer->empty() ? 0 : settings.rays;
   if (settings.convergenceDb > 0) stats["estimated_error_db"] = st.estimatedErrorDb;
   stats["shadow_rays"] = st.shadowRays;
@@ -204,6 +208,10 @@ const Registrar registrar([](CLI::App& root) {
                   "Rays that carry on past the bounce limit, undetected, to measure the tail's decay "
                   "(balanced: 4096; 0 = extrapolate at one rate)")
       ->check(CLI::Range(0u, 100000000u));
+  cmd->add_flag("--no-flutter-cones", o->noFlutterCones,
+               "Spread every ray evenly over the sphere; by default, where a pair of parallel walls reflects "
+               "specularly, 1/8 of the rays sample directions near their normal densely (unbiased; flutter_axes and "
+               "flutter_cone_rays in --json)");
   cmd->add_option("--converge", o->convergeDb,
                   "Stop tracing once the late histogram's estimated error (every 10 ms window within 20 dB of its "
                   "peak) is below this many dB; rays_traced in --json says how many were (0 = all rays)")

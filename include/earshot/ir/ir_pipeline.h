@@ -38,6 +38,7 @@ struct OmniIrSettings {
    *  (ReflectionSettings::tailProbes); 0: extrapolate at one rate. */
   uint32_t tailProbes = 4096;
   bool russianRoulette = true;     ///< end rays 60 dB down (unbiased; ReflectionSettings)
+  bool flutterCones = true;        ///< sample flutter axes densely (ReflectionSettings::flutterCones)
   /** > 0: stop tracing when the late histogram's estimated error is below
    *  this (dB; ReflectionSettings::convergenceDb). 0: every ray. */
   double convergenceDb = 0.0;
