@@ -300,7 +300,9 @@ TEST(Regression, IrLevelAgreementWithOneSpecularIrNeedsExactPathsToAQuarterSecon
           EXPECT_LE(worst[2], 1.0) << "D50, alpha " << c.alpha;
         }
       }
-      if (tc < 0.1) EXPECT_GT(bestEdt, 3.0) << "alpha " << c.alpha << ": exact energies would have been enough";
+      if (tc < 0.1) {
+        EXPECT_GT(bestEdt, 3.0) << "alpha " << c.alpha << ": exact energies would have been enough";
+      }
     }
   }
 }
