@@ -110,6 +110,7 @@ struct alignas(64) Accumulator {
   int64_t late[kNumBands] = {};
   std::vector<int64_t> pathEnergy, pathRetained;  // [free-path bin][band]
   std::vector<int64_t> probeAliveDiff;       // as aliveDiff, tail probes past their cut
+  std::vector<int64_t> probeHist;            // [bin][band]: what tail probes past their cut deposit
   int64_t probeCut[kNumBands] = {};
   uint64_t raysEscaped = 0, segments = 0, shadows = 0, raysCut = 0, rouletted = 0, excluded = 0, probeSegments = 0,
            shadowsSkipped = 0;
@@ -215,6 +216,10 @@ class ConvergenceMonitor {
 // 2 m, and under 90 % of the distance to the nearest surface (a sphere cut
 // by a wall would under-count), at least 1 cm.
 constexpr double kHitsPerImage = 3.0;
+// Tail probes are detected by the sphere only when it is at least this big
+// (the automatic radius's floor); otherwise tail completion falls back to
+// kappa x their energy in flight.
+constexpr double kMinProbeSphere = 0.5;
 double autoReceiverRadius(const RayTracer& tracer, const Vec3d& listener, uint32_t rays, uint32_t bounces) {
   double nearest = 1e30, sum = 0;
   uint32_t hits = 0;
@@ -449,6 +454,7 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
   const double R = settings.receiverRadiusMeters > 0 ? settings.receiverRadiusMeters
                                                      : autoReceiverRadius(tracer, listener, settings.rays, settings.bounces);
   stats.receiverRadiusMeters = R;
+  const bool probesDetected = R >= kMinProbeSphere;
   const float sphereR2 = float(R * R);
   const float invSphereVolume = float(1.0 / (4.0 / 3.0 * kPi * R * R * R));
   const float invC = float(1.0 / settings.speedOfSound);
@@ -505,7 +511,10 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
     a.aliveDiff.assign((bins + 1) * kNumBands, 0);
     a.pathEnergy.assign(kFreePathBins * kNumBands, 0);
     a.pathRetained.assign(kFreePathBins * kNumBands, 0);
-    if (probeStride > 0) a.probeAliveDiff.assign((bins + 1) * kNumBands, 0);
+    if (probeStride > 0) {
+      a.probeAliveDiff.assign((bins + 1) * kNumBands, 0);
+      a.probeHist.assign(bins * kNumBands, 0);
+    }
   }
   const uint32_t lossFromOrder = std::max(1u, maxOrder / 2);  // the later half of the bounces
   constexpr float kSurvival = 0.1f;
@@ -534,6 +543,14 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
     addSat(h[kNumBands], toFixed(mean * doa.x));
     addSat(h[kNumBands + 1], toFixed(mean * doa.y));
     addSat(h[kNumBands + 2], toFixed(mean * doa.z));
+  };
+  // A tail probe's detection (no direction, no order): kept apart, for tail completion.
+  auto depositProbe = [&](Accumulator& a, float pathLength, const float* energy, float weight) {
+    const size_t bin = size_t(pathLength * invC * invBin);
+    if (bin >= bins) return;
+    float f[kNumBands];
+    air.factors(pathLength, f);
+    for (int b = 0; b < kNumBands; ++b) addSat(a.probeHist[bin * kNumBands + b], toFixed(double(energy[b]) * weight * f[b]));
   };
   // Energy in flight over [from, to) bins (air applied at the segment's start).
   auto alive = [&](std::vector<int64_t>& diff, float fromLength, float toLength, const float* energy) {
@@ -593,7 +610,11 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
           a.probeSegments += probing;
           const bool hasHit = tracer.intersect(ray, hit);
           const float segment = hasHit ? hit.t : 1e30f;
-          if (detectSegment && !probing) {
+          // Tail probes are detected on every segment past their cut, by the
+          // sphere alone (no next-event estimation): unbiased for specular
+          // and diffuse paths alike, and no shadow rays; not by a sphere
+          // squeezed below kMinProbeSphere by a nearby surface (too few hits).
+          if ((probing && probesDetected) || (detectSegment && !probing)) {
             // Chord of this segment through the receiver sphere.
             const Vec3f oc(ray.origin - listener);
             const float bq = dot(oc, ray.direction);
@@ -602,8 +623,10 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
               const float root = std::sqrt(disc);
               const float t0 = std::max(0.0f, -bq - root), t1 = std::min(segment, -bq + root);
               if (t1 > t0) {
-                if (pureSpecular && order <= settings.excludedMaxOrder && settings.excludedSpecular &&
-                    settings.excludedSpecular->count(planes)) {
+                if (probing) {
+                  depositProbe(a, pathLength + std::clamp(-bq, t0, t1), energy, (t1 - t0) * invSphereVolume);
+                } else if (pureSpecular && order <= settings.excludedMaxOrder && settings.excludedSpecular &&
+                           settings.excludedSpecular->count(planes)) {
                   ++a.excluded;
                 } else {
                   const float tc = std::clamp(-bq, t0, t1);
@@ -757,6 +780,7 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
     for (size_t i = 0; i < total.perOrder.size(); ++i) addSat(total.perOrder[i], acc[w].perOrder[i]);
     for (size_t i = 0; i < total.aliveDiff.size(); ++i) addSat(total.aliveDiff[i], acc[w].aliveDiff[i]);
     for (size_t i = 0; i < total.probeAliveDiff.size(); ++i) addSat(total.probeAliveDiff[i], acc[w].probeAliveDiff[i]);
+    for (size_t i = 0; i < total.probeHist.size(); ++i) addSat(total.probeHist[i], acc[w].probeHist[i]);
     for (size_t i = 0; i < total.pathEnergy.size(); ++i) {
       addSat(total.pathEnergy[i], acc[w].pathEnergy[i]);
       addSat(total.pathRetained[i], acc[w].pathRetained[i]);
@@ -801,6 +825,9 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
   integrate(total.aliveDiff, tail.alive);
   if (probeStride > 0) {
     integrate(total.probeAliveDiff, tail.probeAlive);
+    if (probesDetected) tail.probeDetected.assign(bins, BandArrayD{});
+    for (size_t i = 0; i < tail.probeDetected.size(); ++i)
+      for (int b = 0; b < kNumBands; ++b) tail.probeDetected[i][b] = double(total.probeHist[i * kNumBands + b]) * unit;
     for (int b = 0; b < kNumBands; ++b) tail.probeCutEnergy[b] = double(total.probeCut[b]) * unit;
     for (uint32_t i = 0; i < probeSlots; ++i)
       if (probeEnded[i]) tail.probeEnds.push_back(scaled(probeEnds[i]));

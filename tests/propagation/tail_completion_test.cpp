@@ -110,6 +110,38 @@ TEST(TailCompletion, ProbesCarryTheirRaysOnExactly) {
           << "bin " << i << " band " << b;
 }
 
+// What probes deposit past their cut is what the same rays would have
+// deposited in a longer trace, bin for bin (a specular room: there a long
+// trace detects every segment by the sphere too; a fixed sphere, as the
+// automatic one depends on the bounces).
+TEST(TailCompletion, ProbesDepositWhatALongerTraceDetects) {
+  Room room(0.2f, 0.0f);
+  ThreadPool pool(2);
+  ReflectionSettings s;
+  s.rays = 2000;
+  s.maxTimeSeconds = 1.0;
+  s.russianRoulette = false;
+  s.receiverRadiusMeters = 0.8;
+  s.tailProbes = s.rays;
+  auto probed = traceReflections(*room.tracer, room.materials, kSource, kListener, s, pool);
+  s.bounces = 12 + kMaxProbeBounces;
+  s.tailProbes = 0;
+  auto full = traceReflections(*room.tracer, room.materials, kSource, kListener, s, pool);
+  ASSERT_TRUE(probed.isOk() && full.isOk());
+  ASSERT_EQ(probed->tail.probeDetected.size(), full->histogram.binCount());
+  double peak = 0, late = 0;
+  for (size_t i = 0; i < full->histogram.binCount(); ++i) {
+    peak = std::max(peak, full->histogram.energy(i, 0));
+    late += probed->tail.probeDetected[i][0];
+  }
+  EXPECT_GT(late, 0.0);
+  for (size_t i = 0; i < full->histogram.binCount(); ++i)
+    for (int b = 0; b < kNumBands; ++b)
+      ASSERT_NEAR(probed->histogram.energy(i, b) + probed->tail.probeDetected[i][b], full->histogram.energy(i, b),
+                  1e-12 * peak)
+          << "bin " << i << " band " << b;
+}
+
 // A specular box decays as a mixture of exponentials (each direction class of
 // rays at its own rate), slower late than any one rate. Probes measure that:
 // 12 bounces plus completion give the T30 of a 200-bounce trace within 5 %;

@@ -41,7 +41,7 @@ struct IrOptions {
   double receiverRadius = 0.0;
   std::string quality = "balanced";
   uint32_t ismOrder = 3;
-  uint32_t tailProbes = 4096;
+  uint32_t tailProbes = 16384;
   double convergeDb = 0.0;
   bool noFlutterCones = false;
 };
@@ -205,8 +205,8 @@ const Registrar registrar([](CLI::App& root) {
   cmd->add_option("--ism-order", o->ismOrder, "Image-source order of early specular reflections (0 = none)")
       ->check(CLI::Range(0u, kMaxImageSourceOrder));
   cmd->add_option("--tail-probes", o->tailProbes,
-                  "Rays that carry on past the bounce limit, undetected, to measure the tail's decay "
-                  "(balanced: 4096; 0 = extrapolate at one rate)")
+                  "Rays that carry on past the bounce limit until 60 dB down, detected by the receiver sphere "
+                  "alone, to measure the tail (every preset: all rays; 0 = extrapolate at one rate)")
       ->check(CLI::Range(0u, 100000000u));
   cmd->add_flag("--no-flutter-cones", o->noFlutterCones,
                "Spread every ray evenly over the sphere; by default, where a pair of parallel walls reflects "

@@ -62,16 +62,17 @@ struct ReflectionSettings {
   const PlaneSequenceSet* excludedSpecular = nullptr;
   uint32_t excludedMaxOrder = 0;      ///< orders 1..this are checked against excludedSpecular
   bool russianRoulette = true;        ///< stop rays 60 dB down (unbiased)
-  /** Tail probes: about this many rays (every rays/tailProbes-th) carry on
-   *  past the bounce limit without detections until they are 60 dB down
-   *  (where roulette would start; not without roulette), escape, reach the histogram's end or
-   *  make kMaxProbeBounces more reflections; their energy in flight is the
-   *  measured shape of the late decay that tail completion scales to all
-   *  cut rays (beyond the probes' ends, at the population's rate). A specular
-   *  room decays as a mixture of rates that no one rate extrapolates.
-   *  0: none (the whole tail at the population's rate). Probes > rays: every
-   *  ray. */
-  uint32_t tailProbes = 4096;
+  /** Tail probes: about this many rays (every rays/tailProbes-th of each
+   *  direction set) carry on past the bounce limit until they are 60 dB
+   *  down (where roulette would start; not without roulette), escape, reach
+   *  the histogram's end or make kMaxProbeBounces more reflections, detected
+   *  by the receiver sphere alone (TailData::probeDetected; no next-event
+   *  estimation, so no shadow rays); tail completion scales what they
+   *  deposit to all cut rays (beyond their ends, the population's rate). A
+   *  specular room decays as a mixture of rates that no one rate
+   *  extrapolates. 0: none (the whole tail at the population's rate).
+   *  Default and above `rays`: every ray. */
+  uint32_t tailProbes = 16384;
   /** > 0: stop tracing once the histogram has converged: the rays go in 16
    *  rounds, each spread over the whole sphere, and the trace stops after
    *  the round (the 4th at the earliest) where the estimated standard error
@@ -112,6 +113,11 @@ struct TailData {
    *  after their cut, per bin (air applied), and the energy they were cut
    *  with (air applied). Empty / zero without probes. */
   std::vector<BandArrayD> probeAlive;
+  /** What the tail probes past their cut deposit in the receiver sphere, per
+   *  bin (every segment by the sphere: specular and diffuse paths alike).
+   *  Empty when the sphere is under 0.5 m (a surface next to the listener):
+   *  too few hits; tail completion then uses kappa x probeAlive. */
+  std::vector<BandArrayD> probeDetected;
   BandArrayD probeCutEnergy{};
   /** Probes stopped 60 dB down, at the histogram's end or at
    *  kMaxProbeBounces: what they would have carried on with (energy without
