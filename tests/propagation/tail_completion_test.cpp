@@ -81,6 +81,22 @@ TEST(TailCompletion, TwelveBouncesPlusCompletionMatchAFullTrace) {
   }
 }
 
+namespace {
+// The same 2000 rays without roulette, traced twice: to 12 bounces with
+// every ray a tail probe, and to the probes' own limit with no probes.
+std::pair<Result<ReflectionResult>, Result<ReflectionResult>> traceProbedAndLong(const Room& room,
+                                                                                 ReflectionSettings s) {
+  ThreadPool pool(2);
+  s.rays = 2000;
+  s.russianRoulette = false;
+  s.tailProbes = s.rays;
+  auto probed = traceReflections(*room.tracer, room.materials, kSource, kListener, s, pool);
+  s.bounces = 12 + kMaxProbeBounces;
+  s.tailProbes = 0;
+  return {std::move(probed), traceReflections(*room.tracer, room.materials, kSource, kListener, s, pool)};
+}
+}  // namespace
+
 // A tail probe is the ray it was, carried on: with every ray a probe (and no
 // roulette, which would end probes 60 dB down), the traced energy in flight
 // plus the probes' equals, bin by bin, the energy in flight of a trace whose
@@ -88,16 +104,9 @@ TEST(TailCompletion, TwelveBouncesPlusCompletionMatchAFullTrace) {
 // do not draw any).
 TEST(TailCompletion, ProbesCarryTheirRaysOnExactly) {
   Room room(0.2f, 0.5f);  // scattering draws random numbers: the streams must agree
-  ThreadPool pool(2);
   ReflectionSettings s;
-  s.rays = 2000;
   s.maxTimeSeconds = 2.0;
-  s.russianRoulette = false;
-  s.tailProbes = s.rays;
-  auto probed = traceReflections(*room.tracer, room.materials, kSource, kListener, s, pool);
-  s.bounces = 12 + kMaxProbeBounces;
-  s.tailProbes = 0;
-  auto full = traceReflections(*room.tracer, room.materials, kSource, kListener, s, pool);
+  auto [probed, full] = traceProbedAndLong(room, s);
   ASSERT_TRUE(probed.isOk() && full.isOk());
   EXPECT_LE(probed->stats.segmentsTraced, full->stats.segmentsTraced);  // probes stop at the histogram's end
   EXPECT_GT(probed->stats.tailProbeSegments, probed->stats.segmentsTraced / 2);
@@ -116,17 +125,10 @@ TEST(TailCompletion, ProbesCarryTheirRaysOnExactly) {
 // automatic one depends on the bounces).
 TEST(TailCompletion, ProbesDepositWhatALongerTraceDetects) {
   Room room(0.2f, 0.0f);
-  ThreadPool pool(2);
   ReflectionSettings s;
-  s.rays = 2000;
   s.maxTimeSeconds = 1.0;
-  s.russianRoulette = false;
   s.receiverRadiusMeters = 0.8;
-  s.tailProbes = s.rays;
-  auto probed = traceReflections(*room.tracer, room.materials, kSource, kListener, s, pool);
-  s.bounces = 12 + kMaxProbeBounces;
-  s.tailProbes = 0;
-  auto full = traceReflections(*room.tracer, room.materials, kSource, kListener, s, pool);
+  auto [probed, full] = traceProbedAndLong(room, s);
   ASSERT_TRUE(probed.isOk() && full.isOk());
   ASSERT_EQ(probed->tail.probeDetected.size(), full->histogram.binCount());
   double peak = 0, late = 0;
