@@ -17,10 +17,10 @@ double msSince(std::chrono::steady_clock::time_point t) {
 
 const std::vector<QualityPreset>& qualityPresets() {
   static const std::vector<QualityPreset> presets = {
-      {"draft", 2048, 8, 2, 0.002, 2048},
-      {"balanced", 16384, 12, 3, 0.001, 16384},
-      {"high", 65536, 24, 3, 0.001, 65536},
-      {"reference", 262144, 64, 3, 0.0005, 262144},
+      {"draft", 2048, 8, 2, 0.002, kEveryRay},
+      {"balanced", 16384, 12, 3, 0.001, kEveryRay},
+      {"high", 65536, 24, 3, 0.001, kEveryRay},
+      {"reference", 262144, 64, 3, 0.0005, kEveryRay},
   };
   return presets;
 }

@@ -1,4 +1,5 @@
 // `earshot ir`: the impulse response of one source/listener pair.
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <fstream>
@@ -41,7 +42,7 @@ struct IrOptions {
   double receiverRadius = 0.0;
   std::string quality = "balanced";
   uint32_t ismOrder = 3;
-  uint32_t tailProbes = 16384;
+  uint32_t tailProbes = kEveryRay;
   double convergeDb = 0.0;
   bool noFlutterCones = false;
 };
@@ -127,7 +128,7 @@ int run(const IrOptions& o, const CLI::App& cmd) {
   stats["settings"] = {{"rays", settings.rays},           {"bounces", settings.bounces},
                        {"ism_order", settings.imageSourceOrder}, {"bin_ms", settings.binSeconds * 1000.0},
                        {"seed", settings.seed},           {"sample_rate_hz", settings.sampleRateHz},
-                       {"tail_probes", settings.tailProbes}, {"flutter_cones", settings.flutterCones}};
+                       {"tail_probes", std::min(settings.tailProbes, settings.rays)}, {"flutter_cones", settings.flutterCones}};
   stats["threads"] = pool.threadCount();
   stats["direct"] = {{"distance_m", r.direct.distanceMeters}, {"delay_s", r.direct.delaySeconds},
                      {"surfaces_crossed", r.direct.surfacesCrossed}, {"audible", r.direct.audible},

@@ -36,7 +36,7 @@ struct OmniIrSettings {
   bool completeTail = true;
   /** Rays that carry on past the bounce limit to measure the tail's decay
    *  (ReflectionSettings::tailProbes); 0: extrapolate at one rate. */
-  uint32_t tailProbes = 16384;
+  uint32_t tailProbes = kEveryRay;
   bool russianRoulette = true;     ///< end rays 60 dB down (unbiased; ReflectionSettings)
   bool flutterCones = true;        ///< sample flutter axes densely (ReflectionSettings::flutterCones)
   /** > 0: stop tracing when the late histogram's estimated error is below

@@ -45,6 +45,9 @@ namespace earshot {
 class RayTracer;
 class ThreadPool;
 
+/** ReflectionSettings::tailProbes: every ray carries on. */
+constexpr uint32_t kEveryRay = 0xFFFFFFFFu;
+
 struct ReflectionSettings {
   uint32_t rays = 16384;              ///< [1, 1e8]
   uint32_t bounces = 12;              ///< reflections per ray, [0, 100000]
@@ -71,8 +74,8 @@ struct ReflectionSettings {
    *  deposit to all cut rays (beyond their ends, the population's rate). A
    *  specular room decays as a mixture of rates that no one rate
    *  extrapolates. 0: none (the whole tail at the population's rate).
-   *  Default and above `rays`: every ray. */
-  uint32_t tailProbes = 16384;
+   *  kEveryRay (the default) or anything above `rays`: every ray. */
+  uint32_t tailProbes = kEveryRay;
   /** > 0: stop tracing once the histogram has converged: the rays go in 16
    *  rounds, each spread over the whole sphere, and the trace stops after
    *  the round (the 4th at the earliest) where the estimated standard error
