@@ -67,7 +67,9 @@ struct ReflectionSettings {
   bool russianRoulette = true;        ///< stop rays 60 dB down (unbiased)
   /** Tail probes: about this many rays (every rays/tailProbes-th of each
    *  direction set) carry on past the bounce limit until they are 60 dB
-   *  down (where roulette would start; not without roulette), escape, reach
+   *  down (where roulette would start; not without roulette; from 20 dB
+   *  down, every further 10 dB, half of them go on with twice the energy),
+   *  escape, reach
    *  the histogram's end or make kMaxProbeBounces more reflections, detected
    *  by the receiver sphere alone (TailData::probeDetected; no next-event
    *  estimation, so no shadow rays); tail completion scales what they
@@ -119,7 +121,8 @@ struct TailData {
   /** What the tail probes past their cut deposit in the receiver sphere, per
    *  bin (every segment by the sphere: specular and diffuse paths alike).
    *  Empty when the sphere is under 0.5 m (a surface next to the listener):
-   *  too few hits; tail completion then uses kappa x probeAlive. */
+   *  too few hits; tail completion then uses kappa x probeAlive, and at most
+   *  4096 rays are probes (enough for that smooth shape). */
   std::vector<BandArrayD> probeDetected;
   BandArrayD probeCutEnergy{};
   /** Probes stopped 60 dB down, at the histogram's end or at
