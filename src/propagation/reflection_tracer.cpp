@@ -356,7 +356,6 @@ class DirectionSampler {
           mCones.push_back(c);
         }
     const uint32_t cones = uint32_t(mCones.size());
-    if (cones == 0) mUniform = rays;
     for (uint32_t k = 0; k < cones; ++k) mCones[k].rays = coneRays / cones + (k < coneRays % cones ? 1u : 0u);
   }
   uint32_t coneRays() const {
@@ -616,7 +615,7 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
         bool reflected = false;
         bool pureSpecular = true;    // every event so far a specular reflection
         const bool isProbe = probeStride > 0 && sampler.ordinalInSet(rayIndex) % probeStride == 0;
-        bool probing = false;        // a tail probe past the bounce limit: no detections
+        bool probing = false;        // a tail probe past the bounce limit: sphere detections into probeHist only
         PlaneSequence planes;
         planes.fill(0xFFFFFFFFu);
         for (uint32_t order = 0;; ++order) {

@@ -85,14 +85,15 @@ struct ReflectionSettings {
    *  many dB. Energies are scaled to the rays traced. 0: trace every ray.
    *  [0, 20] */
   double convergenceDb = 0.0;
-  /** Flutter cones: when pairs of parallel planes both reflect specularly
-   *  (a round trip keeps >= 50 % in some band; each plane >= 2 % of the
-   *  area, >= 0.5 m apart), 1/8 of the rays leave on Fibonacci caps of
-   *  0.15 rad around those normals (at most three axes), the rest on the
-   *  sphere, each ray carrying 1 / (the density of both sets at its
-   *  direction): unbiased, and the few long-lived rays of a flutter echo,
-   *  which carry a specular room's late decay, are sampled ~10x denser.
-   *  Not with convergenceDb or fewer than 1024 rays. */
+  /** Flutter cones: where a pair of parallel planes both reflect
+   *  specularly (a round trip keeps >= 25 % in some band; each plane >= 2 %
+   *  of the area, >= 0.5 m apart), 1/8 of the rays leave on nested
+   *  Fibonacci caps (0.15 and 0.03 rad) around +-the normal of the pair that
+   *  decays slowest per metre (and of a second one within 1.25x of its
+   *  rate), the rest on the sphere, each ray carrying 1 / (the density of
+   *  all the sets at its direction): unbiased, and the few long-lived rays
+   *  of a flutter echo, which carry a specular room's late decay, are
+   *  sampled densely. Not with convergenceDb or fewer than 1024 rays. */
   bool flutterCones = true;
 };
 

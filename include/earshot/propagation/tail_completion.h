@@ -26,8 +26,8 @@
  *  gathers where the slowest classes fly (a flutter's axis), which one kappa
  *  misses by 10 - 25 % in late windows (the multiband box of
  *  tests/regression). Measured there, 16 seeds at the default budget with
- *  flutter cones: RMS error of the converged T20s 0.36 JND and of T30 at
- *  4 kHz 0.24 (energy in flight x kappa: 1.1 and 0.9). Without probes, V(t)
+ *  flutter cones: RMS error of the converged T20s 0.30 JND and of T30 at
+ *  4 kHz 0.33 (energy in flight x kappa: 1.1 and 0.9). Without probes, V(t)
  *  is all cut rays at delta. */
 #include <array>
 
