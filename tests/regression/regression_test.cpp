@@ -395,9 +395,10 @@ TEST(Regression, MultibandShoeboxEnergyMatchesExactEnergyHistogram) {
 // rays that leave near the x axis: flutter cones sample those directions
 // densely, and every ray carries on as a tail probe whose deposits in the
 // receiver sphere are the tail (tail_completion.h). Measured at seed 1: EDT
-// +0.4, +0.2, +0.8, +0.2, +0.1 JND (250 Hz - 4 kHz), T20 at 250 Hz +0.2,
-// T20/T30 at 4 kHz +0.5 / +0.3; over seeds 1 - 16, 14 meet every criterion
-// (RMS over seeds: EDT 0.44, converged T20 0.30, T30 at 4 kHz 0.32 JND).
+// +0.39, +0.17, +0.79, +0.16, +0.12 JND (250 Hz - 4 kHz), T20 at 250 Hz
+// +0.34, T20/T30 at 4 kHz +0.45 / +0.35; over seeds 1 - 16, 14 meet every
+// criterion (RMS over seeds: EDT 0.44, converged T20 0.30, T30 at 4 kHz
+// 0.33 JND).
 // Before (one extrapolated rate, then undetected probes x one
 // detections-per-energy ratio, uniform directions): EDT at 1 kHz -2.4, T20
 // /T30 at 4 kHz -2.1 / -3.0 at seed 1, and T30 at 4 kHz -3.0 .. +7.6 JND
@@ -453,7 +454,7 @@ TEST(Regression, UniformShoeboxEnergyMatchesExactImageSourceEnergy) {
 // at alpha 0.3): the tail probes follow it. At alpha 0.6 the late detections
 // of orders 6 - 12 set T30; a receiver sized from the ray density (1.0 m
 // here) keeps their shot noise down (a fixed 0.5 m gave -1.4 .. -0.2 JND
-// over seeds). Measured: +0.22 JND at 0.3, -0.15 at 0.6 (with undetected
+// over seeds). Measured: +0.16 JND at 0.3, -0.15 at 0.6 (with undetected
 // probes x one ratio it was +0.57 and -0.1; seeds 1 - 4 then +0.49 .. +0.58
 // and -0.14 .. +0.03).
 TEST(Regression, UniformShoeboxEnergyT30MatchesExactImageSourceEnergy) {
