@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Synthesises the dry (anechoic) test signals of samples/audio/.
+"""Synthesises the dry (anechoic) test signals of the sample scenes (samples/dry_audio.md).
 
 Pure Python 3 standard library (no numpy), seeded, so the files can be
 remade at will; mono 16-bit PCM WAV, peak -1 dBFS, each under 1 MB:
@@ -22,7 +22,7 @@ JASA 49, 1971; D. H. Klatt, "Software for a cascade/parallel formant
 synthesizer", JASA 67(3), 1980 (resonators); G. E. Peterson and H. L.
 Barney, JASA 24, 1952 (vowel formants).
 
-Usage: python3 tools/make_dry_audio.py [OUT_DIR]   (default samples/audio)
+Usage: python3 tools/make_dry_audio.py [OUT_DIR]   (default: each scene's folder under samples/)
 """
 import math
 import os
@@ -304,11 +304,22 @@ def voice(rate=48000, seconds=9.0):
 
 def main():
     here = os.path.dirname(os.path.abspath(__file__))
-    out = sys.argv[1] if len(sys.argv) > 1 else os.path.join(here, "..", "samples", "audio")
-    os.makedirs(out, exist_ok=True)
-    write_wav(os.path.join(out, "guitar.wav"), 44100, guitar())
-    write_wav(os.path.join(out, "claps.wav"), 44100, claps())
-    write_wav(os.path.join(out, "voice.wav"), 48000, voice())
+    samples = os.path.join(here, "..", "samples")
+    # Each scene's audio lives in the scene's own folder: file references may
+    # not leave it (README, "Untrusted input").
+    if len(sys.argv) > 1:
+        places = {name: [sys.argv[1]] for name in ("guitar", "claps", "voice")}
+    else:
+        places = {"guitar": [os.path.join(samples, "hall")],
+                  "claps": [os.path.join(samples, "outdoor")],
+                  "voice": [os.path.join(samples, "two_rooms"), os.path.join(samples, "shoebox")]}
+    made = {"guitar": (44100, guitar), "claps": (44100, claps), "voice": (48000, voice)}
+    for name, folders in places.items():
+        rate, make = made[name]
+        samples_ = make()
+        for folder in folders:
+            os.makedirs(folder, exist_ok=True)
+            write_wav(os.path.join(folder, name + ".wav"), rate, samples_)
 
 
 if __name__ == "__main__":

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Writes the render benchmark of issue 7 into a folder: 60 s of two sources
 circling the listener in the furnished sample room (a talker and a guitar,
-60 s loops of samples/audio/voice.wav and guitar.wav). Pure Python 3.
+60 s loops of samples/two_rooms/voice.wav and guitar.wav). Pure Python 3.
 
     python3 tools/make_render_bench.py /tmp/bench60
     build/tools/earshot render /tmp/bench60/scene.json -o /tmp/bench60/out.wav
@@ -9,6 +9,7 @@ circling the listener in the furnished sample room (a talker and a guitar,
 import json
 import math
 import os
+import shutil
 import sys
 import wave
 
@@ -37,12 +38,15 @@ def circle(cx, cy, radius, z, period, duration, phase=0.0):
 def main():
     out = sys.argv[1] if len(sys.argv) > 1 else 'bench60'
     os.makedirs(out, exist_ok=True)
-    loop(os.path.join(ROOT, 'samples/audio/voice.wav'), os.path.join(out, 'voice60.wav'), 60)
-    loop(os.path.join(ROOT, 'samples/audio/guitar.wav'), os.path.join(out, 'guitar60.wav'), 60)
+    loop(os.path.join(ROOT, 'samples/two_rooms/voice.wav'), os.path.join(out, 'voice60.wav'), 60)
+    loop(os.path.join(ROOT, 'samples/hall/guitar.wav'), os.path.join(out, 'guitar60.wav'), 60)
     room = os.path.join(ROOT, 'samples/furnished_room')
+    # The scene's files sit beside it: references may not leave its folder.
+    for name in ('furnished_room.glb', 'materials_map.json'):
+        shutil.copyfile(os.path.join(room, name), os.path.join(out, name))
     scene = {
-        "geometry": os.path.join(room, 'furnished_room.glb'),
-        "material_map": os.path.join(room, 'materials_map.json'),
+        "geometry": 'furnished_room.glb',
+        "material_map": 'materials_map.json',
         "listener": {"position": [5, 3.5, 1.2], "forward": [1, 0, 0], "up": [0, 0, 1]},
         "sources": [
             {"name": "talker", "audio": "voice60.wav", "path": circle(5, 3.5, 2.0, 1.5, 15, 60)},

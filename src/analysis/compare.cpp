@@ -2,6 +2,8 @@
 // (ISO 3382-1:2009, Annex A, Table A.1) and tolerance files.
 #include "earshot/analysis/compare.h"
 
+#include "earshot/io/input_file.h"
+
 #include <nlohmann/json.hpp>
 
 #include <cctype>
@@ -96,11 +98,12 @@ Status applyLimit(const json& v, const std::string& where, double& limit, bool& 
 }  // namespace
 
 Result<ToleranceSpec> parseTolerance(const std::string& jsonText, const std::string& sourceName) {
+  EARSHOT_RETURN_IF_ERROR(checkJsonDepth(jsonText, sourceName));
   json root;
   try {
     root = json::parse(jsonText);
   } catch (const json::parse_error& e) {
-    return parseError(sourceName + ": not valid JSON (" + e.what() + ")");
+    return parseError(sourceName + ": not valid JSON (" + jsonErrorWithoutContent(e.what()) + ")");
   }
   if (!root.is_object()) return parseError(sourceName + ": expected a JSON object");
   ToleranceSpec spec(1.0);
@@ -162,11 +165,9 @@ Result<ToleranceSpec> parseTolerance(const std::string& jsonText, const std::str
 }
 
 Result<ToleranceSpec> loadToleranceFile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return notFound(path + ": cannot open tolerance file");
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return parseTolerance(ss.str(), path);
+  auto text = readInputFile(path, "tolerance file", kMaxJsonFileBytes);
+  if (!text) return text.status();
+  return parseTolerance(*text, path);
 }
 
 Result<Comparison> compareMetrics(const std::vector<BandMetrics>& test, const std::vector<BandMetrics>& reference,

@@ -6,10 +6,13 @@
 #include <fstream>
 #include <random>
 
+#include "earshot/io/input_file.h"
+
 namespace earshot {
 
 Status writeFileAtomically(const std::string& path, const std::function<Status(const std::string&)>& write) {
-  if (path.empty()) return invalidArgument("output path is empty");
+  // Never replace an input of this process, a directory, a FIFO or a device.
+  EARSHOT_RETURN_IF_ERROR(checkOutputPath(path));
   // Unique name in the same directory (rename is atomic only within a filesystem).
   std::random_device rd;
   std::string tmp = path + ".tmp-" + std::to_string(::getpid()) + "-" + std::to_string(rd());

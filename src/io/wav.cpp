@@ -6,6 +6,7 @@
 #include <memory>
 
 #include "earshot/io/atomic_file.h"
+#include "earshot/io/input_file.h"
 
 namespace earshot {
 
@@ -16,7 +17,16 @@ struct SndCloser {
 using SndPtr = std::unique_ptr<SNDFILE, SndCloser>;
 }  // namespace
 
+size_t defaultMaxReadSamples() {
+  return static_cast<size_t>(defaultInputLimits().maxMemoryBytes / (16 * sizeof(float)));
+}
+
 Result<AudioBuffer> readAudioFile(const std::string& path, size_t maxSamples) {
+  if (maxSamples == 0) maxSamples = defaultMaxReadSamples();
+  // A regular file only (never a FIFO or device: libsndfile would block or
+  // read forever); any size, since what counts is what it decodes to.
+  auto checked = checkInputFile(path, "audio file", UINT64_MAX);
+  if (!checked) return checked.status();
   SF_INFO info{};
   SndPtr f(sf_open(path.c_str(), SFM_READ, &info));
   if (!f) return ioError(path + ": cannot read audio (" + sf_strerror(nullptr) + ")");

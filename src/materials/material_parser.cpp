@@ -10,6 +10,8 @@
 
 #include "earshot/materials/material.h"
 
+#include "earshot/io/input_file.h"
+
 namespace earshot {
 namespace detail {
 extern const char* const kDefaultMaterialsJson;
@@ -130,11 +132,12 @@ BandArray interpolateToEngineBands(const std::vector<double>& hz, const std::vec
 }
 
 Result<MaterialTable> parseMaterials(const std::string& jsonText, const std::string& file) {
+  EARSHOT_RETURN_IF_ERROR(checkJsonDepth(jsonText, file));
   Json doc;
   try {
     doc = Json::parse(jsonText);
   } catch (const Json::exception& e) {
-    return parseError(file + ": malformed JSON: " + e.what());
+    return parseError(file + ": malformed JSON: " + jsonErrorWithoutContent(e.what()));
   }
   if (!doc.is_object()) return parseError(file + ": the top level must be a JSON object");
   for (const auto& item : doc.items()) {
@@ -170,11 +173,9 @@ Result<MaterialTable> parseMaterials(const std::string& jsonText, const std::str
 }
 
 Result<MaterialTable> loadMaterials(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return notFound(path + ": cannot open materials file");
-  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  if (in.bad()) return ioError(path + ": read error");
-  return parseMaterials(text, path);
+  auto text = readInputFile(path, "materials file", kMaxJsonFileBytes);
+  if (!text) return text.status();
+  return parseMaterials(*text, path);
 }
 
 const MaterialTable& defaultMaterials() {

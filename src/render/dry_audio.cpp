@@ -5,6 +5,7 @@
 #include <filesystem>
 
 #include "earshot/dsp/resample.h"
+#include "earshot/io/input_file.h"
 #include "earshot/io/wav.h"
 
 namespace earshot {
@@ -38,6 +39,16 @@ Result<DryAudio> loadDryAudio(const std::string& path, double targetRateHz, std:
   out.fileRateHz = in.sampleRateHz;
   out.fileChannels = ch;
   out.sampleRateHz = targetRateHz;
+
+  // What resampling would make, before making it: a 1 Hz file of a few
+  // frames is billions of samples at 48 kHz.
+  const double outSamples = double(frames) * targetRateHz / in.sampleRateHz;
+  const uint64_t budget = defaultInputLimits().maxMemoryBytes;
+  if (!(outSamples * 2 * sizeof(float) <= double(budget)))
+    return outOfRange(path + ": " + std::to_string(frames) + " frames at " + rateText(in.sampleRateHz) + " become " +
+                      std::to_string(uint64_t(std::min(outSamples, 1.8e19))) + " samples at " +
+                      rateText(targetRateHz) + ", over the memory limit of " + formatBytes(budget) +
+                      " (--max-memory)");
 
   std::vector<float> mono(frames);
   if (ch == 1) {

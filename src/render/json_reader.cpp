@@ -6,6 +6,8 @@
 #include <set>
 #include <vector>
 
+#include "earshot/io/input_file.h"
+
 namespace earshot::render_detail {
 
 namespace {
@@ -73,7 +75,7 @@ class PathSax : public nlohmann::json_sax<json> {
     const std::string where = mName + ":" + std::to_string(line) + ":" + std::to_string(column) + ": ";
     if (ex.id == 406) {  // out_of_range: number overflow; lastToken is the number
       const std::string p = currentPath();
-      error = where + (p.empty() ? "" : p + ": ") + "the number " + lastToken +
+      error = where + (p.empty() ? "" : p + ": ") + "the number " + lastToken.substr(0, 40) +
               " is too large (it overflows a double; expected a finite number)";
       return false;
     }
@@ -81,7 +83,7 @@ class PathSax : public nlohmann::json_sax<json> {
       size_t colon = what.find(": ");
       if (colon != std::string::npos) what.erase(0, colon + 2);
     }
-    error = where + "malformed JSON: " + what;
+    error = where + "malformed JSON: " + jsonErrorWithoutContent(what);
     return false;
   }
 

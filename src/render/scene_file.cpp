@@ -88,19 +88,7 @@ std::string describe(const json& v) {
 }
 
 Result<std::string> readTextFile(const std::string& path, const std::string& what) {
-  std::error_code ec;
-  if (!fs::exists(path, ec)) return notFound(path + ": " + what + " not found");
-  if (fs::is_directory(path, ec)) return invalidArgument(path + ": is a directory, expected a " + what);
-  const uintmax_t size = fs::file_size(path, ec);
-  if (!ec && size > kMaxTextFileBytes)
-    return outOfRange(path + ": " + std::to_string(size) + " bytes, over the " +
-                      std::to_string(kMaxTextFileBytes >> 20) + " MB limit for a " + what);
-  std::ifstream f(path, std::ios::binary);
-  if (!f) return ioError(path + ": cannot open " + what);
-  std::ostringstream ss;
-  ss << f.rdbuf();
-  if (f.bad()) return ioError(path + ": read failed");
-  return ss.str();
+  return readInputFile(path, what, kMaxTextFileBytes);
 }
 
 struct Range {
@@ -204,17 +192,14 @@ class SceneReader {
     return Vec3d{c[0], c[1], c[2]};
   }
 
-  std::string resolve(const std::string& p) const {
-    fs::path fp(p);
-    if (fp.is_absolute() || mBase.empty()) return fp.lexically_normal().string();
-    return (fs::path(mBase) / fp).lexically_normal().string();
-  }
-
-  // A path to an existing file (checked when options.checkFiles), resolved.
+  // A path to an existing file (checked when options.checkFiles), resolved
+  // relative to the scene file's folder and kept inside it (unless allowed).
   Result<std::string> filePath(const json& v, const std::string& path, const std::string& what) const {
     auto s = text(v, path, "a path to " + what + " (string)");
     if (!s) return s.status();
-    std::string resolved = resolve(*s);
+    auto r = resolveReference(mBase, mFile + ": " + path, *s, mOptions.allowOutsidePaths);
+    if (!r) return r.status();
+    std::string resolved = *r;
     if (mOptions.checkFiles) {
       std::error_code ec;
       if (!fs::exists(resolved, ec))

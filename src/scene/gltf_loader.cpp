@@ -21,6 +21,9 @@
 #include <set>
 #include <sstream>
 
+#include "earshot/core/math.h"
+#include "earshot/io/input_file.h"
+
 namespace earshot {
 namespace {
 
@@ -33,7 +36,12 @@ constexpr size_t kMaxBufferlessCount = size_t{1} << 24;
 /** Node nesting deeper than this is taken for a malformed file. */
 constexpr int kMaxNodeDepth = 1024;
 /** Largest file accepted (tinygltf takes 32-bit lengths). */
-constexpr std::streamoff kMaxFileBytes = std::streamoff{2000} * 1000 * 1000;
+constexpr uint64_t kMaxFileBytes = uint64_t{2000} * 1000 * 1000;
+/** Node placements (visits of the hierarchy) accepted, meshes or not. */
+constexpr double kMaxNodeVisits = 1e7;
+/** Bytes a loaded triangle costs downstream (material id, indices, the
+ *  BVH's share: Embree's BVH4 takes ~60-100 bytes a triangle). */
+constexpr double kBytesPerTriangle = 128.0;
 
 Mat4 multiply(const Mat4& a, const Mat4& b) {
   Mat4 r{};
@@ -131,6 +139,12 @@ class Loader {
          const std::map<std::string, std::string>& materialMap)
       : mPath(path), mModel(model), mMaterials(materials), mMap(materialMap) {}
 
+  Loader(const std::string& path, const tinygltf::Model& model, const MaterialTable& materials,
+         const std::map<std::string, std::string>& materialMap, const InputLimits& limits)
+      : Loader(path, model, materials, materialMap) {
+    mLimits = limits;
+  }
+
   Status run(GltfLoadResult* out) {
     mOut = out;
     std::vector<int> roots;
@@ -147,8 +161,15 @@ class Loader {
       for (size_t i = 0; i < mModel.nodes.size(); ++i)
         if (!isChild[i]) roots.push_back(static_cast<int>(i));
     }
+    EARSHOT_RETURN_IF_ERROR(checkBudget(roots));
     std::vector<char> onPath(mModel.nodes.size(), 0);
-    for (int r : roots) EARSHOT_RETURN_IF_ERROR(visit(r, kIdentity, 0, onPath));
+    for (int r : roots) EARSHOT_RETURN_IF_ERROR(visit(r, onPath));
+    for (size_t m = 0; m < mModel.meshes.size(); ++m)
+      if (!mMeshUsed.count(static_cast<int>(m)))
+        warnOnce(mPath + ": mesh " + (mModel.meshes[m].name.empty() ? std::to_string(m) : "\"" + mModel.meshes[m].name + "\"") +
+                 " is not placed by any node of the scene; ignored");
+    if (mOut->mesh.triangles.empty())
+      warnOnce(mPath + ": the scene has no triangles (an empty scene is a free field)");
     return Status::ok();
   }
 
@@ -160,28 +181,151 @@ class Loader {
     if (mWarned.insert(w).second) mOut->warnings.push_back(w);
   }
 
-  Status visit(int index, const Mat4& parent, int depth, std::vector<char>& onPath) {
-    if (index < 0 || static_cast<size_t>(index) >= mModel.nodes.size())
-      return fail("node " + std::to_string(index) + " does not exist");
-    if (onPath[index]) return fail("node " + std::to_string(index) + " is its own ancestor (cycle in node children)");
-    if (depth > kMaxNodeDepth) return fail("nodes nested deeper than " + std::to_string(kMaxNodeDepth));
-    const tinygltf::Node& node = mModel.nodes[index];
-    Mat4 local;
-    EARSHOT_RETURN_IF_ERROR(localTransform(node, index, &local));
-    const Mat4 world = multiply(parent, local);
-    if (node.mesh >= 0) {
-      GltfNodeTriangles range;
-      range.node = index;
-      range.name = node.name;
-      range.worldMatrix = world;
-      range.firstTriangle = static_cast<uint32_t>(mOut->mesh.triangles.size());
-      EARSHOT_RETURN_IF_ERROR(addMesh(node.mesh, world));
-      range.triangleCount = static_cast<uint32_t>(mOut->mesh.triangles.size()) - range.firstTriangle;
-      mOut->nodes.push_back(std::move(range));
+  /** What loading will allocate, before any of it: every node visit (a node
+   *  reached by k paths from the roots is placed k times: glTF's DAG of
+   *  nodes can instance one mesh exponentially often) times its mesh's
+   *  vertices and triangles, from the accessors' counts. Refused over the
+   *  memory limit, and over kMaxNodeVisits visits whatever they hold.
+   *  Iterative: no recursion on the file's depth. */
+  Status checkBudget(const std::vector<int>& roots) const {
+    const size_t n = mModel.nodes.size();
+    std::vector<double> paths(n, 0.0);  // paths from the roots to each node (saturates at inf: fine)
+    std::vector<int> indegree(n, 0);
+    std::vector<char> reachable(n, 0);
+    std::vector<int> stack;
+    for (int r : roots) {
+      if (r < 0 || static_cast<size_t>(r) >= n) return fail("node " + std::to_string(r) + " does not exist");
+      paths[r] += 1.0;
+      if (!reachable[r]) reachable[r] = 1, stack.push_back(r);
     }
-    onPath[index] = 1;
-    for (int c : node.children) EARSHOT_RETURN_IF_ERROR(visit(c, world, depth + 1, onPath));
-    onPath[index] = 0;
+    while (!stack.empty()) {
+      const int i = stack.back();
+      stack.pop_back();
+      for (int c : mModel.nodes[i].children) {
+        if (c < 0 || static_cast<size_t>(c) >= n) return fail("node " + std::to_string(c) + " does not exist");
+        ++indegree[c];
+        if (!reachable[c]) reachable[c] = 1, stack.push_back(c);
+      }
+    }
+    // Kahn's order over the reachable nodes; what stays unordered lies on a cycle.
+    for (size_t i = 0; i < n; ++i)
+      if (reachable[i] && indegree[i] == 0) stack.push_back(static_cast<int>(i));
+    size_t ordered = 0, reachableCount = 0;
+    for (char r : reachable) reachableCount += r ? 1 : 0;
+    double visits = 0, bytes = 0, triangles = 0;
+    while (!stack.empty()) {
+      const int i = stack.back();
+      stack.pop_back();
+      ++ordered;
+      const tinygltf::Node& node = mModel.nodes[i];
+      visits += paths[i];
+      if (node.mesh >= 0 && static_cast<size_t>(node.mesh) < mModel.meshes.size()) {
+        const auto [b, t] = meshCost(node.mesh);
+        bytes += paths[i] * (b + sizeof(GltfNodeTriangles));
+        triangles += paths[i] * t;
+      }
+      for (int c : node.children) {
+        paths[c] += paths[i];
+        if (--indegree[c] == 0) stack.push_back(c);
+      }
+    }
+    if (ordered != reachableCount) return fail("node children form a cycle (a node is its own ancestor)");
+    if (visits > kMaxNodeVisits)
+      return outOfRange(mPath + ": the node hierarchy places nodes " + describeCount(visits) +
+                        " times (instancing), over the limit of " + std::to_string(size_t(kMaxNodeVisits)));
+    if (bytes > double(mLimits.maxMemoryBytes))
+      return outOfRange(mPath + ": " + describeCount(triangles) + " triangles after instancing need about " +
+                        formatBytes(bytes < 1.8e19 ? uint64_t(bytes) : UINT64_MAX) + ", over the memory limit of " +
+                        formatBytes(mLimits.maxMemoryBytes) + " (--max-memory)");
+    return Status::ok();
+  }
+
+  static std::string describeCount(double v) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, v < 1e15 ? "%.0f" : "%.3g", v);
+    return buf;
+  }
+
+  /** Bytes one placement of a mesh allocates while loading (the accessors
+   *  read as doubles, the stored vertices and triangles, the tracer's share
+   *  per triangle) and its triangle count, from the accessors' counts. */
+  std::pair<double, double> meshCost(int meshIndex) const {
+    double bytes = 0, triangles = 0;
+    for (const tinygltf::Primitive& prim : mModel.meshes[meshIndex].primitives) {
+      if (prim.mode != TINYGLTF_MODE_TRIANGLES) continue;
+      auto pos = prim.attributes.find("POSITION");
+      if (pos == prim.attributes.end() || pos->second < 0 ||
+          static_cast<size_t>(pos->second) >= mModel.accessors.size())
+        continue;
+      const double vertices = plausibleCount(pos->second);
+      double indices = vertices;
+      if (prim.indices >= 0) indices = plausibleCount(prim.indices);
+      const double tris = std::floor(indices / 3);
+      bytes += vertices * (3 * sizeof(double) + sizeof(Vec3f)) + indices * sizeof(double) + tris * kBytesPerTriangle;
+      triangles += tris;
+    }
+    return {bytes, triangles};
+  }
+
+  /** An accessor's element count as far as its data can hold it: a count its
+   *  buffer view cannot hold (or a buffer-less one over
+   *  kMaxBufferlessCount) counts 0 here, and is refused by readAccessor,
+   *  which names it. */
+  double plausibleCount(int index) const {
+    if (index < 0 || static_cast<size_t>(index) >= mModel.accessors.size()) return 0;
+    const tinygltf::Accessor& acc = mModel.accessors[index];
+    if (acc.bufferView < 0) return acc.count <= kMaxBufferlessCount ? double(acc.count) : 0.0;
+    if (static_cast<size_t>(acc.bufferView) >= mModel.bufferViews.size()) return 0;
+    const tinygltf::BufferView& view = mModel.bufferViews[acc.bufferView];
+    const size_t elem = std::max<size_t>(1, componentSize(acc.componentType));
+    const size_t stride = std::max(elem, view.byteStride);
+    return double(acc.count) <= double(view.byteLength) / double(stride) + 1 ? double(acc.count) : 0.0;
+  }
+
+  /** Depth-first over the node hierarchy with an explicit stack. */
+  Status visit(int root, std::vector<char>& onPath) {
+    struct Frame {
+      int node;
+      Mat4 world;
+      size_t nextChild;
+    };
+    std::vector<Frame> stack;
+    auto enter = [&](int index, const Mat4& parent) -> Status {
+      if (index < 0 || static_cast<size_t>(index) >= mModel.nodes.size())
+        return fail("node " + std::to_string(index) + " does not exist");
+      if (onPath[index]) return fail("node " + std::to_string(index) + " is its own ancestor (cycle in node children)");
+      if (stack.size() > size_t(kMaxNodeDepth)) return fail("nodes nested deeper than " + std::to_string(kMaxNodeDepth));
+      const tinygltf::Node& node = mModel.nodes[index];
+      Mat4 local;
+      EARSHOT_RETURN_IF_ERROR(localTransform(node, index, &local));
+      const Mat4 world = multiply(parent, local);
+      if (node.mesh >= 0) {
+        GltfNodeTriangles range;
+        range.node = index;
+        range.name = node.name;
+        range.worldMatrix = world;
+        range.firstTriangle = static_cast<uint32_t>(mOut->mesh.triangles.size());
+        EARSHOT_RETURN_IF_ERROR(addMesh(node.mesh, world));
+        range.triangleCount = static_cast<uint32_t>(mOut->mesh.triangles.size()) - range.firstTriangle;
+        mOut->nodes.push_back(std::move(range));
+      }
+      onPath[index] = 1;
+      stack.push_back({index, world, 0});
+      return Status::ok();
+    };
+    EARSHOT_RETURN_IF_ERROR(enter(root, kIdentity));
+    while (!stack.empty()) {
+      Frame& top = stack.back();
+      const std::vector<int>& children = mModel.nodes[top.node].children;
+      if (top.nextChild < children.size()) {
+        const int child = children[top.nextChild++];
+        const Mat4 world = top.world;  // `top` may move when the stack grows
+        EARSHOT_RETURN_IF_ERROR(enter(child, world));
+      } else {
+        onPath[top.node] = 0;
+        stack.pop_back();
+      }
+    }
     return Status::ok();
   }
 
@@ -351,6 +495,7 @@ class Loader {
   Status addMesh(int meshIndex, const Mat4& world) {
     if (static_cast<size_t>(meshIndex) >= mModel.meshes.size())
       return fail("mesh " + std::to_string(meshIndex) + " does not exist");
+    mMeshUsed.insert(meshIndex);
     const tinygltf::Mesh& mesh = mModel.meshes[meshIndex];
     const std::string meshLabel = "mesh " + (mesh.name.empty() ? std::to_string(meshIndex) : "\"" + mesh.name + "\"");
     const bool flip = det3(world) < 0;  // mirroring reverses winding; keep normals' sense
@@ -399,6 +544,13 @@ class Loader {
             << ") is not finite after the node transform (" << w.x << ", " << w.y << ", " << w.z << ")";
           return invalidArgument(mPath + ": " + s.str());
         }
+        if (std::abs(w.x) > kMaxCoordinateMeters || std::abs(w.y) > kMaxCoordinateMeters ||
+            std::abs(w.z) > kMaxCoordinateMeters) {
+          std::ostringstream s;
+          s << where << ": vertex " << v << " lies at (" << w.x << ", " << w.y << ", " << w.z
+            << ") after the node transform, farther than " << kMaxCoordinateMeters << " m from the origin";
+          return outOfRange(mPath + ": " + s.str());
+        }
         out.positions.push_back(stored);
       }
       for (size_t t = 0; t + 2 < indexCount; t += 3) {
@@ -423,6 +575,8 @@ class Loader {
   const MaterialTable& mMaterials;
   const std::map<std::string, std::string>& mMap;
   GltfLoadResult* mOut = nullptr;
+  InputLimits mLimits;
+  std::set<int> mMeshUsed;
   std::map<int, uint32_t> mResolved;       // glTF material -> acoustic id
   std::set<std::string> mWarned;
 };
@@ -432,50 +586,118 @@ bool skipImage(tinygltf::Image*, const int, std::string*, std::string*, int, int
   return true;
 }
 
+/** tinygltf's file access for external buffers and images (URIs), confined
+ *  to the glTF file's folder and to regular files within the memory limit. */
+struct ConfinedFs {
+  std::string folder;       // the glTF file's folder
+  std::string gltfPath;
+  InputLimits limits;
+  uint64_t bytesRead = 0;
+  std::string refused;      // the first refusal, reported instead of tinygltf's "not found"
+
+  /** The path tinygltf built (folder + "/" + uri, or "./" + uri), if allowed. */
+  bool allowed(const std::string& joined) {
+    std::string uri = joined;
+    if (uri.rfind(folder + "/", 0) == 0) uri = uri.substr(folder.size() + 1);
+    else if (uri.rfind("./", 0) == 0) uri = uri.substr(2);
+    auto r = resolveReference(folder, gltfPath + ": buffer or image uri", uri, limits.allowOutsidePaths);
+    if (!r) {
+      if (refused.empty()) refused = r.status().message();
+      return false;
+    }
+    return true;
+  }
+
+  static bool exists(const std::string& path, void* self) {
+    auto* fs = static_cast<ConfinedFs*>(self);
+    if (!fs->allowed(path)) return false;
+    std::ifstream probe(path, std::ios::binary);
+    return probe.good();
+  }
+  static std::string expand(const std::string& path, void*) { return path; }
+  static bool read(std::vector<unsigned char>* out, std::string* err, const std::string& path, void* self) {
+    auto* fs = static_cast<ConfinedFs*>(self);
+    if (!fs->allowed(path)) {
+      if (err) *err = "refused";
+      return false;
+    }
+    const uint64_t left = fs->limits.maxMemoryBytes > fs->bytesRead ? fs->limits.maxMemoryBytes - fs->bytesRead : 0;
+    auto bytes = readInputFile(path, "glTF buffer or image", std::min<uint64_t>(left, kMaxFileBytes));
+    if (!bytes) {
+      if (fs->refused.empty()) fs->refused = fs->gltfPath + ": " + bytes.status().message();
+      if (err) *err = "refused";
+      return false;
+    }
+    fs->bytesRead += bytes->size();
+    out->assign(bytes->begin(), bytes->end());
+    return true;
+  }
+  static bool write(std::string* err, const std::string&, const std::vector<unsigned char>&, void*) {
+    if (err) *err = "earshot never writes through tinygltf";
+    return false;
+  }
+};
+
+/** The JSON part of a .gltf (the whole file) or .glb (its first chunk). */
+std::string_view jsonPart(const std::string& bytes, bool binary) {
+  if (!binary) return bytes;
+  if (bytes.size() < 20) return {};
+  uint32_t chunkLength = 0;
+  std::memcpy(&chunkLength, bytes.data() + 12, 4);
+  return std::string_view(bytes).substr(20, chunkLength);
+}
+
 }  // namespace
 
 Result<GltfLoadResult> loadGltf(const std::string& path, const MaterialTable& materials,
-                                const std::map<std::string, std::string>& materialMap) {
-  std::ifstream in(path, std::ios::binary | std::ios::ate);
-  if (!in) return notFound(path + ": cannot open glTF file");
-  const std::streamoff size = in.tellg();
-  if (size < 0) return ioError(path + ": cannot read glTF file");
-  if (size > kMaxFileBytes) return outOfRange(path + ": file of " + std::to_string(size) + " bytes is too large");
-  in.seekg(0);
-  std::vector<unsigned char> bytes(static_cast<size_t>(size));
-  if (size > 0 && !in.read(reinterpret_cast<char*>(bytes.data()), size)) return ioError(path + ": read error");
+                                const std::map<std::string, std::string>& materialMap, const InputLimits& limits) {
+  auto read = readInputFile(path, "glTF file", std::min<uint64_t>(kMaxFileBytes, limits.maxMemoryBytes));
+  if (!read) return read.status();
+  const std::string& bytes = *read;
 
-  const auto slash = path.find_last_of('/');
-  const std::string baseDir = slash == std::string::npos ? std::string(".") : path.substr(0, slash);
+  const std::string baseDir = folderOf(path).empty() ? std::string(".") : folderOf(path);
   const bool binary = bytes.size() >= 4 && std::memcmp(bytes.data(), "glTF", 4) == 0;
+  // tinygltf parses JSON recursively (its Value tree): cap the nesting first.
+  EARSHOT_RETURN_IF_ERROR(checkJsonDepth(jsonPart(bytes, binary), path));
 
+  ConfinedFs confined{baseDir, path, limits, bytes.size(), {}};
   tinygltf::TinyGLTF parser;
   parser.SetImageLoader(&skipImage, nullptr);
+  tinygltf::FsCallbacks callbacks{};
+  callbacks.FileExists = &ConfinedFs::exists;
+  callbacks.ExpandFilePath = &ConfinedFs::expand;
+  callbacks.ReadWholeFile = &ConfinedFs::read;
+  callbacks.WriteWholeFile = &ConfinedFs::write;
+  callbacks.user_data = &confined;
+  parser.SetFsCallbacks(callbacks);
   tinygltf::Model model;
   std::string err, warn;
   bool ok = false;
   try {
-    ok = binary ? parser.LoadBinaryFromMemory(&model, &err, &warn, bytes.data(), static_cast<unsigned>(bytes.size()),
-                                              baseDir)
+    ok = binary ? parser.LoadBinaryFromMemory(&model, &err, &warn, reinterpret_cast<const unsigned char*>(bytes.data()),
+                                              static_cast<unsigned>(bytes.size()), baseDir)
                 : parser.LoadASCIIFromString(&model, &err, &warn, reinterpret_cast<const char*>(bytes.data()),
                                              static_cast<unsigned>(bytes.size()), baseDir);
   } catch (const std::exception& e) {
     ok = false;
     err = e.what();
   }
-  if (!ok) return parseError(path + ": invalid glTF: " + oneLine(err.empty() ? "unknown error" : err));
+  if (!confined.refused.empty() && !ok) return invalidArgument(confined.refused);
+  if (!ok) return parseError(path + ": invalid glTF: " + oneLine(jsonErrorWithoutContent(err.empty() ? "unknown error" : err)));
 
   GltfLoadResult result;
-  if (!warn.empty()) result.warnings.push_back(path + ": " + oneLine(warn));
-  Loader loader(path, model, materials, materialMap);
+  if (!confined.refused.empty()) result.warnings.push_back(confined.refused);
+  if (!warn.empty()) result.warnings.push_back(path + ": " + oneLine(jsonErrorWithoutContent(warn)));
+  Loader loader(path, model, materials, materialMap, limits);
   EARSHOT_RETURN_IF_ERROR(loader.run(&result));
   return result;
 }
 
 Result<std::map<std::string, std::string>> loadMaterialMap(const std::string& path) {
-  std::ifstream f(path);
-  if (!f) return notFound(path + ": cannot open material map");
-  nlohmann::json j = nlohmann::json::parse(f, nullptr, false);
+  auto text = readInputFile(path, "material map", kMaxJsonFileBytes);
+  if (!text) return text.status();
+  EARSHOT_RETURN_IF_ERROR(checkJsonDepth(*text, path));
+  nlohmann::json j = nlohmann::json::parse(*text, nullptr, false);
   if (j.is_discarded()) return parseError(path + ": not valid JSON");
   if (!j.is_object()) return parseError(path + ": material map must be an object {\"gltf name\": \"acoustic name\"}");
   std::map<std::string, std::string> map;

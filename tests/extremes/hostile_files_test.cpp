@@ -220,7 +220,7 @@ std::string wavClaiming(uint32_t dataBytes) {
 TEST_F(HostileFiles, Rf64HeaderClaiming2To40FramesIsRefusedWithoutAllocating) {
   const std::string path = write("huge.rf64.wav", rf64Claiming(uint64_t(1) << 40));
   RssWatch rss;
-  auto r = readAudioFile(path);  // default limit, 2^31 samples
+  auto r = readAudioFile(path);  // default limit: defaultMaxReadSamples()
   show(r);
   // libsndfile (1.2, Debian 12) trims the ds64 claim to the bytes present:
   // exactly the 16 real frames come back, never 2^40 frames' worth of memory.
@@ -230,8 +230,8 @@ TEST_F(HostileFiles, Rf64HeaderClaiming2To40FramesIsRefusedWithoutAllocating) {
 }
 
 TEST_F(HostileFiles, WavDataChunkClaiming4GBHoldsOnlyWhatIsThere) {
-  // 0xFFFFFFF0 bytes = 2^31 - 8 frames: under the default 2^31-sample limit,
-  // so only the file's real length can stop an 8 GB float allocation.
+  // 0xFFFFFFF0 bytes = 2^31 - 8 frames: only the file's real length (or the
+  // default sample limit) can stop an 8 GB float allocation.
   const std::string path = write("liar.wav", wavClaiming(0xfffffff0u));
   RssWatch rss;
   auto r = readAudioFile(path);
@@ -265,7 +265,7 @@ TEST_F(HostileFiles, FlacHeaderClaiming2To36FramesIsRefusedByName) {
 }
 
 // Found by fuzzing: this used to allocate 8 GiB (42 bytes of file claiming
-// 2^31 - 1 frames, just under kDefaultMaxReadSamples); the reader now grows
+// 2^31 - 1 frames, just under the limit of the time); the reader now grows
 // its buffer with what it actually reads. See tests/fuzz/found/README.md.
 TEST_F(HostileFiles, FlacHeaderClaiming2To31FramesDoesNotAllocateThem) {
   const std::string path = write("liar.flac", flacClaiming((uint64_t(1) << 31) - 1));

@@ -95,7 +95,7 @@ TEST(RenderCli, StaticSceneIsTheDrySignalConvolvedWithEarshotIrsIr) {
                        "shoebox/materials_map.json --source 2.5,3,1.4 --listener 7,4,1.6 --forward -1,0.2,0 --up 0,0,1 "
                        "--quality draft --seed 3 -o " + dir / "ir.wav");
   ASSERT_EQ(ir.exitCode, 0) << ir.output;
-  auto render = runEarshot("render " + dir / "scene.json" + " -o " + dir / "out.wav --quiet");
+  auto render = runEarshot("--allow-outside-paths render " + dir / "scene.json" + " -o " + dir / "out.wav --quiet");
   ASSERT_EQ(render.exitCode, 0) << render.output;
   const AudioBuffer h = read(dir / "ir.wav"), y = read(dir / "out.wav");
   ASSERT_EQ(h.channelCount(), 2u);
@@ -130,7 +130,7 @@ TEST(RenderCli, PassingSourceHasTheDopplerShiftOfItsSpeed) {
                           {"t": 8, "position": )" << vec(-100 + 8 * v, 0, -3) << R"(}]}],
     "settings": {"quality": "draft", "duration": 8, "air": "off"}
   })";
-  auto render = runEarshot("render " + dir / "scene.json" + " -o " + dir / "out.wav --quiet");
+  auto render = runEarshot("--allow-outside-paths render " + dir / "scene.json" + " -o " + dir / "out.wav --quiet");
   ASSERT_EQ(render.exitCode, 0) << render.output;
   const AudioBuffer y = read(dir / "out.wav");
   ASSERT_EQ(y.channelCount(), 2u);
@@ -169,8 +169,8 @@ TEST(RenderCli, SourceMovingInStepsHasNoJumpsLargerThanTheStaticRender) {
   };
   std::ofstream(dir / "moving.json") << scene("\"path\": " + path);
   std::ofstream(dir / "static.json") << scene("\"position\": " + vec(6.5, 3.5, 1.5));  // the nearest point
-  auto a = runEarshot("render " + dir / "moving.json" + " -o " + dir / "moving.wav --quiet");
-  auto b = runEarshot("render " + dir / "static.json" + " -o " + dir / "static.wav --quiet");
+  auto a = runEarshot("--allow-outside-paths render " + dir / "moving.json" + " -o " + dir / "moving.wav --quiet");
+  auto b = runEarshot("--allow-outside-paths render " + dir / "static.json" + " -o " + dir / "static.wav --quiet");
   ASSERT_EQ(a.exitCode, 0) << a.output;
   ASSERT_EQ(b.exitCode, 0) << b.output;
   const AudioBuffer moving = read(dir / "moving.wav"), still = read(dir / "static.wav");
@@ -211,7 +211,7 @@ TEST(RenderCli, BadScenesAreOneClearErrorAndLeaveTheOutputAlone) {
     const std::string scene = dir / (c.name + ".json"), out = dir / (c.name + ".wav");
     std::ofstream(scene) << c.json;
     std::ofstream(out) << "precious";
-    auto r = runEarshot("render " + scene + " -o " + out + " --quiet");
+    auto r = runEarshot("--allow-outside-paths render " + scene + " -o " + out + " --quiet");
     EXPECT_EQ(r.exitCode, 2) << c.name << ": " << r.output;
     EXPECT_NE(r.output.find(c.mustMention), std::string::npos) << c.name << ": " << r.output;
     EXPECT_NE(r.output.find(c.name + ".json"), std::string::npos) << c.name << " names the file: " << r.output;
@@ -220,13 +220,13 @@ TEST(RenderCli, BadScenesAreOneClearErrorAndLeaveTheOutputAlone) {
   }
   // No output at all when the render fails: nothing is created.
   std::ofstream(dir / "bad.json") << "{" + good + R"(, "settings": {"quality": "ultra"}})";
-  auto r = runEarshot("render " + dir / "bad.json" + " -o " + dir / "none.wav --quiet");
+  auto r = runEarshot("--allow-outside-paths render " + dir / "bad.json" + " -o " + dir / "none.wav --quiet");
   EXPECT_EQ(r.exitCode, 2) << r.output;
   EXPECT_FALSE(std::filesystem::exists(dir / "none.wav"));
   // -o naming an input is refused.
   std::ofstream(dir / "ok.json") << "{" + good + R"(, "settings": {"duration": 0.5, "quality": "draft"}})";
   const std::string before = readFile(dir / "dry.wav");
-  r = runEarshot("render " + dir / "ok.json" + " -o " + dir / "dry.wav --quiet");
+  r = runEarshot("--allow-outside-paths render " + dir / "ok.json" + " -o " + dir / "dry.wav --quiet");
   EXPECT_EQ(r.exitCode, 2) << r.output;
   EXPECT_NE(r.output.find("input"), std::string::npos) << r.output;
   EXPECT_EQ(readFile(dir / "dry.wav"), before);
@@ -237,8 +237,8 @@ TEST(RenderCli, ThreadCountDoesNotChangeTheOutput) {
   TempDir dir("render_threads");
   writeMono(dir / "sine.wav", sine(250.0, 1.0));
   writeWalkInShoebox(dir / "scene.json", 1.5);
-  auto a = runEarshot("render " + dir / "scene.json" + " -o " + dir / "a.wav --quiet --threads 1");
-  auto b = runEarshot("render " + dir / "scene.json" + " -o " + dir / "b.wav --quiet --threads 2");
+  auto a = runEarshot("--allow-outside-paths render " + dir / "scene.json" + " -o " + dir / "a.wav --quiet --threads 1");
+  auto b = runEarshot("--allow-outside-paths render " + dir / "scene.json" + " -o " + dir / "b.wav --quiet --threads 2");
   ASSERT_EQ(a.exitCode, 0) << a.output;
   ASSERT_EQ(b.exitCode, 0) << b.output;
   EXPECT_TRUE(readFile(dir / "a.wav") == readFile(dir / "b.wav"));
@@ -251,8 +251,8 @@ TEST(RenderCli, FromToWindowIsTheSamePartOfTheFullRender) {
   TempDir dir("render_window");
   writeMono(dir / "sine.wav", sine(330.0, 2.0));
   writeWalkInShoebox(dir / "scene.json", 2.5);
-  auto full = runEarshot("render " + dir / "scene.json" + " -o " + dir / "full.wav --quiet");
-  auto part = runEarshot("render " + dir / "scene.json" + " -o " + dir / "part.wav --quiet --from 1 --to 2");
+  auto full = runEarshot("--allow-outside-paths render " + dir / "scene.json" + " -o " + dir / "full.wav --quiet");
+  auto part = runEarshot("--allow-outside-paths render " + dir / "scene.json" + " -o " + dir / "part.wav --quiet --from 1 --to 2");
   ASSERT_EQ(full.exitCode, 0) << full.output;
   ASSERT_EQ(part.exitCode, 0) << part.output;
   const AudioBuffer f = read(dir / "full.wav"), p = read(dir / "part.wav");
@@ -260,7 +260,7 @@ TEST(RenderCli, FromToWindowIsTheSamePartOfTheFullRender) {
   for (int ear = 0; ear < 2; ++ear)
     for (size_t i = 0; i < p.frameCount(); ++i)
       ASSERT_EQ(p.channels[ear][i], f.channels[ear][size_t(kFs) + i]) << "ear " << ear << " frame " << i;
-  auto bad = runEarshot("render " + dir / "scene.json" + " -o " + dir / "bad.wav --quiet --from 2 --to 1");
+  auto bad = runEarshot("--allow-outside-paths render " + dir / "scene.json" + " -o " + dir / "bad.wav --quiet --from 2 --to 1");
   EXPECT_EQ(bad.exitCode, 2) << bad.output;
   EXPECT_NE(bad.output.find("--from"), std::string::npos) << bad.output;
   EXPECT_FALSE(std::filesystem::exists(dir / "bad.wav"));

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "command.h"
+#include "earshot/io/input_file.h"
 #include "earshot/scene/gltf_loader.h"
 
 namespace earshot::cli {
@@ -113,6 +114,30 @@ int main(int argc, char** argv) {
   CLI::App app{"earshot: CPU audio propagation for VR spatial audio (impulse responses, rendering, analysis)"};
   app.require_subcommand(1);
   app.set_version_flag("--version", "earshot 0.1.0");
+  // Limits on what input files may make earshot do (README "Untrusted
+  // input"); given before or after the subcommand.
+  app.fallthrough();
+  app.add_option_function<std::string>(
+         "--max-memory",
+         [](const std::string& text) {
+           auto bytes = earshot::parseByteSize(text);
+           if (!bytes) throw CLI::ValidationError("--max-memory", bytes.status().message());
+           auto limits = earshot::defaultInputLimits();
+           limits.maxMemoryBytes = *bytes;
+           earshot::setDefaultInputLimits(limits);
+         },
+         "Most memory an input file may make earshot allocate (estimated before loading: triangles after "
+         "instancing, samples after resampling, a render's sources), e.g. 512M, 4G (default 1G)")
+      ->type_name("SIZE");
+  app.add_flag_callback(
+      "--allow-outside-paths",
+      [] {
+        auto limits = earshot::defaultInputLimits();
+        limits.allowOutsidePaths = true;
+        earshot::setDefaultInputLimits(limits);
+      },
+      "Let file references inside input files (glTF buffers, a scene's geometry, audio, materials, HRTF) lead "
+      "outside the referring file's folder (absolute paths, ..); refused by default");
   for (auto& setup : earshot::cli::registry()) setup(app);
   try {
     app.parse(argc, argv);

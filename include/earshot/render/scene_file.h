@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "earshot/core/status.h"
+#include "earshot/io/input_file.h"
 #include "earshot/render/trajectory.h"
 
 namespace earshot {
@@ -88,6 +89,11 @@ struct SceneParseOptions {
    *  against the materials. false: no file is opened (fuzzing, tools that
    *  only rewrite scenes); a map given as a path is then left unread. */
   bool checkFiles = true;
+  /** File references (geometry, materials, material_map, audio, hrtf) may
+   *  lead outside the scene file's folder (absolute paths, ..; symlinks are
+   *  resolved first). Default: refused (input_file.h), unless the process
+   *  defaults say otherwise (`earshot --allow-outside-paths`). */
+  bool allowOutsidePaths = defaultInputLimits().allowOutsidePaths;
 };
 
 /** Reads and parses a scene file; see parseSceneText. A missing file is

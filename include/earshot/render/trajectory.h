@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "earshot/core/status.h"
+#include "earshot/core/math.h"
 #include "earshot/core/vec3.h"
 
 namespace earshot {
@@ -14,8 +15,6 @@ namespace earshot {
 constexpr Vec3d kDefaultForward{0.0, 0.0, -1.0};
 constexpr Vec3d kDefaultUp{0.0, 1.0, 0.0};
 
-/** Largest coordinate magnitude accepted, metres. */
-constexpr double kMaxCoordinateMeters = 1e6;
 /** Latest keyframe time (and any other scene time) accepted, seconds. */
 constexpr double kMaxSceneSeconds = 86400.0;
 

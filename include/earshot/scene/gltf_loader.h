@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "earshot/core/status.h"
+#include "earshot/io/input_file.h"
 #include "earshot/materials/material.h"
 #include "earshot/scene/triangle_mesh.h"
 
@@ -30,7 +31,18 @@ struct GltfLoadResult {
   std::vector<GltfNodeTriangles> nodes;
 };
 
-/** Loads every TRIANGLES primitive of the default scene (node transforms
+/** Untrusted files (input_file.h): the file must be a regular file; external
+ *  buffer and image URIs resolve inside its folder (unless
+ *  limits.allowOutsidePaths) and are read within limits.maxMemoryBytes;
+ *  JSON nested deeper than kMaxJsonDepth is refused before tinygltf parses
+ *  it; the memory the file makes us allocate (every mesh times the paths
+ *  that place it: node hierarchies are DAGs that can instance one mesh
+ *  exponentially) is estimated from the accessors' counts and refused past
+ *  limits.maxMemoryBytes, as are over 1e7 node placements; vertices beyond
+ *  kMaxCoordinateMeters after their transform are refused (kOutOfRange).
+ *  Unplaced meshes and a scene without triangles give warnings.
+ *
+ *  Loads every TRIANGLES primitive of the default scene (node transforms
  *  applied) and maps each glTF material to an acoustic one, in order: the
  *  `materialMap` (glTF material name -> acoustic name), the glTF material's
  *  `extras.acoustic_material`, its own name; else the default (id 0) with a
@@ -59,6 +71,7 @@ struct GltfLoadResult {
 Result<std::map<std::string, std::string>> loadMaterialMap(const std::string& path);
 
 Result<GltfLoadResult> loadGltf(const std::string& path, const MaterialTable& materials,
-                                const std::map<std::string, std::string>& materialMap = {});
+                                const std::map<std::string, std::string>& materialMap = {},
+                                const InputLimits& limits = defaultInputLimits());
 
 }  // namespace earshot
