@@ -196,6 +196,16 @@ Result<Comparison> compareMetrics(const std::vector<BandMetrics>& test, const st
         row.verdict = Verdict::kFail;
         row.differenceJnd = kInfinity();
         row.note = "n/a in IR: " + test[size_t(b)].reason(m);
+      } else if (std::isinf(row.testValue) || std::isinf(row.referenceValue)) {
+        // C50/C80 of an IR with no energy after 50/80 ms (in the window) is
+        // +inf: equal infinities are no difference in JND, and one infinity
+        // is a difference no JND measures.
+        const bool same = row.testValue == row.referenceValue;
+        row.verdict = same ? Verdict::kSkipped : Verdict::kFail;
+        row.differenceJnd = same ? 0.0 : kInfinity();
+        row.note = same ? "both infinite: no energy after the early window in either"
+                        : "infinite in " + std::string(std::isinf(row.testValue) ? "the IR" : "the reference") +
+                              ": no energy after the early window";
       } else {
         row.differenceJnd = differenceInJnd(m, row.testValue, row.referenceValue);
         row.verdict = std::abs(row.differenceJnd) <= row.limitJnd ? Verdict::kPass : Verdict::kFail;

@@ -29,9 +29,17 @@
 // 0.15 s of the KU100's 0.36 s of CPU time on the 2-core machines here.
 #include "earshot/hrtf/hrtf_set.h"
 
+#include "earshot/io/input_file.h"
+
 #include <mysofa.h>
+#include <signal.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
 
 #include <algorithm>
+#include <chrono>
 #include <atomic>
 #include <cerrno>
 #include <cmath>
@@ -170,6 +178,76 @@ std::vector<CellBlock> cellBlocks() {
   return blocks;
 }
 
+/** Seconds libmysofa may take to read a file in the probe. */
+constexpr int kSofaProbeSeconds = 10;
+
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+constexpr bool kSanitized = true;
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer)
+constexpr bool kSanitized = true;
+#else
+constexpr bool kSanitized = false;
+#endif
+#else
+constexpr bool kSanitized = false;
+#endif
+
+/** libmysofa (an HDF5 reader in C) hangs on some malformed files and may
+ *  allocate what a header claims; it offers no time-out or limit. So a
+ *  child process reads the file first, under an address-space limit of
+ *  `maxBytes` beyond what it inherits and a deadline; only a file it read
+ *  and validated in time is read in this process. A hang, a crash or an
+ *  allocation failure there is a refused file here, never a hung or dead
+ *  host. (The child only calls libmysofa and _exit: fork-safe with threads,
+ *  since glibc's malloc is.) */
+Status probeSofaFile(const std::string& path, uint64_t maxBytes) {
+  const pid_t pid = ::fork();
+  if (pid < 0) return Status::ok();  // cannot probe: read it directly, as before
+  if (pid == 0) {
+    if (!kSanitized) {  // sanitizers reserve terabytes of address space up front
+      long pages = 0;
+      if (FILE* f = std::fopen("/proc/self/statm", "r")) {
+        if (std::fscanf(f, "%ld", &pages) != 1) pages = 0;
+        std::fclose(f);
+      }
+      const double current = double(pages) * double(::sysconf(_SC_PAGESIZE));
+      rlimit lim{};
+      lim.rlim_cur = lim.rlim_max = rlim_t(std::min(current + double(maxBytes), 1.0e18));
+      ::setrlimit(RLIMIT_AS, &lim);
+    }
+    ::alarm(kSofaProbeSeconds + 1);
+    int err = 0;
+    MYSOFA_HRTF* h = mysofa_load(path.c_str(), &err);
+    if (!h) ::_exit(err == MYSOFA_NO_MEMORY ? 3 : 1);
+    const int check = mysofa_check(h);
+    ::_exit(check == MYSOFA_OK ? 0 : 1);
+  }
+  const timespec step{0, 2 * 1000 * 1000};
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(kSofaProbeSeconds);
+  int status = 0;
+  for (;;) {
+    const pid_t r = ::waitpid(pid, &status, WNOHANG);
+    if (r == pid) break;
+    if (r < 0 && errno != EINTR) return Status::ok();  // reaped elsewhere: read it directly
+    if (std::chrono::steady_clock::now() > deadline) {
+      ::kill(pid, SIGKILL);
+      while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+      }
+      return parseError(path + ": not a usable SOFA file (libmysofa did not finish reading it within " +
+                        std::to_string(kSofaProbeSeconds) + " s)");
+    }
+    ::nanosleep(&step, nullptr);
+  }
+  if (WIFEXITED(status) && WEXITSTATUS(status) <= 1) return Status::ok();  // 1: this process reports the error
+  if (WIFEXITED(status) && WEXITSTATUS(status) == 3)
+    return outOfRange(path + ": reading it takes more than the memory limit of " + formatBytes(maxBytes) +
+                      " (--max-memory)");
+  return parseError(path + ": not a usable SOFA file (libmysofa failed reading it: " +
+                    (WIFSIGNALED(status) ? "signal " + std::to_string(WTERMSIG(status)) : std::string("out of memory")) +
+                    ")");
+}
+
 // Slack (radians) of the coarse tests over the per-cell ones: covers their
 // 1e-6 margins on cosines (at most 1.5e-3 rad) and rounding.
 constexpr double kCoarseMargin = 1e-2;
@@ -182,16 +260,33 @@ Result<std::shared_ptr<const HrtfSet>> HrtfSet::load(const std::string& sofaPath
     return invalidArgument(sofaPath + ": engine sample rate " + std::to_string(sampleRateHz) +
                            " Hz is outside [8000, 192000]");
   }
-  {
-    std::ifstream probe(sofaPath, std::ios::binary);
-    if (!probe) return notFound(sofaPath + ": cannot open HRTF file (" + std::strerror(errno) + ")");
-  }
+  const InputLimits limits = defaultInputLimits();
+  auto size = checkInputFile(sofaPath, "HRTF file", limits.maxMemoryBytes);
+  if (!size) return size.status();
+  EARSHOT_RETURN_IF_ERROR(probeSofaFile(sofaPath, limits.maxMemoryBytes));
   int err = 0;
   std::unique_ptr<MYSOFA_HRTF, SofaDeleter> raw(mysofa_load(sofaPath.c_str(), &err));
   if (!raw) {
     return parseError(sofaPath + ": not a readable SOFA file (libmysofa: " + mysofaErrorName(err) + ")");
   }
   MYSOFA_HRTF* h = raw.get();
+  // Dimensions against each other before anything reads by them (libmysofa
+  // takes them from the file; mysofa_check and the conversions below trust them).
+  if (h->M == 0 || h->N == 0 || h->R == 0 || h->M > (1u << 20) || h->N > (1u << 20) || h->R > 64)
+    return parseError(sofaPath + ": implausible dimensions (M = " + std::to_string(h->M) + ", R = " +
+                      std::to_string(h->R) + ", N = " + std::to_string(h->N) + ")");
+  if (h->SourcePosition.elements != 3u * h->M || !h->SourcePosition.values)
+    return parseError(sofaPath + ": SourcePosition has " + std::to_string(h->SourcePosition.elements) +
+                      " values, expected M x 3 = " + std::to_string(3u * h->M));
+  if (h->ReceiverPosition.elements < 3u * h->R || !h->ReceiverPosition.values)
+    return parseError(sofaPath + ": ReceiverPosition has " + std::to_string(h->ReceiverPosition.elements) +
+                      " values, expected R x 3 = " + std::to_string(3u * h->R));
+  if (uint64_t(h->DataIR.elements) != uint64_t(h->M) * h->R * h->N || !h->DataIR.values)
+    return parseError(sofaPath + ": Data.IR has " + std::to_string(h->DataIR.elements) +
+                      " values, expected M x R x N = " + std::to_string(uint64_t(h->M) * h->R * h->N));
+  if (h->DataDelay.elements != 0 && !h->DataDelay.values)
+    return parseError(sofaPath + ": Data.Delay has no values");
+  if (!h->DataSamplingRate.values) return parseError(sofaPath + ": Data.SamplingRate has no values");
   std::string conventions = attribute(h->attributes, "Conventions");
   if (conventions != "SOFA") {
     return parseError(sofaPath + ": attribute Conventions is '" + conventions + "', expected 'SOFA'");

@@ -2,7 +2,10 @@
 
 #include <sndfile.h>
 
+#include <unistd.h>
+
 #include <cmath>
+#include <cstdio>
 #include <memory>
 
 #include "earshot/io/atomic_file.h"
@@ -97,6 +100,67 @@ Status writeWavFloat(const std::string& path, const AudioBuffer& audio) {
     if (sf_close(f.release()) != 0) return ioError(path + ": close failed");
     return Status::ok();
   });
+}
+
+Result<std::unique_ptr<WavStreamWriter>> WavStreamWriter::open(const std::string& path, size_t channels,
+                                                                double sampleRateHz) {
+  if (channels == 0 || channels > 64) return invalidArgument(path + ": " + std::to_string(channels) + " channels");
+  if (!(sampleRateHz >= 1.0 && sampleRateHz <= 1e6))
+    return invalidArgument(path + ": sample rate " + std::to_string(sampleRateHz) + " is outside [1, 1e6] Hz");
+  EARSHOT_RETURN_IF_ERROR(checkOutputPath(path));
+  std::unique_ptr<WavStreamWriter> w(new WavStreamWriter());
+  w->mPath = path;
+  w->mTmp = path + ".tmp-" + std::to_string(::getpid()) + "-" + std::to_string(reinterpret_cast<uintptr_t>(w.get()));
+  w->mChannels = channels;
+  SF_INFO info{};
+  info.channels = int(channels);
+  info.samplerate = int(std::lround(sampleRateHz));
+  info.format = SF_FORMAT_WAV | SF_FORMAT_FLOAT;
+  SNDFILE* f = sf_open(w->mTmp.c_str(), SFM_WRITE, &info);
+  if (!f) return ioError(path + ": cannot open for writing (" + sf_strerror(nullptr) + ")");
+  sf_command(f, SFC_SET_ADD_PEAK_CHUNK, nullptr, SF_FALSE);  // no timestamp: same audio, same bytes
+  w->mFile = f;
+  return w;
+}
+
+WavStreamWriter::~WavStreamWriter() {
+  if (mFile) {
+    sf_close(static_cast<SNDFILE*>(mFile));
+    std::remove(mTmp.c_str());
+  }
+}
+
+Status WavStreamWriter::write(const float* const* planar, size_t frames) {
+  if (!mFile) return ioError(mPath + ": already committed");
+  if ((mFrames + frames) * mChannels * sizeof(float) > kMaxWavBytes)
+    return outOfRange(mPath + ": over the 4 GiB a WAV file can hold");
+  mInterleaved.resize(frames * mChannels);
+  for (size_t i = 0; i < frames; ++i)
+    for (size_t c = 0; c < mChannels; ++c) {
+      const float v = planar[c][i];
+      if (!std::isfinite(v))
+        return invalidArgument(mPath + ": sample " + std::to_string(mFrames + i) + " of channel " + std::to_string(c) +
+                               " is not finite; nothing written");
+      mInterleaved[i * mChannels + c] = v;
+    }
+  if (sf_writef_float(static_cast<SNDFILE*>(mFile), mInterleaved.data(), sf_count_t(frames)) != sf_count_t(frames))
+    return ioError(mPath + ": write failed");
+  mFrames += frames;
+  return Status::ok();
+}
+
+Status WavStreamWriter::commit() {
+  if (!mFile) return ioError(mPath + ": already committed");
+  const int closed = sf_close(static_cast<SNDFILE*>(mFile));
+  mFile = nullptr;
+  if (closed != 0) {
+    std::remove(mTmp.c_str());
+    return ioError(mPath + ": close failed");
+  }
+  Status s = checkOutputPath(mPath);  // the target may have changed meanwhile
+  if (s.isOk() && std::rename(mTmp.c_str(), mPath.c_str()) != 0) s = ioError(mPath + ": cannot write (rename failed)");
+  if (!s.isOk()) std::remove(mTmp.c_str());
+  return s;
 }
 
 }  // namespace earshot

@@ -1,3 +1,4 @@
+#include "earshot/core/math.h"
 #include "earshot/ir/ir_pipeline.h"
 
 #include <algorithm>
@@ -63,6 +64,8 @@ Result<OmniIrResult> computeIr(const RayTracer& tracer, const MaterialTable& mat
                                const BinauralReceiver* binaural) {
   const auto t0 = std::chrono::steady_clock::now();
   if (!isFinite(source) || !isFinite(listener)) return invalidArgument("source or listener position is not finite");
+  if (!withinCoordinateRange(source) || !withinCoordinateRange(listener))
+    return outOfRange("source or listener position is farther than 1e6 m from the origin on some axis");
   OmniIrResult out;
   IrSynthesisSettings synth;
   synth.sampleRateHz = s.sampleRateHz;

@@ -411,7 +411,7 @@ Status SceneReader::readSettings(const json& v, SceneSettings& out) {
     out.seed = *r;
   }
   if (v.contains("update_rate_hz")) {
-    auto r = number(v["update_rate_hz"], "settings.update_rate_hz", {0.0, 1000.0, true, " Hz"});
+    auto r = number(v["update_rate_hz"], "settings.update_rate_hz", {0.01, 1000.0, false, " Hz"});
     if (!r) return r.status();
     out.updateRateHz = *r;
   }

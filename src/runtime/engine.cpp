@@ -138,6 +138,7 @@ Status Engine::removeSource(uint32_t s) {
 Status Engine::setSourcePosition(uint32_t s, const Vec3d& p) {
   if (!validSource(s)) return invalidArgument("source " + std::to_string(s) + " does not exist");
   if (!isFinite(p)) return invalidArgument("source position is not finite");
+  if (!withinCoordinateRange(p)) return outOfRange("source position is farther than 1e6 m from the origin");
   for (int i = 0; i < 3; ++i) mSlots[s]->position[i].store((&p.x)[i], std::memory_order_relaxed);
   return Status::ok();
 }
@@ -152,6 +153,7 @@ Status Engine::setSourceGainDb(uint32_t s, double gainDb) {
 
 Status Engine::setListener(const Vec3d& position, const ListenerOrientation& o) {
   if (!isFinite(position)) return invalidArgument("listener position is not finite");
+  if (!withinCoordinateRange(position)) return outOfRange("listener position is farther than 1e6 m from the origin");
   EARSHOT_RETURN_IF_ERROR(validate(o));
   const double v[9] = {position.x, position.y, position.z, o.forward.x, o.forward.y, o.forward.z, o.up.x, o.up.y, o.up.z};
   for (int i = 0; i < 9; ++i) mListener[i].store(v[i], std::memory_order_relaxed);

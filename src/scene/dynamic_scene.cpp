@@ -12,6 +12,7 @@
 // traces in that frame; a movable mesh's BVH stays in the mesh's own frame
 // and its instance transform is "world -> frame" after "mesh -> world",
 // composed in double.
+#include "earshot/core/math.h"
 #include "earshot/scene/dynamic_scene.h"
 
 #include <embree3/rtcore.h>
@@ -142,8 +143,12 @@ Status checkTransform(const AffineTransform& t, const TriangleMesh& mesh, const 
   // corners: if they are in float range, every vertex is.
   for (int i = 0; i < 8; ++i) {
     const Vec3d corner{(i & 1) ? hi.x : lo.x, (i & 2) ? hi.y : lo.y, (i & 4) ? hi.z : lo.z};
-    if (!isFinite(Vec3f(t.apply(corner))))
+    const Vec3d placed = t.apply(corner);
+    if (!isFinite(Vec3f(placed)))
       return invalidArgument(what + ": transform takes the mesh beyond float range");
+    if (std::fabs(placed.x) > kMaxCoordinateMeters || std::fabs(placed.y) > kMaxCoordinateMeters ||
+        std::fabs(placed.z) > kMaxCoordinateMeters)
+      return outOfRange(what + ": transform takes the mesh farther than 1e6 m from the origin");
   }
   return Status::ok();
 }

@@ -1,4 +1,5 @@
 // Embree scenes over triangle meshes, shared by RayTracer and DynamicScene.
+#include "earshot/core/math.h"
 #include "embree_bvh.h"
 
 #include <algorithm>
@@ -42,7 +43,16 @@ Status validateMesh(const TriangleMesh& mesh) {
     return invalidArgument("mesh has " + std::to_string(mesh.triangles.size()) + " triangles but " +
                            std::to_string(mesh.materialIds.size()) + " material ids");
   for (size_t i = 0; i < mesh.positions.size(); ++i)
-    if (!isFinite(mesh.positions[i])) return invalidArgument("vertex " + std::to_string(i) + " is not finite");
+  {
+    const Vec3f& p = mesh.positions[i];
+    if (!isFinite(p)) return invalidArgument("vertex " + std::to_string(i) + " is not finite");
+    // Embree's builder asserts (aborts the process) from ~1.8e18; float
+    // geometry loses centimetres long before. One documented limit instead.
+    if (std::abs(p.x) > kMaxCoordinateMeters || std::abs(p.y) > kMaxCoordinateMeters ||
+        std::abs(p.z) > kMaxCoordinateMeters)
+      return outOfRange("vertex " + std::to_string(i) + " is farther than " + std::to_string(int(kMaxCoordinateMeters)) +
+                        " m from the origin on some axis");
+  }
   for (size_t t = 0; t < mesh.triangles.size(); ++t)
     for (uint32_t v : mesh.triangles[t])
       if (v >= mesh.positions.size())

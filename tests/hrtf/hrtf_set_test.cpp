@@ -466,7 +466,7 @@ void expectErrorNaming(const std::string& path, StatusCode code, const std::stri
 }
 
 TEST(HrtfSet, ErrorsNameTheFileAndTheProblem) {
-  expectErrorNaming(kDataDir + "does_not_exist.sofa", StatusCode::kNotFound, "cannot open");
+  expectErrorNaming(kDataDir + "does_not_exist.sofa", StatusCode::kNotFound, "HRTF file not found");
   expectErrorNaming(kDataDir + "not_sofa.sofa", StatusCode::kParseError, "not a readable SOFA file");
   expectErrorNaming(kDataDir + "pulse_truncated.sofa", StatusCode::kParseError, "not a readable SOFA file");
   expectErrorNaming(kDataDir + "pulse_convention_hrtf.sofa", StatusCode::kUnsupported, "SimpleFreeFieldHRTF");

@@ -305,7 +305,7 @@ TEST_F(SceneFileTest, HugeAndOverflowingNumbersAreRejected) {
   EXPECT_HAS(error(scene("", R"("settings": {"sample_rate": 48000.5})")),
              "scene.json: settings.sample_rate: 48000.5 Hz is not a whole number of Hz");
   EXPECT_HAS(error(scene("", R"("settings": {"update_rate_hz": 0})")),
-             "scene.json: settings.update_rate_hz: 0 Hz is outside (0, 1000] Hz");
+             "scene.json: settings.update_rate_hz: 0 Hz is outside [0.01, 1000] Hz");
   EXPECT_HAS(error(scene("", R"("settings": {"air": {"humidity_pct": 101}})")),
              "scene.json: settings.air.humidity_pct: 101 % is outside [0, 100] %");
   EXPECT_HAS(error(scene(R"("start": 1e6)")), "scene.json: sources[0].start: 1000000 s is outside [0, 86400] s");

@@ -132,6 +132,16 @@ void runCompare(const CompareCliOptions& o) {
       printError(msg);
     return;
   }
+  // Nothing compared is no verdict: a window too short for any metric, or a
+  // tolerance that disables them all, must not read as PASS.
+  size_t compared = 0;
+  for (const auto& c : cmpResult->channels)
+    for (const MetricDifference& r : c.rows) compared += r.verdict != Verdict::kSkipped ? 1 : 0;
+  if (compared == 0) {
+    printError(o.irPath + " vs " + o.refPath + ": no metric could be compared (every one is n/a or disabled" +
+               (o.window.empty() ? std::string(")") : "; is --window " + o.window + " too short?)"));
+    return;
+  }
   const int failures = cmpResult->failures;
   const double worst = cmpResult->worstJnd;
   std::vector<std::pair<size_t, analysis::Comparison>> perChannel;

@@ -193,7 +193,9 @@ const Registrar registrar([](CLI::App& root) {
   cmd->add_option("--rays", o->rays, "Rays traced (balanced: 16384)")->check(CLI::Range(1u, 100000000u));
   cmd->add_option("--bounces", o->bounces, "Reflections per ray (balanced: 12)")->check(CLI::Range(0u, 100000u));
   cmd->add_option("--length", o->length, "IR length in seconds, or auto")->capture_default_str();
-  cmd->add_option("--seed", o->seed, "Random seed (same seed, same output, any thread count)")->capture_default_str();
+  cmd->add_option("--seed", o->seed, "Random seed (same seed, same output, any thread count)")
+      ->check(kUnsigned64())
+      ->capture_default_str();
   cmd->add_option("--threads", o->threads, "Threads (0 = all cores)")->check(CLI::Range(0u, 256u))->capture_default_str();
   cmd->add_option("--air", o->air, "Air absorption: TEMP_C,HUMIDITY_PCT or off (ISO 9613-1)")->capture_default_str();
   cmd->add_option("--json", o->json, "Write statistics (rays, escaped energy, time per stage) to this JSON file");

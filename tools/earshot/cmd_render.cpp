@@ -106,10 +106,18 @@ int run(const RenderCliOptions& o, const CLI::App& cmd) {
   ro.minTurnDegrees = o.minTurn;
   Progress progress(o.quiet);
   ro.progress = [&](double f) { progress.update(f); };
+  // The output streams to a temporary file renamed at the end: a render of
+  // any length holds no output in memory, and the target is never partial.
+  auto writer = WavStreamWriter::open(o.output, 2, scene->settings.sampleRateHz);
+  if (!check(writer.status())) return 2;
+  ro.sink = [&](const float* l, const float* r, size_t n) {
+    const float* planar[2] = {l, r};
+    return (*writer)->write(planar, n);
+  };
   auto result = renderScene(*scene, ro);
   if (!check(result.status())) return 2;
   const RenderResult& r = *result;
-  if (!check(writeWavFloat(o.output, r.audio))) return 2;
+  if (!check((*writer)->commit())) return 2;
   if (!o.quiet) {
     for (const auto& line : r.log) std::cerr << "earshot: " << line << "\n";
     std::fprintf(stderr,
@@ -141,7 +149,7 @@ const Registrar registrar([](CLI::App& root) {
   cmd->add_option("--threads", o->threads, "Tracing threads (0 = all cores); the output does not depend on it")
       ->check(CLI::Range(0u, 256u))
       ->capture_default_str();
-  cmd->add_option("--seed", o->seed, "Override the scene's random seed");
+  cmd->add_option("--seed", o->seed, "Override the scene's random seed")->check(kUnsigned64());
   cmd->add_option("--from", o->from, "Start of the rendered window, seconds of scene time (reverberation from up to "
                                      "2 s before it is included)")
       ->check(CLI::Range(0.0, 86400.0))

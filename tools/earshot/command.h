@@ -58,4 +58,8 @@ double median(std::vector<double> values);
 CLI::Option* addVec3Option(CLI::App& app, const std::string& name, std::array<double, 3>& out,
                            const std::string& description);
 
+/** A validator for whole numbers in [0, 2^64): refuses a sign ("-1" would
+ *  wrap to 2^64 - 1), fractions and values that overflow, naming the text. */
+const CLI::Validator& kUnsigned64();
+
 }  // namespace earshot::cli

@@ -1,5 +1,7 @@
 // earshot: command-line front end. Subcommands register themselves; see command.h.
 #include <algorithm>
+#include <cerrno>
+#include <cstdlib>
 #include <cmath>
 #include <iostream>
 #include <map>
@@ -73,6 +75,21 @@ Result<SceneInputs> loadSceneInputs(const std::string& geometryPath, const std::
   if (!tracer.isOk()) return Status(tracer.status().code(), geometryPath + ": " + tracer.status().message());
   in.tracer = std::move(tracer.value());
   return in;
+}
+
+const CLI::Validator& kUnsigned64() {
+  static const CLI::Validator v(
+      [](std::string& text) -> std::string {
+        const bool digits = !text.empty() && text.size() <= 20 &&
+                            std::all_of(text.begin(), text.end(), [](char c) { return c >= '0' && c <= '9'; });
+        if (!digits) return "'" + text.substr(0, 32) + "' is not a whole number in [0, 2^64)";
+        errno = 0;
+        (void)std::strtoull(text.c_str(), nullptr, 10);
+        if (errno == ERANGE) return "'" + text + "' is not a whole number in [0, 2^64)";
+        return {};
+      },
+      "UINT64");
+  return v;
 }
 
 double median(std::vector<double> v) {

@@ -10,6 +10,12 @@ constexpr double kDefaultSpeedOfSound = 343.0;  ///< m/s (DESIGN.md)
  *  listener), metres: beyond it float geometry loses centimetres, and from
  *  ~1.8e18 Embree's BVH builder asserts and aborts the process. */
 constexpr double kMaxCoordinateMeters = 1e6;
+/** |x|, |y| and |z| all within kMaxCoordinateMeters (false for NaN). */
+template <class V>
+constexpr bool withinCoordinateRange(const V& p) {
+  return std::fabs(p.x) <= kMaxCoordinateMeters && std::fabs(p.y) <= kMaxCoordinateMeters &&
+         std::fabs(p.z) <= kMaxCoordinateMeters;
+}
 
 inline double dbToGain(double db) { return std::pow(10.0, db / 20.0); }
 inline double gainToDb(double g) { return 20.0 * std::log10(g); }

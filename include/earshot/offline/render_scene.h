@@ -49,6 +49,12 @@ struct RenderOptions {
   double minTurnDegrees = 5.0;
   /** Called now and then with the fraction done (0..1); from the calling thread. */
   std::function<void(double fraction)> progress;
+  /** Set: each rendered block goes here (left, right, frames), in order, and
+   *  RenderResult::audio stays empty, so a render of any length needs no
+   *  memory for its output (`earshot render` streams to its WAV). A non-ok
+   *  Status stops the render with it. Unset: the output is collected in
+   *  RenderResult::audio, within the memory limit. */
+  std::function<Status(const float* left, const float* right, size_t frames)> sink;
 };
 
 struct RenderResult {
@@ -64,7 +70,12 @@ struct RenderResult {
 };
 
 /** Renders `scene`. Errors name the file and what is wrong (unreadable
- *  geometry, audio, HRTF; a time window outside the scene). */
+ *  geometry, audio, HRTF; a time window outside the scene). Before
+ *  allocating, what the render holds in memory (every source's convolution
+ *  state for 10 s IRs, ~26 bytes per IR frame: 12.5 MB a source at 48 kHz;
+ *  the dry audio; the output when there is no sink) is estimated and refused
+ *  past defaultInputLimits().maxMemoryBytes; with a sink, an output longer
+ *  than a WAV holds (kMaxWavBytes) is refused before rendering. */
 Result<RenderResult> renderScene(const SceneDescription& scene, const RenderOptions& options);
 
 /** The scene's length when settings.durationSeconds is unset: the last dry
