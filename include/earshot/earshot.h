@@ -200,6 +200,13 @@ typedef struct earshot_context_info {
   uint32_t simulation_thread_running; /**< 1 while the built-in simulation thread runs */
   uint32_t last_simulation_sources;   /**< sources simulated by the last simulation step */
   double last_simulation_ms;          /**< wall time of the last simulation step */
+  /** Audio-path containment since creation: source blocks (of at most 256
+   *  frames) muted because an input sample was NaN, infinite or beyond 1e6
+   *  (the source is silent for that block; nothing of it enters any state),
+   *  and output blocks zeroed with every source's state cleared because the
+   *  output was not finite (an overflow). A source is never left poisoned. */
+  uint64_t muted_source_blocks;
+  uint64_t cleared_output_blocks;
 } earshot_context_info;
 
 /** Reads the context's settings and state into *info (info->struct_size
@@ -335,6 +342,15 @@ typedef struct earshot_gltf_settings {
    *  count is 0. Every other node joins one static mesh. */
   const char* const* movable_node_names;
   size_t movable_node_count;                 /**< [0, 65536] */
+  /** 0 (default): the file's buffer and image URIs must resolve inside its
+   *  folder (symlinks resolved first; absolute paths and .. that climb out
+   *  are refused: files from mods or users read only their own folder).
+   *  1: any path the process can read. */
+  int allow_outside_paths;
+  /** Most memory the file may make the engine allocate, estimated before
+   *  loading (triangles after instancing, buffers); 0: the default, 1 GiB.
+   *  A file past it is refused with EARSHOT_ERROR_OUT_OF_RANGE. */
+  uint64_t max_memory_bytes;
 } earshot_gltf_settings;
 
 /** Fills `settings` with the defaults (and struct_size). Any thread. */

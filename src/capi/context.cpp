@@ -250,6 +250,9 @@ earshot_status earshot_context_get_info(earshot_context* c, earshot_context_info
       i.last_simulation_sources = c->lastStepSources;
       i.last_simulation_ms = c->lastStepMs;
     }
+    const runtime::ContainmentStats contained = c->engine->containment();
+    i.muted_source_blocks = contained.mutedSourceChunks;
+    i.cleared_output_blocks = contained.clearedOutputChunks;
     *info = i;
     return EARSHOT_OK;
   });

@@ -272,7 +272,10 @@ earshot_status earshot_scene_load_gltf(earshot_scene* s, const earshot_gltf_sett
       materialMap = std::move(map.value());
     }
     const std::string path = settings->path;
-    auto loaded = loadGltfIntoScene(path, *s->materials, materialMap, movable, *s->dynamic);
+    InputLimits limits;
+    limits.allowOutsidePaths = settings->allow_outside_paths != 0;
+    if (settings->max_memory_bytes > 0) limits.maxMemoryBytes = settings->max_memory_bytes;
+    auto loaded = loadGltfIntoScene(path, *s->materials, materialMap, movable, *s->dynamic, limits);
     if (!loaded.isOk()) return fromStatus(&s->env, kFn, loaded.status());
     for (const std::string& w : loaded->warnings) s->env.logMessage(EARSHOT_LOG_WARNING, path + ": " + w);
 

@@ -576,6 +576,22 @@ void ConvolutionMixer::process(const float* const* inputs, float* const* outputs
   mImpl->process(inputs, outputs, frames);
 }
 
+void ConvolutionMixer::clearState() {
+  auto zero = [](AlignedFloats& a) { std::fill(a.data(), a.data() + a.size(), 0.0f); };
+  Impl& m = *mImpl;
+  zero(m.outBlock);
+  zero(m.timeBuf);
+  for (auto& lv : m.levels) {
+    zero(lv.accMain);
+    zero(lv.accDiff);
+    zero(lv.out);
+  }
+  for (auto& s : m.sources) {
+    zero(s->history);
+    for (auto& sl : s->levels) zero(sl.fdl);
+  }
+}
+
 size_t ConvolutionMixer::countSubnormalsInState() const {
   size_t count = 0;
   auto scan = [&](const AlignedFloats& a) {

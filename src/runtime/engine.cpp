@@ -38,6 +38,7 @@ struct Engine::Slot {
   std::unique_ptr<DirectVoice> voice;  // audio thread
   uint32_t voiceGeneration = ~0u;      // audio thread
   bool live = false;                   // audio thread: playing in this process() call
+  bool mutedChunk = false;             // audio thread: this chunk's input was not finite (muted)
   double appliedGain = 1.0;            // audio thread: gain at the end of the last chunk
   std::vector<float> scaled;           // audio thread: gained input for the mixer
   Slot() {
@@ -295,7 +296,17 @@ void Engine::process(const float* const* inputs, float* left, float* right, size
       const float from = float(slot.appliedGain), to = float(slot.gain.load(std::memory_order_relaxed));
       const float* in = inputs[i] + off;
       float* g = slot.scaled.data();
-      for (size_t k = 0; k < m; ++k) g[k] = in[k] * (from + (to - from) * float(k + 1) / float(m));
+      // Containment: a NaN, Inf or absurd sample mutes this source for the
+      // chunk before it reaches any state (no poisoned convolution).
+      bool bad = false;
+      for (size_t k = 0; k < m; ++k) bad |= !(std::fabs(in[k]) <= kMaxInputSample);
+      slot.mutedChunk = bad;
+      if (bad) {
+        std::fill(g, g + m, 0.0f);
+        mMutedSourceChunks.fetch_add(1, std::memory_order_relaxed);
+      } else {
+        for (size_t k = 0; k < m; ++k) g[k] = in[k] * (from + (to - from) * float(k + 1) / float(m));
+      }
       slot.appliedGain = to;
       mInputs[i] = g;
     }
@@ -310,9 +321,28 @@ void Engine::process(const float* const* inputs, float* left, float* right, size
       target.gain = slot.appliedGain;
       for (int b = 0; b < kNumBands; ++b) target.transmission[b] = slot.transmission[b].load(std::memory_order_relaxed);
       target.audible = slot.audible.load(std::memory_order_relaxed);
-      slot.voice->process(inputs[i] + off, left + off, right + off, m, target);
+      // A muted chunk feeds the voice the zeros the mixer got.
+      slot.voice->process(slot.mutedChunk ? slot.scaled.data() : inputs[i] + off, left + off, right + off, m, target);
+    }
+    // Containment of an overflow anywhere in the state: never a non-finite
+    // sample out, and no state that stays poisoned.
+    bool finite = true;
+    for (size_t k = 0; k < m; ++k) finite &= std::isfinite(left[off + k]) && std::isfinite(right[off + k]);
+    if (!finite) {
+      std::fill(left + off, left + off + m, 0.0f);
+      std::fill(right + off, right + off + m, 0.0f);
+      mMixer->clearState();
+      for (auto& slot : mSlots) slot->voice->reset();
+      mClearedOutputChunks.fetch_add(1, std::memory_order_relaxed);
     }
   }
+}
+
+ContainmentStats Engine::containment() const {
+  ContainmentStats s;
+  s.mutedSourceChunks = mMutedSourceChunks.load(std::memory_order_relaxed);
+  s.clearedOutputChunks = mClearedOutputChunks.load(std::memory_order_relaxed);
+  return s;
 }
 
 }  // namespace earshot::runtime

@@ -469,8 +469,9 @@ TriangleMesh extract(const TriangleMesh& mesh, uint32_t first, uint32_t count, c
 
 Result<GltfSceneMeshes> loadGltfIntoScene(const std::string& path, const MaterialTable& materials,
                                           const std::map<std::string, std::string>& materialMap,
-                                          const std::vector<std::string>& movableNodeNames, DynamicScene& scene) {
-  auto loaded = loadGltf(path, materials, materialMap);
+                                          const std::vector<std::string>& movableNodeNames, DynamicScene& scene,
+                                          const InputLimits& limits) {
+  auto loaded = loadGltf(path, materials, materialMap, limits);
   if (!loaded) return loaded.status();
   const GltfLoadResult& g = *loaded;
   std::vector<char> isMovable(g.nodes.size(), 0);

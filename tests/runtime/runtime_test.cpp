@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <memory>
 #include <numeric>
 #include <string>
@@ -253,6 +254,60 @@ TEST(Engine, RoundRobinSimulatesOneSourceAtATime) {
   }
   ASSERT_TRUE(e.simulate().isOk());
   EXPECT_EQ(e.lastSimulation().sourcesSimulated, 3u);
+}
+
+// Issue 17: a NaN, Inf or absurd input sample mutes its source for that
+// block and poisons nothing: the output is bit for bit the output of the same
+// run with that block silent, before and after, for a moving (per-block
+// direct) and a static (direct in the IR) source; the events are counted.
+TEST(Engine, NonFiniteInputMutesItsBlockAndPoisonsNothing) {
+  auto model = test::ku100();
+  ASSERT_TRUE(model);
+  test::Room room;
+  const size_t block = 256, blocks = 60, bad = 20;
+  auto run = [&](DirectMode mode, float poison, bool silenceInstead, ContainmentStats* stats) {
+    EngineSettings es = test::fastSettings();
+    auto engine = Engine::create(es, model);
+    EXPECT_TRUE(engine.isOk());
+    Engine& e = **engine;
+    e.setScene(room.tracer, room.materials);
+    SourceSettings ss;
+    ss.direct = mode;
+    auto id = e.addSource(ss);
+    EXPECT_TRUE(e.setSourcePosition(*id, {2, 3, 1.5}).isOk());
+    EXPECT_TRUE(e.setListener({7, 4, 1.6}, {{1, 0, 0}, {0, 0, 1}}).isOk());
+    EXPECT_TRUE(e.simulate().isOk());
+    std::vector<float> dry(block * blocks), l(block * blocks), r(block * blocks);
+    Pcg32 rng(4, 4);
+    for (float& v : dry) v = rng.uniform() - 0.5f;
+    if (silenceInstead) std::fill(dry.begin() + bad * block, dry.begin() + (bad + 1) * block, 0.0f);
+    else dry[bad * block + 77] = poison;
+    std::vector<const float*> inputs(es.maxSources, nullptr);
+    for (size_t b = 0; b < blocks; ++b) {
+      inputs[*id] = dry.data() + b * block;
+      e.process(inputs.data(), l.data() + b * block, r.data() + b * block, block);
+    }
+    *stats = e.containment();
+    l.insert(l.end(), r.begin(), r.end());
+    return l;
+  };
+  for (DirectMode mode : {DirectMode::kPerBlock, DirectMode::kInImpulseResponse}) {
+    ContainmentStats clean{}, poisoned{};
+    const std::vector<float> reference = run(mode, 0.0f, true, &clean);
+    EXPECT_EQ(clean.mutedSourceChunks, 0u);
+    double energy = 0;
+    for (float v : reference) energy += double(v) * v;
+    ASSERT_GT(energy, 0.0);
+    for (float poison : {std::numeric_limits<float>::quiet_NaN(), std::numeric_limits<float>::infinity(), -3e30f}) {
+      const std::vector<float> out = run(mode, poison, false, &poisoned);
+      EXPECT_EQ(poisoned.mutedSourceChunks, 1u) << poison;
+      EXPECT_EQ(poisoned.clearedOutputChunks, 0u);
+      ASSERT_EQ(out.size(), reference.size());
+      size_t differ = 0;
+      for (size_t i = 0; i < out.size(); ++i) differ += (out[i] == reference[i]) ? 0 : 1;  // NaN differs too
+      EXPECT_EQ(differ, 0u) << "poison " << poison << (mode == DirectMode::kPerBlock ? " per block" : " in IR");
+    }
+  }
 }
 
 TEST(Engine, BadArgumentsAreErrors) {

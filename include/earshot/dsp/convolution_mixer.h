@@ -61,6 +61,13 @@ class ConvolutionMixer {
    *  Thread: the audio thread only. Real-time safe. */
   void process(const float* const* inputs, float* const* outputs, size_t frames);
 
+  /** Zeroes every source's input history and spectra and every pending
+   *  output (the IRs stay): the mixer continues as if all inputs had been
+   *  silent. For the engine's containment of a state that became non-finite.
+   *  Thread: the audio thread only. Real-time safe (no allocation or lock;
+   *  time in proportion to the state, ~ sources x longest IR). */
+  void clearState();
+
   /** Diagnostic for tests: counts subnormal floats in the internal state
    *  (input history, spectra, accumulators, output buffers). Thread: the
    *  audio thread or while no one calls process(). Not real-time safe in

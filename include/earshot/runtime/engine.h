@@ -77,6 +77,20 @@ struct SimulationStats {
   double traceMs = 0, synthesisMs = 0, prepareMs = 0, totalMs = 0;
 };
 
+/** What the audio path contained (Engine::containment()). */
+struct ContainmentStats {
+  /** Source chunks (of at most 256 frames) muted because an input sample was
+   *  NaN, infinite or beyond kMaxInputSample. */
+  uint64_t mutedSourceChunks = 0;
+  /** Output chunks zeroed, with every source's convolution and direct-sound
+   *  state cleared, because the output was not finite (an overflow). */
+  uint64_t clearedOutputChunks = 0;
+};
+
+/** An input sample beyond this magnitude (+120 dB over full scale) is taken
+ *  for corrupt and its chunk muted like a NaN. */
+constexpr float kMaxInputSample = 1e6f;
+
 class Engine {
  public:
   /** Allocates everything the audio thread will use. Thread: any but audio. */
@@ -87,6 +101,8 @@ class Engine {
   Engine& operator=(const Engine&) = delete;
 
   const EngineSettings& settings() const { return mSettings; }
+  /** Counts of NaN/Inf containment on the audio path since creation. Any thread. */
+  ContainmentStats containment() const;
   size_t latencyFrames() const;
 
   // ---- game thread ----
@@ -138,6 +154,7 @@ class Engine {
   std::mutex mSimulationMutex;  // serialises simulate()
   uint32_t mNextRoundRobin = 0;
   SimulationStats mStats;
+  std::atomic<uint64_t> mMutedSourceChunks{0}, mClearedOutputChunks{0};  // written by the audio thread
 
   std::vector<const float*> mInputs;  // audio thread scratch
 };

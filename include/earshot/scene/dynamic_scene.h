@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "earshot/core/status.h"
+#include "earshot/io/input_file.h"
 #include "earshot/core/vec3.h"
 #include "earshot/materials/material.h"
 #include "earshot/scene/ray_tracer.h"
@@ -151,6 +152,7 @@ struct GltfSceneMeshes {
  *  invertible; on failure nothing is added to the scene. Game thread. */
 Result<GltfSceneMeshes> loadGltfIntoScene(const std::string& path, const MaterialTable& materials,
                                           const std::map<std::string, std::string>& materialMap,
-                                          const std::vector<std::string>& movableNodeNames, DynamicScene& scene);
+                                          const std::vector<std::string>& movableNodeNames, DynamicScene& scene,
+                                          const InputLimits& limits = defaultInputLimits());
 
 }  // namespace earshot
