@@ -16,6 +16,7 @@
 #include "earshot/materials/material.h"
 #include "earshot/render/dry_audio.h"
 #include "earshot/runtime/engine.h"
+#include "earshot/scene/enclosure.h"
 #include "earshot/scene/gltf_loader.h"
 #include "earshot/scene/ray_tracer.h"
 
@@ -131,6 +132,15 @@ Result<RenderResult> renderScene(const SceneDescription& scene, const RenderOpti
   auto tracer = RayTracer::create(mesh);
   if (!tracer.isOk()) return Status(tracer.status().code(), scene.geometryPath + ": " + tracer.status().message());
   std::shared_ptr<const RayTracer> sharedTracer = std::move(tracer.value());
+  if (!sharedTracer->empty()) {  // valid, but a listener outside a closed room hears nothing of it
+    const bool closed = isClosedMesh(mesh);
+    if (enclosureOf(*sharedTracer, closed, scene.listener.trajectory.at(0).position) == Enclosure::kOutside)
+      out.log.push_back("warning: the listener starts outside the closed volume of " + scene.geometryPath);
+    for (const SceneSource& src : scene.sources)
+      if (enclosureOf(*sharedTracer, closed, src.trajectory.at(src.startSeconds).position) == Enclosure::kOutside)
+        out.log.push_back("warning: source \"" + src.name + "\" starts outside the closed volume of " +
+                          scene.geometryPath);
+  }
 
   // HRTF and engine.
   auto model = loadBinauralModel(ss.hrtfPath, fs);

@@ -15,6 +15,7 @@
 #include "earshot/io/wav.h"
 #include "earshot/ir/ir_pipeline.h"
 #include "earshot/materials/material.h"
+#include "earshot/scene/enclosure.h"
 #include "earshot/scene/gltf_loader.h"
 #include "earshot/scene/ray_tracer.h"
 
@@ -119,6 +120,16 @@ int run(const IrOptions& o, const CLI::App& cmd) {
   ThreadPool pool(o.threads);
   const Vec3d source{o.source[0], o.source[1], o.source[2]};
   const Vec3d listener{o.listener[0], o.listener[1], o.listener[2]};
+  // Valid but probably not meant: say so (stderr and --json "warnings").
+  std::vector<std::string> warnings = scene->warnings;
+  if (!tracer->empty()) {
+    const bool closed = isClosedMesh(mesh);
+    for (auto [p, name] : {std::pair{listener, "listener"}, std::pair{source, "source"}})
+      if (enclosureOf(*tracer, closed, p) == Enclosure::kOutside)
+        warn(std::string(name) + " at " + std::to_string(p.x) + "," + std::to_string(p.y) + "," + std::to_string(p.z) +
+                 " lies outside the closed volume of " + o.geometry,
+             warnings);
+  }
   auto result = computeIr(*tracer, materials, source, listener, settings, pool, binaural.get());
   if (!check(result.status())) return 2;
   const OmniIrResult& r = *result;
@@ -164,6 +175,12 @@ int run(const IrOptions& o, const CLI::App& cmd) {
                       {"synthesis", r.timings.synthesisMs}, {"pipeline", r.timings.totalMs}};
   stats["ir_samples"] = r.ir.frameCount();
   stats["ir_seconds"] = double(r.ir.frameCount()) / settings.sampleRateHz;
+
+  bool silent = true;
+  for (const auto& ch : r.ir.channels)
+    for (float v : ch) silent = silent && v == 0.0f;
+  if (silent) warn("the IR is silent: nothing of the source reaches the listener", warnings);
+  stats["warnings"] = warnings;
 
   if (!check(writeWavFloat(o.output, r.ir))) return 2;
   stats["total_ms"] = msSince(t0);

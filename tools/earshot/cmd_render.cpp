@@ -118,8 +118,9 @@ int run(const RenderCliOptions& o, const CLI::App& cmd) {
   if (!check(result.status())) return 2;
   const RenderResult& r = *result;
   if (!check((*writer)->commit())) return 2;
+  for (const auto& line : r.log)  // warnings even with --quiet
+    if (!o.quiet || line.rfind("warning:", 0) == 0) std::cerr << "earshot: " << line << "\n";
   if (!o.quiet) {
-    for (const auto& line : r.log) std::cerr << "earshot: " << line << "\n";
     std::fprintf(stderr,
                  "earshot: rendered %.2f s of audio in %.2f s (%.1fx real time; simulation %.2f s for %llu source IRs, "
                  "audio %.2f s) to %s\n",

@@ -42,7 +42,12 @@ struct SceneInputs {
   MaterialTable materials;
   TriangleMesh mesh;
   std::unique_ptr<RayTracer> tracer;
+  std::vector<std::string> warnings;  ///< the loader's (already printed)
 };
+
+/** Prints "earshot: warning: <text>" on stderr and appends it to `warnings`
+ *  (a command's --json lists them). */
+void warn(const std::string& text, std::vector<std::string>& warnings);
 
 /** Loads the materials (a file, or the built-in default set), the material
  *  map (optional) and the glTF geometry (empty path: free field), prints the

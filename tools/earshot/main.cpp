@@ -68,7 +68,7 @@ Result<SceneInputs> loadSceneInputs(const std::string& geometryPath, const std::
   if (!geometryPath.empty()) {
     auto g = loadGltf(geometryPath, in.materials, materialMap);
     if (!g.isOk()) return g.status();
-    for (const auto& w : g->warnings) std::cerr << "earshot: warning: " << w << "\n";
+    for (const auto& w : g->warnings) warn(w, in.warnings);
     in.mesh = std::move(g->mesh);
   }
   auto tracer = RayTracer::create(in.mesh);
@@ -90,6 +90,11 @@ const CLI::Validator& kUnsigned64() {
       },
       "UINT64");
   return v;
+}
+
+void warn(const std::string& text, std::vector<std::string>& warnings) {
+  std::cerr << "earshot: warning: " << text << "\n";
+  warnings.push_back(text);
 }
 
 double median(std::vector<double> v) {
