@@ -453,6 +453,13 @@ Result<std::vector<BandMetrics>> analyzeIr(const std::vector<float>& ir, double 
   const double origin = options.windowOrigin == WindowOrigin::kDirectSound ? double(onset) / rateHz : 0.0;
   const double ws = (options.windowStartS + origin) * rateHz, we = (options.windowEndS + origin) * rateHz;
   if (we <= 0.0 || ws >= double(n)) return invalidArgument("window leaves no samples of the impulse response");
+  if (we - ws < 1.0)
+  {
+    char what[96];
+    std::snprintf(what, sizeof what, "window of %.3g s is shorter than one sample at %.0f Hz",
+                  options.windowEndS - options.windowStartS, rateHz);
+    return invalidArgument(what);
+  }
   // Applies the window to a signal whose sample j is IR sample j - offset.
   auto applyWindow = [&](std::vector<double>& y, size_t offset) {
     for (size_t j = 0; j < y.size(); ++j) {
@@ -476,6 +483,20 @@ Result<std::vector<BandMetrics>> analyzeIr(const std::vector<float>& ir, double 
   // Scratch reused across calls on this thread (page faults on fresh
   // multi-megabyte buffers cost as much as the filtering itself).
   thread_local std::vector<double> y, y2;
+  // A window that ends before 50 / 80 ms after the direct sound cannot tell
+  // early from late energy: those ratios are n/a, not +inf or a number.
+  auto cutByWindow = [&](BandMetrics& m) {
+    const double endAfterOnsetS = (we - double(onset)) / rateHz;
+    auto cutShort = [&](Metric metric, double& value, double needS) {
+      if (endAfterOnsetS >= needS) return;
+      value = kNaN;
+      m.naReason[size_t(metric)] = "the window ends " + fmt1(1000.0 * endAfterOnsetS) + " ms after the direct sound, "
+                                   "before " + fmt1(1000.0 * needS) + " ms";
+    };
+    cutShort(Metric::kC50, m.c50Db, 0.050);
+    cutShort(Metric::kD50, m.d50, 0.050);
+    cutShort(Metric::kC80, m.c80Db, 0.080);
+  };
   auto finishBand = [&](int b, std::vector<double>& band, size_t guard) {
     applyWindow(band, guard);
     for (double& v : band) v *= v;
@@ -497,6 +518,7 @@ Result<std::vector<BandMetrics>> analyzeIr(const std::vector<float>& ir, double 
     limitDecay(Metric::kEdt, m.edtS, kMinEdtCycles);
     limitDecay(Metric::kT20, m.t20S, kMinTCycles);
     limitDecay(Metric::kT30, m.t30S, kMinTCycles);
+    cutByWindow(m);
   };
   std::vector<int> available;
   for (int b = 0; b < kNumBands; ++b) {
@@ -529,6 +551,7 @@ Result<std::vector<BandMetrics>> analyzeIr(const std::vector<float>& ir, double 
   for (double& v : y) v *= v;
   BandMetrics& bb = out[kBroadbandIndex];
   bb = analyzeEnergy(y.data(), n, rateHz, (long long)onset, 0, options.noise);
+  cutByWindow(bb);
   bb.bandCenterHz = 0.0;
   return out;
 }

@@ -8,6 +8,8 @@
 #include <utility>
 #include <vector>
 
+#include "earshot/core/math.h"
+
 namespace earshot {
 
 bool isClosedMesh(const TriangleMesh& mesh) {
@@ -41,7 +43,7 @@ bool isClosedMesh(const TriangleMesh& mesh) {
 }
 
 Enclosure enclosureOf(const RayTracer& tracer, bool closed, const Vec3d& p) {
-  if (!closed || tracer.empty()) return Enclosure::kOpenMesh;
+  if (!closed || tracer.empty() || !withinCoordinateRange(p)) return Enclosure::kOpenMesh;
   // Directions no axis-aligned room has an edge along.
   const Vec3f dirs[3] = {normalize(Vec3f{0.5773f, 0.6112f, 0.5413f}), normalize(Vec3f{-0.7071f, 0.3162f, -0.6325f}),
                          normalize(Vec3f{0.1104f, -0.8944f, 0.4336f})};

@@ -3,7 +3,10 @@
 
 #include <embree3/rtcore.h>
 
+#include <cmath>
 #include <string>
+
+#include "earshot/core/math.h"
 
 #include "embree_bvh.h"
 
@@ -34,7 +37,21 @@ Result<std::unique_ptr<RayTracer>> RayTracer::create(const TriangleMesh& mesh) {
 RayTracer::RayTracer() = default;
 RayTracer::~RayTracer() = default;
 
+namespace {
+/** What Embree can take: it asserts (aborts the process) on rays with huge
+ *  or non-finite origins. The callers validate positions (kMaxCoordinateMeters);
+ *  this keeps any ray that slipped through from reaching Embree at all. */
+bool traceable(const Ray& ray) {
+  return withinCoordinateRange(ray.origin) && std::isfinite(ray.direction.x) && std::isfinite(ray.direction.y) &&
+         std::isfinite(ray.direction.z) && !(ray.tNear > ray.tFar) && std::isfinite(ray.tNear);
+}
+}  // namespace
+
 bool RayTracer::intersect(const Ray& ray, Hit& hit) const {
+  if (!traceable(ray)) {
+    hit.t = -1.0f;
+    return false;
+  }
   RTCIntersectContext ctx;
   rtcInitIntersectContext(&ctx);
   RTCRayHit rh;
@@ -74,6 +91,7 @@ bool RayTracer::intersect(const Ray& ray, Hit& hit) const {
 }
 
 bool RayTracer::occluded(const Ray& ray) const {
+  if (!traceable(ray)) return false;
   RTCIntersectContext ctx;
   rtcInitIntersectContext(&ctx);
   RTCRay r;

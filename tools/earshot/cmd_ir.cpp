@@ -12,6 +12,7 @@
 #include "command.h"
 #include "earshot/core/thread_pool.h"
 #include "earshot/io/atomic_file.h"
+#include "earshot/io/input_file.h"
 #include "earshot/io/wav.h"
 #include "earshot/ir/ir_pipeline.h"
 #include "earshot/materials/material.h"
@@ -116,6 +117,11 @@ int run(const IrOptions& o, const CLI::App& cmd) {
     binaural->model = *model;
     stats["hrtf"] = binaural->model->hrtf().path();
   }
+
+  // Every input is read now: refuse an output that would replace one (or a
+  // FIFO, a device) before computing (the writes check again).
+  for (const std::string* out : {&o.output, &o.json})
+    if (!out->empty() && !check(checkOutputPath(*out))) return 2;
 
   ThreadPool pool(o.threads);
   const Vec3d source{o.source[0], o.source[1], o.source[2]};

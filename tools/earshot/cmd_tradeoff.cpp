@@ -24,6 +24,7 @@
 #include <nlohmann/json.hpp>
 
 #include "command.h"
+#include "earshot/io/input_file.h"
 #include "earshot/analysis/compare.h"
 #include "earshot/analysis/room_acoustics.h"
 #include "earshot/core/thread_pool.h"
@@ -253,6 +254,11 @@ int run(const TradeoffOptions& o) {
   // Reference IR: a file, or the 'reference' quality preset.
   std::vector<float> referenceIr;
   double rateHz = base.sampleRateHz;
+  // Refuse an output that would replace an input (or a FIFO, a device)
+  // before the reference run and the sweep (the writes check again).
+  if (!o.reference.empty()) rememberInputFile(o.reference);
+  for (const std::string* out : {&o.output, &o.plot})
+    if (!out->empty() && !check(checkOutputPath(*out))) return 2;
   if (!o.reference.empty()) {
     auto ref = readAudioFile(o.reference);
     if (!ref.isOk()) {
