@@ -1,36 +1,55 @@
 #include <dlfcn.h>
+#include <unistd.h>
 
 #include <cstdlib>
 #include <fstream>
 
 #include "earshot/hrtf/hrtf_set.h"
+#include "install_layout.h"
 
+#ifndef EARSHOT_SOFA_PROBE_BUILD_PATH
+#define EARSHOT_SOFA_PROBE_BUILD_PATH ""
+#endif
 #ifndef EARSHOT_HRTF_DIR
 #define EARSHOT_HRTF_DIR ""
 #endif
 
 namespace earshot::hrtf {
 
-namespace {
+namespace detail {
 
-bool readable(const std::string& path) { return std::ifstream(path, std::ios::binary).good(); }
-
-/** The installed layout: the binary holding this code (libearshot.so, or an
- *  executable linked statically) sits in PREFIX/lib, PREFIX/lib/<multiarch>
- *  or PREFIX/bin, and `cmake --install` puts the set in
- *  PREFIX/share/earshot/hrtf. Empty when not found there. */
-std::string installedHrtfFile() {
+std::string installedFile(const std::string& relative, bool executable) {
   Dl_info info{};
-  if (dladdr(reinterpret_cast<void*>(&defaultHrtfPath), &info) == 0 || info.dli_fname == nullptr) return "";
+  if (dladdr(reinterpret_cast<void*>(&installedFile), &info) == 0 || info.dli_fname == nullptr) return "";
   const std::string binary = info.dli_fname;
   const size_t slash = binary.rfind('/');
   if (slash == std::string::npos) return "";
   const std::string dir = binary.substr(0, slash);
-  for (const char* up : {"/../share/earshot/hrtf/", "/../../share/earshot/hrtf/"}) {
-    const std::string path = dir + up + kDefaultHrtfFileName;
-    if (readable(path)) return path;
+  for (const char* up : {"/../", "/../../"}) {
+    const std::string path = dir + up + relative;
+    if (::access(path.c_str(), executable ? X_OK : R_OK) == 0) return path;
   }
   return "";
+}
+
+std::string sofaProbePath() {
+  const char* env = std::getenv("EARSHOT_SOFA_PROBE");
+  if (env != nullptr && env[0] != '\0') return ::access(env, X_OK) == 0 ? std::string(env) : std::string();
+  std::string installed = installedFile("libexec/earshot/earshot-sofa-probe", true);
+  if (!installed.empty()) return installed;
+  const std::string built = EARSHOT_SOFA_PROBE_BUILD_PATH;
+  if (!built.empty() && ::access(built.c_str(), X_OK) == 0) return built;
+  return "";
+}
+
+}  // namespace detail
+
+namespace {
+
+bool readable(const std::string& path) { return std::ifstream(path, std::ios::binary).good(); }
+
+std::string installedHrtfFile() {
+  return detail::installedFile(std::string("share/earshot/hrtf/") + kDefaultHrtfFileName, false);
 }
 
 }  // namespace

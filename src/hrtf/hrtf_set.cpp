@@ -32,8 +32,9 @@
 #include "earshot/io/input_file.h"
 
 #include <mysofa.h>
+#include <fcntl.h>
 #include <signal.h>
-#include <sys/resource.h>
+#include <spawn.h>
 #include <sys/wait.h>
 #include <time.h>
 #include <unistd.h>
@@ -45,13 +46,18 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <system_error>
 #include <thread>
+#include <vector>
+
+extern char** environ;
 
 #include "earshot/core/math.h"
 #include "earshot/hrtf/coordinates.h"
 #include "hrir_dsp.h"
+#include "install_layout.h"
 #include "sphere_triangulation.h"
 
 namespace earshot::hrtf {
@@ -181,48 +187,35 @@ std::vector<CellBlock> cellBlocks() {
 /** Seconds libmysofa may take to read a file in the probe. */
 constexpr int kSofaProbeSeconds = 10;
 
-#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
-constexpr bool kSanitized = true;
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer)
-constexpr bool kSanitized = true;
-#else
-constexpr bool kSanitized = false;
-#endif
-#else
-constexpr bool kSanitized = false;
-#endif
-
 /** libmysofa (an HDF5 reader in C) hangs on some malformed files and may
- *  allocate what a header claims; it offers no time-out or limit. So a
- *  child process reads the file first, under an address-space limit of
- *  `maxBytes` beyond what it inherits and a deadline; only a file it read
- *  and validated in time is read in this process. A hang, a crash or an
+ *  allocate what a header claims; it offers no time-out or limit. So
+ *  earshot-sofa-probe (tools/sofa_probe), a separate small program started
+ *  with posix_spawn, reads the file first under an address-space limit of
+ *  `maxBytes` and a deadline of kSofaProbeSeconds; only a file it read and
+ *  validated in time is read in this process. A hang, a crash or an
  *  allocation failure there is a refused file here, never a hung or dead
- *  host. (The child only calls libmysofa and _exit: fork-safe with threads,
- *  since glibc's malloc is.) */
+ *  host. (A fork without exec would be cheaper but is not safe in a
+ *  multi-threaded host: CI saw the child of a process running Embree's
+ *  threads stall for 10 s.) Without the program (not installed, or
+ *  $EARSHOT_SOFA_PROBE wrong) or when the host reaps children itself, the
+ *  file is read directly, as the dimension checks in load() still guard
+ *  memory. */
 Status probeSofaFile(const std::string& path, uint64_t maxBytes) {
-  const pid_t pid = ::fork();
-  if (pid < 0) return Status::ok();  // cannot probe: read it directly, as before
-  if (pid == 0) {
-    if (!kSanitized) {  // sanitizers reserve terabytes of address space up front
-      long pages = 0;
-      if (FILE* f = std::fopen("/proc/self/statm", "r")) {
-        if (std::fscanf(f, "%ld", &pages) != 1) pages = 0;
-        std::fclose(f);
-      }
-      const double current = double(pages) * double(::sysconf(_SC_PAGESIZE));
-      rlimit lim{};
-      lim.rlim_cur = lim.rlim_max = rlim_t(std::min(current + double(maxBytes), 1.0e18));
-      ::setrlimit(RLIMIT_AS, &lim);
-    }
-    ::alarm(kSofaProbeSeconds + 1);
-    int err = 0;
-    MYSOFA_HRTF* h = mysofa_load(path.c_str(), &err);
-    if (!h) ::_exit(err == MYSOFA_NO_MEMORY ? 3 : 1);
-    const int check = mysofa_check(h);
-    ::_exit(check == MYSOFA_OK ? 0 : 1);
-  }
+  const std::string probe = detail::sofaProbePath();
+  if (probe.empty()) return Status::ok();
+  posix_spawn_file_actions_t actions;
+  if (posix_spawn_file_actions_init(&actions) != 0) return Status::ok();
+  for (int fd : {0, 1, 2}) posix_spawn_file_actions_addopen(&actions, fd, "/dev/null", fd == 0 ? O_RDONLY : O_WRONLY, 0);
+  const std::string bytes = std::to_string(maxBytes);
+  std::vector<char> arg0(probe.begin(), probe.end()), arg1(path.begin(), path.end()), arg2(bytes.begin(), bytes.end());
+  arg0.push_back('\0');
+  arg1.push_back('\0');
+  arg2.push_back('\0');
+  char* argv[] = {arg0.data(), arg1.data(), arg2.data(), nullptr};
+  pid_t pid = -1;
+  const int spawned = posix_spawn(&pid, probe.c_str(), &actions, nullptr, argv, environ);
+  posix_spawn_file_actions_destroy(&actions);
+  if (spawned != 0) return Status::ok();  // cannot probe: read it directly
   const timespec step{0, 2 * 1000 * 1000};
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(kSofaProbeSeconds);
   int status = 0;
@@ -243,6 +236,7 @@ Status probeSofaFile(const std::string& path, uint64_t maxBytes) {
   if (WIFEXITED(status) && WEXITSTATUS(status) == 3)
     return outOfRange(path + ": reading it takes more than the memory limit of " + formatBytes(maxBytes) +
                       " (--max-memory)");
+  if (WIFEXITED(status) && WEXITSTATUS(status) == 2) return Status::ok();  // a probe of another version
   return parseError(path + ": not a usable SOFA file (libmysofa failed reading it: " +
                     (WIFSIGNALED(status) ? "signal " + std::to_string(WTERMSIG(status)) : std::string("out of memory")) +
                     ")");
@@ -263,7 +257,15 @@ Result<std::shared_ptr<const HrtfSet>> HrtfSet::load(const std::string& sofaPath
   const InputLimits limits = defaultInputLimits();
   auto size = checkInputFile(sofaPath, "HRTF file", limits.maxMemoryBytes);
   if (!size) return size.status();
-  EARSHOT_RETURN_IF_ERROR(probeSofaFile(sofaPath, limits.maxMemoryBytes));
+  // The set earshot ships and installs is trusted (and loaded by every
+  // context that names none): only other files pay the probe (~160 ms for
+  // the 2354-direction KU100 set).
+  bool shipped = false;
+  if (auto def = defaultHrtfPath(); def.isOk()) {
+    std::error_code e1, e2;
+    shipped = std::filesystem::equivalent(sofaPath, *def, e1) && !e1 && !e2;
+  }
+  if (!shipped) EARSHOT_RETURN_IF_ERROR(probeSofaFile(sofaPath, limits.maxMemoryBytes));
   int err = 0;
   std::unique_ptr<MYSOFA_HRTF, SofaDeleter> raw(mysofa_load(sofaPath.c_str(), &err));
   if (!raw) {

@@ -5,7 +5,14 @@
 #include <gtest/gtest.h>
 #include <mysofa.h>
 
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <thread>
 #include <cmath>
 #include <cstdio>
 #include <complex>
@@ -487,6 +494,119 @@ TEST(HrtfSet, DefaultPathFindsTheShippedSetAndHonoursTheEnvironment) {
   ASSERT_FALSE(missing.isOk());
   EXPECT_NE(missing.status().message().find(kDataDir), std::string::npos);
   EXPECT_NE(missing.status().message().find("EARSHOT_HRTF_DIR"), std::string::npos);
+}
+
+
+// --- The SOFA probe (issue 17): files earshot does not ship are read first by
+// earshot-sofa-probe in a separate process under a memory limit and a
+// deadline. $EARSHOT_SOFA_PROBE swaps in scripts that behave as libmysofa
+// does on hostile files (hang, crash, run out of memory) or that record
+// their call and run the real probe.
+
+struct ProbeFixture {
+  std::string dir;
+  ProbeFixture() {
+    char tmpl[] = "/tmp/earshot_probe_XXXXXX";
+    dir = ::mkdtemp(tmpl);
+  }
+  ~ProbeFixture() {
+    unsetenv("EARSHOT_SOFA_PROBE");
+    std::system(("rm -rf '" + dir + "'").c_str());
+  }
+  std::string script(const std::string& name, const std::string& body) const {
+    const std::string path = dir + "/" + name;
+    std::FILE* f = std::fopen(path.c_str(), "w");
+    std::fprintf(f, "#!/bin/sh\n%s\n", body.c_str());
+    std::fclose(f);
+    ::chmod(path.c_str(), 0755);
+    return path;
+  }
+  std::string copyOf(const std::string& src, const std::string& name) const {
+    const std::string path = dir + "/" + name;
+    std::system(("cp '" + src + "' '" + path + "'").c_str());
+    return path;
+  }
+};
+
+TEST(HrtfSetProbe, UserFileIsReadByTheProbeFirstWhileTheHostRunsThreads) {
+  ProbeFixture fx;
+  const std::string user = fx.copyOf(kPulse, "user.sofa");
+  const std::string log = fx.dir + "/calls";
+  // The real probe, found as HrtfSet::load finds it without the variable.
+  const std::string real = EARSHOT_SOFA_PROBE_BUILD_PATH;
+  setenv("EARSHOT_SOFA_PROBE", fx.script("probe", "echo \"$1 $2\" >> '" + log + "'\nexec '" + real + "' \"$@\"").c_str(), 1);
+  // Threads allocating and freeing throughout, as a game's or Embree's do:
+  // the probe is a fresh process, so none of their locks can stall it.
+  std::atomic<bool> stop{false};
+  std::vector<std::thread> busy;
+  for (int t = 0; t < 3; ++t)
+    busy.emplace_back([&stop] {
+      for (std::size_t n = 1000; !stop.load(); n = (n * 7919) % 100000 + 1000) std::vector<double> v(n, 1.0);
+    });
+  for (int i = 0; i < 5; ++i) {
+    auto r = HrtfSet::load(user, 48000.0);
+    EXPECT_TRUE(r.isOk()) << r.status().message();
+  }
+  stop = true;
+  for (auto& t : busy) t.join();
+  std::FILE* f = std::fopen(log.c_str(), "r");
+  ASSERT_NE(f, nullptr) << "the probe never ran";
+  int lines = 0;
+  char buf[4096];
+  while (std::fgets(buf, sizeof buf, f)) {
+    ++lines;
+    EXPECT_NE(std::string(buf).find(user), std::string::npos) << buf;
+  }
+  std::fclose(f);
+  EXPECT_EQ(lines, 5);
+}
+
+TEST(HrtfSetProbe, AProbeThatOutlivesTheDeadlineRefusesTheFile) {
+  ProbeFixture fx;
+  const std::string user = fx.copyOf(kPulse, "user.sofa");
+  setenv("EARSHOT_SOFA_PROBE", fx.script("probe", "exec sleep 600").c_str(), 1);
+  const auto t0 = std::chrono::steady_clock::now();
+  auto r = HrtfSet::load(user, 48000.0);
+  const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  ASSERT_FALSE(r.isOk());
+  EXPECT_EQ(r.status().code(), StatusCode::kParseError);
+  EXPECT_NE(r.status().message().find("did not finish reading it within 10 s"), std::string::npos)
+      << r.status().message();
+  EXPECT_NE(r.status().message().find(user), std::string::npos);
+  EXPECT_GE(s, 9.5);
+  EXPECT_LT(s, 30.0);  // killed at the deadline, not waited for
+}
+
+TEST(HrtfSetProbe, AProbeThatRunsOutOfMemoryOrCrashesRefusesTheFile) {
+  ProbeFixture fx;
+  const std::string user = fx.copyOf(kPulse, "user.sofa");
+  setenv("EARSHOT_SOFA_PROBE", fx.script("oom", "exit 3").c_str(), 1);
+  auto oom = HrtfSet::load(user, 48000.0);
+  ASSERT_FALSE(oom.isOk());
+  EXPECT_EQ(oom.status().code(), StatusCode::kOutOfRange);
+  EXPECT_NE(oom.status().message().find("memory limit"), std::string::npos) << oom.status().message();
+  setenv("EARSHOT_SOFA_PROBE", fx.script("crash", "kill -SEGV $$").c_str(), 1);
+  auto crash = HrtfSet::load(user, 48000.0);
+  ASSERT_FALSE(crash.isOk());
+  EXPECT_NE(crash.status().message().find("signal 11"), std::string::npos) << crash.status().message();
+  // The shipped set is trusted: it never meets the probe (a failing one here).
+  auto shipped = HrtfSet::load(kKu100, 48000.0);
+  EXPECT_TRUE(shipped.isOk()) << shipped.status().message();
+}
+
+TEST(HrtfSetProbe, TheRealProbeSaysByItsExitStatus) {
+  // Straight to the program: 0 read and valid, 1 refused by libmysofa, 2 usage.
+  const std::string cmd = std::string("'") + EARSHOT_SOFA_PROBE_BUILD_PATH + "' '" + kKu100 + "' ";
+  const int ok = std::system((cmd + "1073741824").c_str());
+  ASSERT_TRUE(WIFEXITED(ok));
+  EXPECT_EQ(WEXITSTATUS(ok), 0);
+  const int usage = std::system((cmd + "-5").c_str());
+  ASSERT_TRUE(WIFEXITED(usage));
+  EXPECT_EQ(WEXITSTATUS(usage), 2);
+  const int junk = std::system((std::string("'") + EARSHOT_SOFA_PROBE_BUILD_PATH + "' '" + kDataDir +
+                                "not_sofa.sofa' 1073741824").c_str());
+  ASSERT_TRUE(WIFEXITED(junk));
+  EXPECT_EQ(WEXITSTATUS(junk), 1);
 }
 
 }  // namespace

@@ -65,6 +65,8 @@ install(TARGETS earshot_static EXPORT earshotStaticTargets
   ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
   INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
 install(TARGETS earshot RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
+# HrtfSet::load finds it relative to the installed library (libexec/earshot).
+install(TARGETS earshot-sofa-probe RUNTIME DESTINATION ${CMAKE_INSTALL_LIBEXECDIR}/earshot)
 install(EXPORT earshotTargets NAMESPACE earshot:: DESTINATION ${EARSHOT_CMAKE_DIR})
 install(EXPORT earshotStaticTargets NAMESPACE earshot:: DESTINATION ${EARSHOT_CMAKE_DIR})
 # The default HRTF and materials; defaultHrtfPath() finds share/earshot/hrtf

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "command.h"
+#include "earshot/core/math.h"
 #include "earshot/io/input_file.h"
 #include "earshot/scene/gltf_loader.h"
 
@@ -120,6 +121,8 @@ CLI::Option* addVec3Option(CLI::App& app, const std::string& name, std::array<do
           }
           if (used != item.size()) throw CLI::ValidationError(name, "'" + text + "' is not X,Y,Z (three numbers)");
           if (!std::isfinite(d)) throw CLI::ValidationError(name, "'" + item + "' in '" + text + "' is not a finite number");
+          if (std::fabs(d) > earshot::kMaxCoordinateMeters)
+            throw CLI::ValidationError(name, "'" + item + "' in '" + text + "' is farther than 1e6 m from the origin");
           v.push_back(d);
         }
         if (v.size() != 3) throw CLI::ValidationError(name, "'" + text + "' has " + std::to_string(v.size()) + " values, expected X,Y,Z");
