@@ -275,17 +275,18 @@ Result<AudioBuffer> synthesizeBinauralIr(const std::vector<Arrival>& arrivals, c
     // the second sqrt(W_band).
     const auto u = plan.levelledBandNoise(settings.seed, detail::kLateNoiseStream);
     const auto v = independent ? plan.levelledBandNoise(settings.seed, detail::kLateNoiseStreamIndependent) : nullptr;
+    const size_t offset = detail::noiseOffset(settings.seed, settings.noiseKey, (*u)[0].size());
     const detail::GridFilter left{model.left().data(), grid}, rightU{model.rightCoherent().data(), grid},
         rightV{model.rightIndependent().data(), grid};
     std::vector<float> shaped = plan.shapedBuffer();
     for (int b = 0; b < kNumBands; ++b) {
       const float* gl = directional ? gain[0][b].data() : nullptr;
       const float* gr = directional ? gain[1][b].data() : nullptr;
-      if (!plan.shapeBand((*u)[size_t(b)].data(), *reflections, b, gl, shaped)) continue;
+      if (!plan.shapeBand((*u)[size_t(b)], offset, *reflections, b, gl, shaped)) continue;
       plan.addBand(b, shaped, left, spectrum[0].data());
-      if (directional) plan.shapeBand((*u)[size_t(b)].data(), *reflections, b, gr, shaped);
+      if (directional) plan.shapeBand((*u)[size_t(b)], offset, *reflections, b, gr, shaped);
       plan.addBand(b, shaped, rightU, spectrum[1].data());
-      if (independent && plan.shapeBand((*v)[size_t(b)].data(), *reflections, b, gr, shaped))
+      if (independent && plan.shapeBand((*v)[size_t(b)], offset, *reflections, b, gr, shaped))
         plan.addBand(b, shaped, rightV, spectrum[1].data());
     }
   }

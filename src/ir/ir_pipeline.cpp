@@ -71,6 +71,7 @@ Result<OmniIrResult> computeIr(const RayTracer& tracer, const MaterialTable& mat
   synth.sampleRateHz = s.sampleRateHz;
   synth.lengthSeconds = s.lengthSeconds;
   synth.seed = s.seed;
+  synth.noiseKey = noiseKeyOf(source, listener);
   EARSHOT_RETURN_IF_ERROR(validate(synth));
   if (binaural) {
     if (!binaural->model) return invalidArgument("binaural receiver without an HRTF model");

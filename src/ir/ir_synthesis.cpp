@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <complex>
+#include <cstring>
 #include <memory>
 #include <string>
 
@@ -13,6 +14,18 @@
 
 namespace earshot {
 
+
+uint64_t noiseKeyOf(const Vec3d& source, const Vec3d& listener) {
+  auto bits = [](double v) {
+    if (v == 0.0) v = 0.0;  // -0 and +0 are the same place
+    uint64_t u = 0;
+    std::memcpy(&u, &v, sizeof u);
+    return u;
+  };
+  auto point = [&](const Vec3d& p) { return mix64(bits(p.x) ^ mix64(bits(p.y) ^ mix64(bits(p.z)))); };
+  const uint64_t key = point(source) + point(listener);  // symmetric: swapping the two gives the same key
+  return key == 0 ? 1 : key;
+}
 
 Status validate(const IrSynthesisSettings& s) {
   if (!(s.sampleRateHz >= 8000.0 && s.sampleRateHz <= 384000.0))
@@ -62,9 +75,10 @@ Result<AudioBuffer> synthesizeOmniIr(const std::vector<Arrival>& arrivals, const
   // Reflections: per band, levelled band noise x sqrt(energy density).
   if (reflections && reflections->lastNonEmptyBin() >= 0) {
     const auto noise = plan.levelledBandNoise(settings.seed, detail::kLateNoiseStream);
+    const size_t offset = detail::noiseOffset(settings.seed, settings.noiseKey, (*noise)[0].size());
     std::vector<float> shaped = plan.shapedBuffer();
     for (int b = 0; b < kNumBands; ++b)
-      if (plan.shapeBand((*noise)[size_t(b)].data(), *reflections, b, nullptr, shaped))
+      if (plan.shapeBand((*noise)[size_t(b)], offset, *reflections, b, nullptr, shaped))
         plan.addBand(b, shaped, {}, spectrum.data());
   }
   AudioBuffer out(1, 0, fs);

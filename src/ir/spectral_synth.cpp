@@ -232,8 +232,16 @@ std::shared_ptr<const std::vector<std::vector<float>>> SpectralSynth::levelledBa
   return bands;
 }
 
-bool SpectralSynth::shapeBand(const float* noise, const EnergyHistogram& h, int band, const float* gain,
-                              std::vector<float>& shaped) const {
+size_t noiseOffset(uint64_t seed, uint64_t noiseKey, size_t period) {
+  if (noiseKey == 0 || period == 0) return 0;
+  return size_t(mix64(mix64(seed) ^ mix64(noiseKey + 0x9E3779B97F4A7C15ULL)) % uint64_t(period));
+}
+
+bool SpectralSynth::shapeBand(const std::vector<float>& noise, size_t offset, const EnergyHistogram& h, int band,
+                              const float* gain, std::vector<float>& shaped) const {
+  const size_t period = noise.size();
+  if (period == 0) return false;
+  offset %= period;
   const double binSamples = h.binSeconds() * mFs;
   const size_t histBins = h.binCount();
   bool any = false;
@@ -256,7 +264,9 @@ bool SpectralSynth::shapeBand(const float* noise, const EnergyHistogram& h, int 
       const double frac = (double(i) + 0.5) / binSamples - 0.5 - double(j);
       const double density = (1.0 - frac) * d0 + frac * d1;
       if (density > 0) {
-        shaped[i] = float(noise[i] * std::sqrt(density));
+        size_t at = i + offset;
+        if (at >= period) at -= period * (at / period);
+        shaped[i] = float(noise[at] * std::sqrt(density));
         any = true;
       }
     }

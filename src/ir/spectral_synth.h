@@ -61,11 +61,13 @@ class SpectralSynth {
    *  class (the last few (seed, stream, size class) are cached: at most 6, 32 MB). */
   std::shared_ptr<const std::vector<std::vector<float>>> levelledBandNoise(uint64_t seed, uint64_t stream) const;
 
-  /** shaped[i] = noise[i] * sqrt(density_band(i) * gain(bin of i)), the
-   *  density the histogram's energy per sample, linear between bin centres;
-   *  gainPerHistogramBin may be null (1). Returns false if all zero. */
-  bool shapeBand(const float* noise, const EnergyHistogram& h, int band, const float* gainPerHistogramBin,
-                 std::vector<float>& shaped) const;
+  /** shaped[i] = noise[(i + offset) mod noise.size()] * sqrt(density_band(i)
+   *  * gain(bin of i)), the density the histogram's energy per sample,
+   *  linear between bin centres; gainPerHistogramBin may be null (1). The
+   *  noise is periodic (levelledBandNoise), so any offset reads a stationary
+   *  stretch of it. Returns false if all zero. */
+  bool shapeBand(const std::vector<float>& noise, size_t offset, const EnergyHistogram& h, int band,
+                 const float* gainPerHistogramBin, std::vector<float>& shaped) const;
 
   /** spectrum += sqrt(W_band(f)) * H(f) * FFT(shaped): shaped is a band's
    *  levelledBandNoise (through sqrt(W_band) already) after shapeBand, n
@@ -96,6 +98,10 @@ class SpectralSynth {
   std::vector<uint32_t> mGridIndex;  // per bin: the grid point below
   std::vector<double> mGridFrac;     // per bin: position between it and the next
 };
+
+/** The offset into a noise of `period` samples that IrSynthesisSettings'
+ *  seed and noiseKey give (0 for key 0). */
+size_t noiseOffset(uint64_t seed, uint64_t noiseKey, size_t period);
 
 /** `count` samples of white Gaussian noise (unit variance). */
 std::vector<float> whiteNoise(uint64_t seed, uint64_t stream, size_t count);

@@ -39,7 +39,18 @@ struct IrSynthesisSettings {
   double sampleRateHz = 48000.0;  ///< [8000, 384000]
   double lengthSeconds = 0.0;     ///< > 0: exact length; 0: automatic (direct + reflections + 50 ms)
   uint64_t seed = 1;              ///< noise seed
+  /** Where in the seed's noise the late reflections start reading: 0 reads
+   *  it from its start; any other key from an offset that mix64(seed, key)
+   *  decides. computeIr passes noiseKeyOf(source, listener), so IRs of
+   *  different positions carry independent noise (position averages
+   *  converge) while the same inputs still give the same bits. */
+  uint64_t noiseKey = 0;
 };
+
+/** A key for IrSynthesisSettings::noiseKey from a source/listener pair: made
+ *  of the positions' exact bits, the same when the two swap (reciprocity),
+ *  never 0. */
+uint64_t noiseKeyOf(const Vec3d& source, const Vec3d& listener);
 
 /** Validates settings (message names the field). */
 Status validate(const IrSynthesisSettings& settings);
