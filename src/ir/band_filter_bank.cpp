@@ -7,13 +7,13 @@
 namespace earshot {
 
 namespace {
-// Raised-cosine step from 0 to 1 over one octave centred on crossover k.
-double step(int k, double log2f) {
+// Raised-cosine step from 0 to 1 over `width` octaves centred on crossover k.
+double step(int k, double log2f, double width = 1.0) {
   if (k < 0) return 1.0;               // below band 0 there is no crossover: all "above"
   if (k >= kNumBands - 1) return 0.0;  // above the top band likewise
   // Crossovers at the geometric means of neighbouring centres (octaves: 125 * 2^(k + 1/2)).
   const double x0 = std::log2(kBandCentersHz[0]) + double(k) + 0.5;
-  const double u = log2f - x0;  // octaves from the crossover
+  const double u = (log2f - x0) / width;  // transition widths from the crossover
   if (u <= -0.5) return 0.0;
   if (u >= 0.5) return 1.0;
   return 0.5 * (1.0 + std::sin(kPi * u));
@@ -32,6 +32,18 @@ BandArrayD bandWeights(double hz) {
   double below = 1.0;  // step(-1)
   for (int b = 0; b < kNumBands; ++b) {
     const double above = step(b, lf);
+    w[b] = below - above;
+    below = above;
+  }
+  return w;
+}
+
+BandArrayD noiseBandWeights(double hz) {
+  const double lf = hz > 0 ? std::log2(hz) : -1e9;
+  BandArrayD w{};
+  double below = 1.0;
+  for (int b = 0; b < kNumBands; ++b) {
+    const double above = step(b, lf, kNoiseCrossoverOctaves);
     w[b] = below - above;
     below = above;
   }

@@ -139,7 +139,7 @@ Result<std::shared_ptr<const BinauralModel>> BinauralModel::create(std::shared_p
                                             std::vector<std::complex<double>>(gridBins)};
   std::vector<BandArrayD> bandWeight2(gridBins);
   for (size_t k = 0; k < gridBins; ++k) {
-    bandWeight2[k] = bandWeights(double(k) * fs / double(grid));
+    bandWeight2[k] = noiseBandWeights(double(k) * fs / double(grid));  // the late noise's bands
     for (double& w : bandWeight2[k]) w *= w;
   }
   m->mPower[0].assign(gridBins, 0.0);

@@ -43,8 +43,9 @@ Result<SpectralSynth> SpectralSynth::create(size_t length, double fs) {
   s.mLowerBand.resize(s.mBins);
   s.mLowerWeight.resize(s.mBins);
   for (size_t k = 0; k < s.mBins; ++k) {
-    BandArrayD w = bandWeights(double(k) * fs / double(s.mN));
-    for (int b = 0; b < kNumBands; ++b) s.mSqrtWeights[b][k] = float(std::sqrt(std::max(0.0, w[b])));
+    const BandArrayD noiseW = noiseBandWeights(double(k) * fs / double(s.mN));
+    for (int b = 0; b < kNumBands; ++b) s.mSqrtWeights[b][k] = float(std::sqrt(std::max(0.0, noiseW[b])));
+    const BandArrayD w = bandWeights(double(k) * fs / double(s.mN));
     // At most two band weights are non-zero at any frequency: keep the lower one.
     int lb = kNumBands - 1;
     for (int b = 0; b < kNumBands; ++b)
@@ -190,7 +191,7 @@ std::shared_ptr<const std::vector<std::vector<float>>> SpectralSynth::levelledBa
   std::vector<kiss_fft_cpx> spectrum(bins), filtered(bins);
   kiss_fftr(forward.get(), white.data(), spectrum.data());
   std::vector<BandArrayD> weights(bins);
-  for (size_t k = 0; k < bins; ++k) weights[k] = bandWeights(double(k) * mFs / double(n));
+  for (size_t k = 0; k < bins; ++k) weights[k] = noiseBandWeights(double(k) * mFs / double(n));
   std::vector<double> prefix(n + 1);
   for (int b = 0; b < kNumBands; ++b) {
     // Through sqrt(W); white noise keeps the mean of W over the circle.
