@@ -3,8 +3,10 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <string>
 
+#include "earshot/analysis/room_acoustics.h"
 #include "earshot/core/thread_pool.h"
 #include "earshot/scene/ray_tracer.h"
 
@@ -52,6 +54,31 @@ std::vector<Arrival> arrivalsOf(const OmniIrResult& r, bool includeDirect) {
     arrivals.push_back(a);
   }
   return arrivals;
+}
+
+TracedDecay tracedDecay(const OmniIrResult& r) {
+  TracedDecay out;
+  const EnergyHistogram& h = r.late;
+  const double bin = h.binSeconds();
+  const std::vector<Arrival> arrivals = arrivalsOf(r, true);
+  size_t bins = h.binCount();
+  for (const Arrival& a : arrivals) bins = std::max(bins, size_t(a.delaySeconds / bin) + 1);
+  for (int b = 0; b < kNumBands; ++b) {
+    std::vector<double> e(bins, 0.0);
+    for (size_t i = 0; i < h.binCount(); ++i) e[i] = h.energy(i, b);
+    for (const Arrival& a : arrivals) {
+      const double g = a.gain * a.bandGain[size_t(b)];
+      e[size_t(a.delaySeconds / bin)] += g * g;
+    }
+    std::vector<float> amplitude(bins);
+    for (size_t i = 0; i < bins; ++i) amplitude[i] = float(std::sqrt(e[i]));
+    const analysis::BandMetrics m = analysis::analyzeBandSignal(amplitude.data(), amplitude.size(), 1.0 / bin, -1, 0,
+                                                                analysis::NoiseTreatment::kNone);
+    out.edtSeconds[size_t(b)] = m.edtS;
+    out.t20Seconds[size_t(b)] = m.t20S;
+    out.t30Seconds[size_t(b)] = m.t30S;
+  }
+  return out;
 }
 
 Result<OmniIrResult> computeOmniIr(const RayTracer& tracer, const MaterialTable& materials, const Vec3d& source,

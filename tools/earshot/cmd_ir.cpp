@@ -169,8 +169,13 @@ int run(const IrOptions& o, const CLI::App& cmd) {
   stats["specular_detections_left_to_image_sources"] = st.specularExcluded;
   stats["energy_escaped_fraction"] = st.energyEscaped;
   stats["receiver_radius_m"] = st.receiverRadiusMeters;
+  // Per band, the decay of the traced energies: what the IR's bands decay
+  // at (TracedDecay). The tail's population_t60_s is the rays in flight's
+  // decay rate, which continues the tail past where they were traced.
+  const TracedDecay decay = tracedDecay(r);
+  stats["decay"] = {{"edt_s", decay.edtSeconds}, {"t20_s", decay.t20Seconds}, {"t30_s", decay.t30Seconds}};
   stats["tail"] = {{"extended", r.tail.extended},
-                   {"t60_s", r.tail.t60Seconds},
+                   {"population_t60_s", r.tail.t60Seconds},
                    {"measured_by_probes", r.tail.probed},
                    {"start_s", r.tail.startSeconds},
                    {"mean_loss_per_reflection", r.tail.meanLoss},
