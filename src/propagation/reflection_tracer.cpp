@@ -23,6 +23,24 @@ namespace earshot {
 
 namespace {
 
+// A hit this close to an edge (smallest barycentric coordinate) has the
+// offset of its next ray checked against the neighbouring triangles
+// (clearOffset): ~0.5 % of hits in rooms of half-metre triangles.
+constexpr float kNearEdgeBarycentric = 1e-3f;
+
+/** n * eps from the surface point p, unless that crosses another triangle
+ *  (a neighbour meeting p's triangle at an acute angle, p within eps of
+ *  their edge): then half the way to it. The check starts at eps / 20,
+ *  beyond the float error of p on its own triangle. Measured in a closed
+ *  box of 1728 triangles with leaning walls: 5 of 65,536 rays (60 bounces)
+ *  left it through such corners with the plain offset, none with this. */
+Vec3d clearOffset(const RayTracer& tracer, const Vec3d& p, const Vec3f& n, float eps) {
+  Ray probe{p, 0.05f * eps, n, eps};
+  Hit h;
+  if (tracer.intersect(probe, h) && h.t < eps) return Vec3d(n) * (0.5 * double(h.t));
+  return Vec3d(n * eps);
+}
+
 // Fixed point for order-independent (hence thread-count-independent) sums:
 // 2^-50 ~ 8.9e-16 of the energy of a direct sound at 1 m; the largest bin
 // value is 2^13 = 8192 (a reflection 1 cm away is 1e4; saturates there).
@@ -691,7 +709,12 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
           const Vec3d p = ray.origin + Vec3d(ray.direction) * double(hit.t);
           Vec3f n = hit.normal;
           if (dot(n, ray.direction) > 0) n = -n;  // face the incoming ray
-          const Vec3d offset(n * eps);          // leaves the surface along n
+          // Leaves the surface along n. Near an edge where the neighbour
+          // meets this triangle at an acute angle (a corner of a room whose
+          // walls lean), n * eps can cross the neighbour and start the next
+          // ray outside: there the offset stops halfway to the neighbour.
+          const bool nearEdge = std::min({hit.u, hit.v, 1.0f - hit.u - hit.v}) < kNearEdgeBarycentric;
+          const Vec3d offset = nearEdge ? clearOffset(tracer, p, n, eps) : Vec3d(n * eps);
 
           // Next-event estimation of the diffusely reflected part.
           const Vec3f toL(listener - p);
@@ -726,7 +749,7 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
           float maxEnergy = 0;
           if (pT > 0 && rng.uniform() < pT) {
             for (int b = 0; b < kNumBands; ++b) maxEnergy = std::max(maxEnergy, energy[b] *= m.transmit[b] / pT);
-            ray.origin = p - offset;  // direction unchanged
+            ray.origin = p - (nearEdge ? clearOffset(tracer, p, -n, eps) : offset);  // direction unchanged
             detectSegment = reflected;
             pureSpecular = false;
           } else {

@@ -76,6 +76,8 @@ bool RayTracer::intersect(const Ray& ray, Hit& hit) const {
     return false;
   }
   hit.t = rh.ray.tfar;
+  hit.u = rh.hit.u;
+  hit.v = rh.hit.v;
   if (rh.hit.instID[0] == RTC_INVALID_GEOMETRY_ID) {
     // The root's own triangles: normals do not change with the frame's translation.
     hit.triangle = mImpl->flat->primToTriangle[rh.hit.primID];

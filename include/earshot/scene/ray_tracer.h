@@ -30,6 +30,9 @@ struct Hit {
   float t = -1.0f;           ///< distance along the ray; < 0: no hit
   uint32_t triangle = 0;     ///< index into the mesh's triangles
   Vec3f normal;              ///< unit normal (v1-v0) x (v2-v0), not flipped toward the ray
+  /** Barycentric coordinates of the hit: weights of v1 and v2 (v0's is
+   *  1 - u - v); near 0 means near an edge. */
+  float u = 0.0f, v = 0.0f;
   bool valid() const { return t >= 0.0f; }
 };
 
