@@ -26,28 +26,24 @@ double bandWeight(int band, double hz) {
   return step(band - 1, lf) - step(band, lf);
 }
 
-BandArrayD bandWeights(double hz) {
+namespace {
+// The weights of crossovers `width` octaves wide: step(k) = S_k of the
+// header; the sum over bands telescopes to 1.
+BandArrayD weightsWith(double hz, double width) {
   const double lf = hz > 0 ? std::log2(hz) : -1e9;
   BandArrayD w{};
   double below = 1.0;  // step(-1)
   for (int b = 0; b < kNumBands; ++b) {
-    const double above = step(b, lf);
+    const double above = step(b, lf, width);
     w[b] = below - above;
     below = above;
   }
   return w;
 }
+}  // namespace
 
-BandArrayD noiseBandWeights(double hz) {
-  const double lf = hz > 0 ? std::log2(hz) : -1e9;
-  BandArrayD w{};
-  double below = 1.0;
-  for (int b = 0; b < kNumBands; ++b) {
-    const double above = step(b, lf, kNoiseCrossoverOctaves);
-    w[b] = below - above;
-    below = above;
-  }
-  return w;
-}
+BandArrayD bandWeights(double hz) { return weightsWith(hz, 1.0); }
+
+BandArrayD noiseBandWeights(double hz) { return weightsWith(hz, kNoiseCrossoverOctaves); }
 
 }  // namespace earshot
