@@ -16,7 +16,8 @@ file(REMOVE_RECURSE "${WORK_DIR}")
 file(MAKE_DIRECTORY "${WORK_DIR}")
 run("${CMAKE_COMMAND}" --install "${BUILD_DIR}" --prefix "${prefix}")
 foreach(f include/earshot/earshot.h include/earshot/earshot.hpp ${LIBDIR}/libearshot.a ${LIBDIR}/pkgconfig/earshot.pc
-          ${LIBDIR}/cmake/earshot/earshotConfig.cmake share/earshot/hrtf/FHK_HRIR_L2354.sofa)
+          ${LIBDIR}/cmake/earshot/earshotConfig.cmake share/earshot/hrtf/FHK_HRIR_L2354.sofa
+          libexec/earshot/earshot-sofa-probe)
   if(NOT EXISTS "${prefix}/${f}")
     message(FATAL_ERROR "not installed: ${f}")
   endif()
