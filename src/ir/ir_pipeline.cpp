@@ -56,23 +56,29 @@ std::vector<Arrival> arrivalsOf(const OmniIrResult& r, bool includeDirect) {
   return arrivals;
 }
 
-TracedDecay tracedDecay(const OmniIrResult& r) {
-  TracedDecay out;
+std::vector<double> tracedEnergy(const OmniIrResult& r, int band) {
   const EnergyHistogram& h = r.late;
   const double bin = h.binSeconds();
   const std::vector<Arrival> arrivals = arrivalsOf(r, true);
   size_t bins = h.binCount();
   for (const Arrival& a : arrivals) bins = std::max(bins, size_t(a.delaySeconds / bin) + 1);
+  std::vector<double> e(bins, 0.0);
+  for (size_t i = 0; i < h.binCount(); ++i) e[i] = h.energy(i, band);
+  for (const Arrival& a : arrivals) {
+    const double g = a.gain * a.bandGain[size_t(band)];
+    e[size_t(a.delaySeconds / bin)] += g * g;
+  }
+  return e;
+}
+
+TracedDecay tracedDecay(const OmniIrResult& r) {
+  TracedDecay out;
   for (int b = 0; b < kNumBands; ++b) {
-    std::vector<double> e(bins, 0.0);
-    for (size_t i = 0; i < h.binCount(); ++i) e[i] = h.energy(i, b);
-    for (const Arrival& a : arrivals) {
-      const double g = a.gain * a.bandGain[size_t(b)];
-      e[size_t(a.delaySeconds / bin)] += g * g;
-    }
-    std::vector<float> amplitude(bins);
-    for (size_t i = 0; i < bins; ++i) amplitude[i] = float(std::sqrt(e[i]));
-    const analysis::BandMetrics m = analysis::analyzeBandSignal(amplitude.data(), amplitude.size(), 1.0 / bin, -1, 0,
+    const std::vector<double> e = tracedEnergy(r, b);
+    std::vector<float> amplitude(e.size());
+    for (size_t i = 0; i < e.size(); ++i) amplitude[i] = float(std::sqrt(e[i]));
+    const analysis::BandMetrics m = analysis::analyzeBandSignal(amplitude.data(), amplitude.size(),
+                                                                1.0 / r.late.binSeconds(), -1, 0,
                                                                 analysis::NoiseTreatment::kNone);
     out.edtSeconds[size_t(b)] = m.edtS;
     out.t20Seconds[size_t(b)] = m.t20S;

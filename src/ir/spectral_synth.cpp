@@ -266,7 +266,7 @@ bool SpectralSynth::shapeBand(const std::vector<float>& noise, size_t offset, co
       const double density = (1.0 - frac) * d0 + frac * d1;
       if (density > 0) {
         size_t at = i + offset;
-        if (at >= period) at -= period * (at / period);
+        if (at >= period) at -= period;  // offset < period, i < length <= period
         shaped[i] = float(noise[at] * std::sqrt(density));
         any = true;
       }

@@ -81,17 +81,6 @@ std::vector<float> bandOnly(const std::vector<float>& x, double fs, int band) {
   return out;
 }
 
-// The traced energy of one band at the histogram's resolution, added to e.
-void addTracedEnergy(const OmniIrResult& r, int band, std::vector<double>& e) {
-  const EnergyHistogram& h = r.late;
-  if (e.size() < h.binCount()) e.resize(h.binCount(), 0.0);
-  for (size_t i = 0; i < h.binCount(); ++i) e[i] += h.energy(i, band);
-  for (const Arrival& a : arrivalsOf(r, true)) {
-    const size_t i = size_t(a.delaySeconds / h.binSeconds());
-    if (i < e.size()) e[i] += a.gain * a.gain * a.bandGain[size_t(band)] * a.bandGain[size_t(band)];
-  }
-}
-
 // EDT and T20 of an energy signal (Schroeder, no noise treatment).
 BandMetrics energyMetrics(const std::vector<double>& e, double rateHz) {
   std::vector<float> amplitude(e.size());
@@ -149,7 +138,9 @@ TEST(BandExact, OneAbsorbingBandKeepsItsOwnDecayInEveryBand) {
         const auto& [source, listener] = kPairs[size_t(seed - 1)];
         auto r = computeIr(**tracer, materials, source, listener, s, pool, rx);
         ASSERT_TRUE(r.isOk()) << r.status().message();
-        addTracedEnergy(*r, absorbing, traced);
+        const std::vector<double> e = tracedEnergy(*r, absorbing);
+        if (traced.size() < e.size()) traced.resize(e.size(), 0.0);
+        for (size_t i = 0; i < e.size(); ++i) traced[i] += e[i];
         binRate = 1.0 / r->late.binSeconds();
         fs = r->ir.sampleRateHz;
         for (size_t ch = 0; ch < output.size(); ++ch) {

@@ -98,6 +98,11 @@ std::vector<Arrival> arrivalsOf(const OmniIrResult& result, bool includeDirect);
  *  span the metric's range. (TailInfo::t60Seconds is something else: the
  *  decay rate of the rays still in flight, which continues the tail past
  *  where they were traced.) */
+/** One band's traced energy per histogram bin: the completed histogram plus
+ *  the direct sound and image sources, each in the bin of its delay (long
+ *  enough for the latest arrival). tracedDecay's input. */
+std::vector<double> tracedEnergy(const OmniIrResult& result, int band);
+
 struct TracedDecay {
   BandArrayD edtSeconds{}, t20Seconds{}, t30Seconds{};
 };
