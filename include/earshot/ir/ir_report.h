@@ -1,0 +1,24 @@
+#pragma once
+/** @file What one computed IR says about itself, as JSON text: the settings
+ *  used, the direct path, early reflections, the trace's counts, the traced
+ *  decay, the tail and the time of each stage. `earshot ir --json` and the
+ *  Python package (`IR.params`, `IR.stats`, `IR.time_ms`) both report
+ *  through this one function, so their fields and numbers are the same. */
+#include <string>
+
+#include "earshot/ir/ir_pipeline.h"
+
+namespace earshot {
+
+/** A JSON object (text) with the keys settings, direct, early_reflections,
+ *  rays_traced, rays_escaped, rays_cut_by_bounce_limit,
+ *  rays_ended_by_roulette, segments_traced, tail_probe_segments,
+ *  flutter_axes, flutter_cone_rays, rays_requested, estimated_error_db
+ *  (when converging), shadow_rays, shadow_rays_skipped,
+ *  specular_detections_left_to_image_sources, energy_escaped_fraction,
+ *  receiver_radius_m, decay, tail, skipped, time_ms, ir_samples,
+ *  ir_seconds, silent. `geometryTraced` false (free field): no ray was
+ *  traced, and the counts say so. */
+std::string irReportJson(const OmniIrResult& result, const OmniIrSettings& settings, bool geometryTraced);
+
+}  // namespace earshot

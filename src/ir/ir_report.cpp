@@ -1,0 +1,73 @@
+// The JSON report of one computed IR (ir_report.h).
+#include "earshot/ir/ir_report.h"
+
+#include <algorithm>
+
+#include <nlohmann/json.hpp>
+
+namespace earshot {
+
+std::string irReportJson(const OmniIrResult& r, const OmniIrSettings& settings, bool geometryTraced) {
+  nlohmann::json stats;
+  stats["settings"] = {{"rays", settings.rays},
+                       {"bounces", settings.bounces},
+                       {"ism_order", settings.imageSourceOrder},
+                       {"bin_ms", settings.binSeconds * 1000.0},
+                       {"seed", settings.seed},
+                       {"sample_rate_hz", settings.sampleRateHz},
+                       {"length_s", settings.lengthSeconds},
+                       {"tail_probes", std::min(settings.tailProbes, settings.rays)},
+                       {"flutter_cones", settings.flutterCones},
+                       {"converge_db", settings.convergenceDb},
+                       {"receiver_radius_m", settings.receiverRadiusMeters},
+                       {"air", settings.air.enabled ? nlohmann::json{{"temperature_c", settings.air.temperatureC},
+                                                                     {"humidity_percent", settings.air.humidityPercent}}
+                                                    : nlohmann::json("off")}};
+  stats["direct"] = {{"distance_m", r.direct.distanceMeters}, {"delay_s", r.direct.delaySeconds},
+                     {"surfaces_crossed", r.direct.surfacesCrossed}, {"audible", r.direct.audible},
+                     {"occlusion_tested", r.direct.occlusionTested}};
+  stats["early_reflections"] = {{"paths", r.early.size()},
+                                {"candidates", r.imageSourceCandidates},
+                                {"exhaustive", r.imageSourcesExhaustive}};
+  const auto& st = r.traceStats;
+  stats["rays_traced"] = geometryTraced ? st.raysTraced : 0;
+  stats["rays_escaped"] = st.raysEscaped;
+  stats["rays_cut_by_bounce_limit"] = st.raysCut;
+  stats["rays_ended_by_roulette"] = st.raysRouletted;
+  stats["segments_traced"] = st.segmentsTraced;
+  stats["tail_probe_segments"] = st.tailProbeSegments;
+  stats["flutter_axes"] = st.flutterAxes;
+  stats["flutter_cone_rays"] = st.coneRays;
+  stats["rays_requested"] = geometryTraced ? settings.rays : 0;
+  if (settings.convergenceDb > 0) stats["estimated_error_db"] = st.estimatedErrorDb;
+  stats["shadow_rays"] = st.shadowRays;
+  stats["shadow_rays_skipped"] = st.shadowRaysSkipped;
+  stats["specular_detections_left_to_image_sources"] = st.specularExcluded;
+  stats["energy_escaped_fraction"] = st.energyEscaped;
+  stats["receiver_radius_m"] = st.receiverRadiusMeters;
+  // Per band, the decay of the traced energies: what the IR's bands decay
+  // at (TracedDecay). The tail's population_t60_s is the rays in flight's
+  // decay rate, which continues the tail past where they were traced.
+  const TracedDecay decay = tracedDecay(r);
+  stats["decay"] = {{"edt_s", decay.edtSeconds}, {"t20_s", decay.t20Seconds}, {"t30_s", decay.t30Seconds}};
+  stats["tail"] = {{"extended", r.tail.extended},
+                   {"population_t60_s", r.tail.t60Seconds},
+                   {"measured_by_probes", r.tail.probed},
+                   {"start_s", r.tail.startSeconds},
+                   {"mean_loss_per_reflection", r.tail.meanLoss},
+                   {"mean_free_path_m", r.tail.meanFreePathMeters}};
+  stats["skipped"] = r.skipped;
+  stats["time_ms"] = {{"direct", r.timings.directMs},     {"early_reflections", r.timings.imageSourcesMs},
+                      {"trace", r.timings.traceMs},       {"tail", r.timings.tailMs},
+                      {"synthesis", r.timings.synthesisMs}, {"pipeline", r.timings.totalMs}};
+  stats["ir_samples"] = r.ir.frameCount();
+  stats["ir_seconds"] = double(r.ir.frameCount()) / settings.sampleRateHz;
+  bool silent = true;
+  for (const auto& ch : r.ir.channels)
+    for (float v : ch) silent = silent && v == 0.0f;
+  stats["silent"] = silent;
+  // NaN (a decay the energies do not span) is written as null.
+  return stats.dump();
+}
+
+}  // namespace earshot
