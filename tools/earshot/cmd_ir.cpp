@@ -143,8 +143,8 @@ int run(const IrOptions& o, const CLI::App& cmd) {
 
   // The result's own report (shared with the Python package), then what
   // only the command knows.
-  for (auto& [key, value] : nlohmann::json::parse(irReportJson(r, settings, !tracer->empty())).items())
-    stats[key] = std::move(value);
+  nlohmann::json report = nlohmann::json::parse(irReportJson(r, settings, !tracer->empty()));
+  for (auto& [key, value] : report.items()) stats[key] = std::move(value);
   stats["quality"] = o.quality;
   stats["receiver"] = o.receiver;
   stats["threads"] = pool.threadCount();
