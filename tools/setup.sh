@@ -37,6 +37,21 @@ BUILD_DIR="${EARSHOT_BUILD_DIR:-build}"
 cmake -S . -B "$BUILD_DIR" -G Ninja -DCMAKE_BUILD_TYPE=Release
 cmake --build "$BUILD_DIR" -j "$(nproc)"
 
+# The Python package (build/python): Debian's python3 finds it through a .pth
+# file in its site-packages (root or sudo; otherwise say the one export).
+PY=/usr/bin/python3
+if [ -x "$PY" ] && [ -d "$BUILD_DIR/python/earshot" ]; then
+  PYDIR="$(cd "$BUILD_DIR/python" && pwd)"
+  SITE="$("$PY" -c 'import site; print(site.getsitepackages()[0])')"
+  SUDO=""
+  if [ "$(id -u)" -ne 0 ] && command -v sudo >/dev/null; then SUDO="sudo"; fi
+  if { $SUDO mkdir -p "$SITE" && echo "$PYDIR" | $SUDO tee "$SITE/earshot.pth" >/dev/null; } 2>/dev/null; then
+    "$PY" -c "import earshot" && echo "setup: import earshot works (python3 finds $PYDIR through $SITE/earshot.pth)"
+  else
+    echo "setup: could not write $SITE/earshot.pth; use: export PYTHONPATH=$PYDIR"
+  fi
+fi
+
 # The main job.
 mkdir -p out
 bash tools/run_sample.sh "$BUILD_DIR"

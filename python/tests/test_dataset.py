@@ -1,0 +1,169 @@
+"""earshot.dataset: the same IRs whatever the workers, resumable after a
+kill, positions that keep their distances, specs checked."""
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+import earshot
+from earshot import dataset
+from conftest import SHOEBOX, SHOEBOX_MAP
+
+
+def make_spec(folder, **over):
+    shutil.copy(SHOEBOX, folder / "shoebox.gltf")
+    shutil.copy(SHOEBOX_MAP, folder / "map.json")
+    spec = {"rooms": [{"geometry": "shoebox.gltf", "material_map": "map.json"},
+                      {"generator": "shoebox", "rooms": 2, "size_m": {"x": [4, 6], "y": [3, 5], "z": [2.5, 3]}},
+                      {"generator": "shoebox", "absorption": [0.1, 0.4]}],
+            "count": 10, "seed": 3, "quality": "draft", "shard_size": 3,
+            "ir_options": {"rays": 1024, "length": 0.5}}
+    spec.update(over)
+    p = folder / "spec.json"
+    p.write_text(json.dumps(spec))
+    return p
+
+
+def loaded(d):
+    return [(i, x, p) for i, x, p in dataset.load(d)]
+
+
+def assert_same(a, b):
+    assert [i for i, _, _ in a] == [i for i, _, _ in b]
+    for (i, x, p), (_, y, q) in zip(a, b):
+        assert np.array_equal(x, y), i
+        assert p["source"] == q["source"] and p["listener"] == q["listener"] and p["seed"] == q["seed"]
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("ref")
+    spec = make_spec(folder)
+    s = dataset.make(spec, folder / "out", in_process=True, progress=False)
+    assert s["irs_made"] == 10 and s["shards"] == 4
+    return folder, loaded(folder / "out")
+
+
+def test_manifest_and_params(reference):
+    folder, irs = reference
+    assert [i for i, _, _ in irs] == list(range(10))
+    rows = [json.loads(line) for line in (folder / "out" / "manifest.jsonl").read_text().splitlines()]
+    assert [r["id"] for r in rows] == list(range(10))
+    for (i, x, p), row in zip(irs, rows):
+        assert x.dtype == np.float32 and x.shape == (1, 24000)
+        assert row["seed"] == 3 + i and row["rays"] == 1024 and row["quality"] == "draft"
+        assert row["room_index"] == i % 4
+        assert set(row["metrics"]["channels"][0]) == {"EDT", "T20", "T30", "C50", "C80", "D50", "Ts"}
+        assert "pipeline" in row["time_ms"]
+        assert p == row
+
+
+def test_positions_keep_their_distances(reference):
+    folder, irs = reference
+    for i, _, p in irs:
+        room = p["room"]
+        if "size_m" in room:
+            size = np.array(room["size_m"])
+            for pt in (p["source"], p["listener"]):
+                assert np.all(np.array(pt) >= 0.5 - 1e-9) and np.all(np.array(pt) <= size - 0.5 + 1e-9)
+        assert np.linalg.norm(np.subtract(p["source"], p["listener"])) >= 1.0
+        assert p["warnings"] == []
+    # Rooms drawn from the distributions differ from each other.
+    sizes = {tuple(p["room"]["size_m"]) for _, _, p in irs if "size_m" in p["room"]}
+    assert len(sizes) == 3
+
+
+def test_same_irs_on_a_two_worker_local_cluster(reference, tmp_path):
+    folder, irs = reference
+    s = dataset.make(folder / "spec.json", tmp_path / "out", workers=2, progress=False)
+    assert s["irs_made"] == 10
+    assert_same(loaded(tmp_path / "out"), irs)
+
+
+def test_killed_run_resumes_to_the_same_irs(reference, tmp_path):
+    folder, irs = reference
+    out = tmp_path / "out"
+    p = subprocess.Popen([sys.executable, "-m", "earshot", "dataset", str(folder / "spec.json"), "-o", str(out),
+                          "--in-process", "--quiet"], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    first = out / "shards" / "shard-00000.h5"
+    deadline = time.time() + 120
+    while not first.exists() and p.poll() is None and time.time() < deadline:
+        time.sleep(0.02)
+    last_before_kill = (out / "shards" / "shard-00003.h5").exists()
+    p.send_signal(signal.SIGKILL)
+    p.wait()
+    assert first.exists() and not last_before_kill  # killed mid-run
+    assert not (out / "manifest.jsonl").exists() or p.returncode == 0
+    # A half-written shard as a kill leaves it: never taken for complete.
+    (out / "shards" / "shard-00003.h5.tmp-12345").write_bytes(b"\x89HDF\r\n\x1a\n" + b"\0" * 100)
+    with pytest.raises(ValueError, match="incomplete"):
+        loaded(out)
+    partial = list(dataset.load(out, partial=True))
+    assert partial and all(np.array_equal(x, irs[i][1]) for i, x, _ in partial)
+    s = dataset.make(folder / "spec.json", out, in_process=True, progress=False)
+    assert s["shards_reused"] >= 1 and s["shards_made"] + s["shards_reused"] == 4
+    assert not any(".tmp-" in n for n in os.listdir(out / "shards"))
+    assert_same(loaded(out), irs)
+
+
+def test_a_damaged_shard_is_made_again(reference, tmp_path):
+    folder, irs = reference
+    out = tmp_path / "out"
+    shutil.copytree(folder / "out", out)
+    (out / "shards" / "shard-00001.h5").write_bytes(b"garbage")
+    s = dataset.make(folder / "spec.json", out, in_process=True, progress=False)
+    assert s["shards_made"] == 1
+    assert_same(loaded(out), irs)
+
+
+def test_wav_format(reference, tmp_path):
+    folder, irs = reference
+    spec = make_spec(tmp_path, format="wav")
+    dataset.make(spec, tmp_path / "out", in_process=True, progress=False)
+    assert_same(loaded(tmp_path / "out"), irs)
+    assert (tmp_path / "out" / "shards" / "shard-00000" / "ir-00000000.wav").exists()
+
+
+@pytest.mark.parametrize("over,text", [
+    ({"count": 0}, "count"),
+    ({"colour": 1}, "unknown"),
+    ({"rooms": []}, "rooms"),
+    ({"rooms": [{"geometry": "../escape.gltf"}]}, "outside"),
+    ({"rooms": [{"geometry": "/etc/passwd"}]}, "outside"),
+    ({"rooms": [{"generator": "sphere"}]}, "generator"),
+    ({"rooms": [{"generator": "shoebox", "size_m": {"x": [5, 1], "y": [3, 4], "z": [2, 3]}}]}, "size_m"),
+    ({"rooms": [{"generator": "shoebox", "materials": {"walls": ["unobtainium"], "floor": ["brick"],
+                                                       "ceiling": ["brick"]}}]}, "unobtainium"),
+    ({"receiver": "ambisonic"}, "receiver"),
+    ({"ir_options": {"rays": -1}}, "rays"),
+    ({"positions": {"wall_distance_m": -1}}, "wall_distance"),
+])
+def test_bad_specs_are_refused(tmp_path, over, text):
+    (tmp_path / "sub").mkdir()
+    spec = make_spec(tmp_path / "sub", **over)
+    with pytest.raises(ValueError, match=text):
+        dataset.make(spec, tmp_path / "out", in_process=True, progress=False)
+
+
+def test_a_folder_of_another_spec_is_not_mixed(reference, tmp_path):
+    folder, _ = reference
+    out = tmp_path / "out"
+    shutil.copytree(folder / "out", out)
+    spec = make_spec(tmp_path, seed=4)
+    with pytest.raises(ValueError, match="different spec"):
+        dataset.make(spec, out, in_process=True, progress=False)
+
+
+def test_positions_that_cannot_be_placed_say_so(tmp_path):
+    spec = make_spec(tmp_path, rooms=[{"generator": "shoebox", "size_m": {"x": [2, 2], "y": [2, 2],
+                                                                          "z": [2, 2]}}],
+                     positions={"wall_distance_m": 0.9, "min_separation_m": 1.0}, count=1)
+    r = subprocess.run([sys.executable, "-m", "earshot", "dataset", str(spec), "-o", str(tmp_path / "o"),
+                        "--in-process", "--quiet"], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and "no pair" in r.stderr and "Traceback" not in r.stderr
