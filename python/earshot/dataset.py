@@ -72,6 +72,12 @@ class SpecError(ValueError):
     """The spec is invalid (the message names the field)."""
 
 
+def _short(v):
+    """A spec value for a message, cut to 40 characters."""
+    t = repr(v)
+    return t if len(t) <= 40 else t[:37] + "..."
+
+
 # ---------------------------------------------------------------- the spec
 
 def read_spec(path, *, allow_outside_paths=False):
@@ -108,7 +114,7 @@ def _range(v, field, lo=0.0, hi=math.inf):
         raise SpecError(f"{field}: expected [min, max]")
     a, b = float(v[0]), float(v[1])
     if not (math.isfinite(a) and math.isfinite(b) and lo <= a <= b <= hi):
-        raise SpecError(f"{field}: expected {lo:g} <= min <= max <= {hi:g}, got {list(v)}")
+        raise SpecError(f"{field}: expected {lo:g} <= min <= max <= {hi:g}, got {_short(list(v))}")
     return [a, b]
 
 
@@ -119,7 +125,7 @@ def resolve_spec(spec, base_dir, *, allow_outside_paths=False, name="spec"):
         raise SpecError(f"{name}: expected a JSON object")
     unknown = set(spec) - _SPEC_KEYS
     if unknown:
-        raise SpecError(f"{name}: unknown key(s) {sorted(unknown)}; expected {sorted(_SPEC_KEYS)}")
+        raise SpecError(f"{name}: unknown key(s) {_short(sorted(unknown))}; expected {sorted(_SPEC_KEYS)}")
     out = json.loads(json.dumps(DEFAULTS))
     for k, v in spec.items():
         if k == "positions":
@@ -131,7 +137,7 @@ def resolve_spec(spec, base_dir, *, allow_outside_paths=False, name="spec"):
     def whole(field, lo, hi):
         v = out[field]
         if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
-            raise SpecError(f"{field}: expected a whole number in [{lo}, {hi}], got {v!r}")
+            raise SpecError(f"{field}: expected a whole number in [{lo}, {hi}], got {_short(v)}")
     whole("count", 1, _MAX_COUNT)
     whole("seed", 0, 2**63 - 1 - _MAX_COUNT)
     whole("shard_size", 1, 100_000)
@@ -167,7 +173,7 @@ def resolve_spec(spec, base_dir, *, allow_outside_paths=False, name="spec"):
         if "generator" in r:
             unknown = set(r) - _GEN_KEYS
             if unknown:
-                raise SpecError(f"{f}: unknown key(s) {sorted(unknown)}")
+                raise SpecError(f"{f}: unknown key(s) {_short(sorted(unknown))}")
             if r["generator"] != "shoebox":
                 raise SpecError(f"{f}.generator: expected 'shoebox'")
             g = {"generator": "shoebox", "rooms": r.get("rooms", 1)}
@@ -194,7 +200,7 @@ def resolve_spec(spec, base_dir, *, allow_outside_paths=False, name="spec"):
                         raise SpecError(f"{f}.materials.{k}: expected a non-empty list of material names")
                     for n in names:
                         if n not in known:
-                            raise SpecError(f"{f}.materials.{k}: no built-in material named '{n}'")
+                            raise SpecError(f"{f}.materials.{k}: no built-in material named {_short(n)}")
                 g["materials"] = mats
             g["name"] = str(r.get("name", f"shoebox{i}"))
             total += g["rooms"]
@@ -202,7 +208,7 @@ def resolve_spec(spec, base_dir, *, allow_outside_paths=False, name="spec"):
         else:
             unknown = set(r) - _FILE_ROOM_KEYS
             if unknown:
-                raise SpecError(f"{f}: unknown key(s) {sorted(unknown)} (a file room has geometry, materials, "
+                raise SpecError(f"{f}: unknown key(s) {_short(sorted(unknown))} (a file room has geometry, materials, "
                                 "material_map; a generated one has generator)")
             if "geometry" not in r:
                 raise SpecError(f"{f}: expected geometry (a .gltf/.glb file) or a generator")
@@ -483,7 +489,22 @@ def read_wav_float(path):
 
 # ---------------------------------------------------------------- running
 
-def _prepare_dir(spec, out_dir):
+def _inputs(spec):
+    out = []
+    for r in spec["rooms"]:
+        if "generator" not in r:  # a generated room's materials are names or numbers, not files
+            out += [r[k] for k in ("geometry", "materials", "material_map") if r.get(k)]
+    return out
+
+
+def _prepare_dir(spec, out_dir, spec_path_in=None):
+    # An output never replaces an input (the spec, a room's files).
+    inputs = {os.path.realpath(p) for p in _inputs(spec) + ([spec_path_in] if spec_path_in else [])}
+    for name in ("spec.json", "manifest.jsonl", "shards"):
+        if os.path.realpath(os.path.join(out_dir, name)) in inputs:
+            raise ValueError(f"{out_dir}: {name} would replace an input of the spec; choose another folder")
+    if os.path.realpath(out_dir) in inputs:
+        raise ValueError(f"{out_dir}: is an input of the spec")
     os.makedirs(os.path.join(out_dir, "shards"), exist_ok=True)
     spec_path = os.path.join(out_dir, "spec.json")
     h = _spec_hash(spec)
@@ -527,12 +548,14 @@ def make(spec, out_dir, *, workers=None, scheduler=None, in_process=False, progr
     scheduler: the address of a running Dask scheduler instead; in_process:
     no Dask, shards made one after another here. Returns a summary dict
     (IRs, shards made and reused, seconds, seconds per IR)."""
+    spec_path = None
     if isinstance(spec, (str, os.PathLike)):
+        spec_path = os.fspath(spec)
         spec = read_spec(spec, allow_outside_paths=allow_outside_paths)
     elif isinstance(spec, dict) and "allow_outside_paths" not in spec:
         spec = resolve_spec(spec, base_dir or os.getcwd(), allow_outside_paths=allow_outside_paths)
     out_dir = os.path.abspath(os.fspath(out_dir))
-    _prepare_dir(spec, out_dir)
+    _prepare_dir(spec, out_dir, spec_path)
     n = _shard_count(spec)
     todo = [k for k in range(n) if not _shard_complete(out_dir, spec, k)]
     t0 = time.perf_counter()

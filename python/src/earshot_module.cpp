@@ -340,42 +340,32 @@ py::dict irOne(SceneData& scene, const P3& source, const P3& listener, const IrR
   return toPython(std::move(out), q);
 }
 
-/** Pair i with seed + i, pairs spread over `threads` (each IR on one
- *  thread: IRs are bit-identical whatever the thread count, and whole IRs
- *  in parallel scale better than one IR's stages). Results are converted in
- *  chunks so that at most a few IRs' C++ intermediates exist at once. */
+/** Pair i with seed + i, pairs handed out one at a time to `threads`
+ *  (each IR on one thread: IRs are bit-identical whatever the thread count,
+ *  and whole IRs in parallel scale better than one IR's stages). Only the
+ *  IRs' samples and reports are kept until all are done. */
 py::list irBatch(SceneData& scene, const std::vector<std::pair<P3, P3>>& pairs, const IrRequest& q,
                  unsigned threads) {
   for (size_t i = 0; i < pairs.size(); ++i) {
     checkVec(("pairs[" + std::to_string(i) + "] source").c_str(), pairs[i].first);
     checkVec(("pairs[" + std::to_string(i) + "] listener").c_str(), pairs[i].second);
   }
-  py::list results;
-  std::unique_ptr<ThreadPool> pool;
+  std::vector<IrOut> outs(pairs.size());
   {
     py::gil_scoped_release release;
-    pool = std::make_unique<ThreadPool>(threads);
-  }
-  const size_t chunk = size_t(pool->threadCount()) * 4;
-  for (size_t first = 0; first < pairs.size(); first += chunk) {
-    const size_t count = std::min(chunk, pairs.size() - first);
-    std::vector<IrOut> outs(count);
-    {
-      py::gil_scoped_release release;
-      if (count == 1 || pool->threadCount() == 1) {
-        for (size_t k = 0; k < count; ++k)
-          outs[k] = computeOne(scene, q, pairs[first + k].first, pairs[first + k].second,
-                               q.settings.seed + first + k, *pool);
-      } else {
-        pool->parallelFor(count, [&](size_t k, unsigned) {
-          ThreadPool one(1);
-          outs[k] = computeOne(scene, q, pairs[first + k].first, pairs[first + k].second,
-                               q.settings.seed + first + k, one);
-        });
-      }
+    ThreadPool pool(threads);
+    if (pairs.size() == 1 || pool.threadCount() == 1) {
+      for (size_t k = 0; k < pairs.size(); ++k)
+        outs[k] = computeOne(scene, q, pairs[k].first, pairs[k].second, q.settings.seed + k, pool);
+    } else {
+      pool.parallelFor(pairs.size(), [&](size_t k, unsigned) {
+        ThreadPool one(1);
+        outs[k] = computeOne(scene, q, pairs[k].first, pairs[k].second, q.settings.seed + k, one);
+      });
     }
-    for (auto& o : outs) results.append(toPython(std::move(o), q));
   }
+  py::list results;
+  for (auto& o : outs) results.append(toPython(std::move(o), q));
   return results;
 }
 

@@ -167,3 +167,11 @@ def test_positions_that_cannot_be_placed_say_so(tmp_path):
     r = subprocess.run([sys.executable, "-m", "earshot", "dataset", str(spec), "-o", str(tmp_path / "o"),
                         "--in-process", "--quiet"], capture_output=True, text=True, timeout=120)
     assert r.returncode == 2 and "no pair" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_outputs_never_replace_inputs(tmp_path):
+    spec = make_spec(tmp_path)
+    # The spec's own folder as the output: spec.json there is the input.
+    with pytest.raises(ValueError, match="replace an input"):
+        dataset.make(spec, tmp_path, in_process=True, progress=False)
+    assert json.loads(spec.read_text())["count"] == 10
