@@ -15,7 +15,7 @@ set(prefix "${WORK_DIR}/prefix")
 file(REMOVE_RECURSE "${WORK_DIR}")
 file(MAKE_DIRECTORY "${WORK_DIR}")
 run("${CMAKE_COMMAND}" --install "${BUILD_DIR}" --prefix "${prefix}")
-foreach(f include/earshot/earshot.h include/earshot/earshot.hpp ${LIBDIR}/libearshot.a ${LIBDIR}/pkgconfig/earshot.pc
+foreach(f include/earshot/earshot.h include/earshot/earshot.hpp include/earshot/earshot_version.h ${LIBDIR}/libearshot.a ${LIBDIR}/pkgconfig/earshot.pc
           ${LIBDIR}/cmake/earshot/earshotConfig.cmake share/earshot/hrtf/FHK_HRIR_L2354.sofa
           libexec/earshot/earshot-sofa-probe)
   if(NOT EXISTS "${prefix}/${f}")
@@ -24,6 +24,20 @@ foreach(f include/earshot/earshot.h include/earshot/earshot.hpp ${LIBDIR}/libear
 endforeach()
 
 # CMake package.
+# Only the public headers are installed.
+file(GLOB_RECURSE _headers RELATIVE "${prefix}/include" "${prefix}/include/*")
+list(SORT _headers)
+if(NOT _headers STREQUAL "earshot/earshot.h;earshot/earshot.hpp;earshot/earshot_version.h")
+  message(FATAL_ERROR "installed headers beyond the public API: ${_headers}")
+endif()
+
+# A C-only CMake project, shared and static.
+run("${CMAKE_COMMAND}" -S "${SOURCE_DIR}/tests/capi/external_c" -B "${WORK_DIR}/build_c" -G "${GENERATOR}"
+    -DCMAKE_BUILD_TYPE=Release "-DCMAKE_PREFIX_PATH=${prefix}")
+run("${CMAKE_COMMAND}" --build "${WORK_DIR}/build_c")
+run("${WORK_DIR}/build_c/c_only_shared" "${prefix}")
+run("${WORK_DIR}/build_c/c_only_static" -)
+
 run("${CMAKE_COMMAND}" -S "${SOURCE_DIR}/tests/capi/external" -B "${WORK_DIR}/build" -G "${GENERATOR}"
     -DCMAKE_BUILD_TYPE=Release "-DCMAKE_PREFIX_PATH=${prefix}")
 run("${CMAKE_COMMAND}" --build "${WORK_DIR}/build")
@@ -39,8 +53,14 @@ if(NOT rc EQUAL 0)
   message(FATAL_ERROR "pkg-config does not know earshot")
 endif()
 separate_arguments(flags UNIX_COMMAND "${flags}")
-run("${C_COMPILER}" -std=c99 -Wall -Wextra -pedantic -Werror "${SOURCE_DIR}/tests/capi/external/consumer.c" ${flags} -lm
+run("${C_COMPILER}" -std=c99 -Wall -Wextra -pedantic -Werror "${SOURCE_DIR}/tests/capi/external/consumer.c" ${flags}
     -o "${WORK_DIR}/consumer_pkgconfig")
 set(ENV{LD_LIBRARY_PATH} "${prefix}/${LIBDIR}")
 run("${WORK_DIR}/consumer_pkgconfig" "${prefix}")
+# And `earshot --version` says the project's version.
+run("${prefix}/bin/earshot" --version)
+execute_process(COMMAND "${prefix}/bin/earshot" --version OUTPUT_VARIABLE _v OUTPUT_STRIP_TRAILING_WHITESPACE)
+if(NOT _v STREQUAL "earshot ${VERSION}")
+  message(FATAL_ERROR "earshot --version says '${_v}', the project is ${VERSION}")
+endif()
 file(REMOVE_RECURSE "${WORK_DIR}")

@@ -24,7 +24,8 @@ endforeach()
 set(EARSHOT_EXTERNAL_LIBS embree kissfft::kissfft SndFile::sndfile MySofa::mysofa TinyGLTF::TinyGLTF Threads::Threads)
 set(EARSHOT_PC_LIBS_PRIVATE "-lembree3 -lkissfft-float -lsndfile -lmysofa -ltinygltf -lpthread -lstdc++ -lm")
 
-set(_earshot_includes $<BUILD_INTERFACE:${PROJECT_SOURCE_DIR}/include> $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>)
+set(_earshot_includes $<BUILD_INTERFACE:${PROJECT_SOURCE_DIR}/include> $<BUILD_INTERFACE:${PROJECT_BINARY_DIR}/include>
+  $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>)
 
 add_library(earshot_shared SHARED ${_earshot_objects})
 add_dependencies(earshot_shared ${_earshot_modules})
@@ -35,13 +36,17 @@ set_target_properties(earshot_shared PROPERTIES
   VERSION ${PROJECT_VERSION} SOVERSION ${PROJECT_VERSION_MAJOR}.${PROJECT_VERSION_MINOR}
   LIBRARY_OUTPUT_DIRECTORY ${PROJECT_BINARY_DIR}/lib)
 # Fail the link on an undefined symbol rather than in a user's program.
-target_link_options(earshot_shared PRIVATE -Wl,--no-undefined)
+target_link_options(earshot_shared PRIVATE -Wl,--no-undefined
+  -Wl,--version-script=${CMAKE_CURRENT_LIST_DIR}/earshot.map)
+set_property(TARGET earshot_shared APPEND PROPERTY LINK_DEPENDS ${CMAKE_CURRENT_LIST_DIR}/earshot.map)
 add_library(earshot::earshot ALIAS earshot_shared)
 
 add_library(earshot_static STATIC ${_earshot_objects})
 add_dependencies(earshot_static ${_earshot_modules})
 target_include_directories(earshot_static PUBLIC ${_earshot_includes})
-target_link_libraries(earshot_static INTERFACE ${EARSHOT_EXTERNAL_LIBS})
+# The C++ runtime and libm too: a C-only project links with the C driver,
+# which adds neither.
+target_link_libraries(earshot_static INTERFACE ${EARSHOT_EXTERNAL_LIBS} stdc++ m)
 set_target_properties(earshot_static PROPERTIES
   OUTPUT_NAME earshot EXPORT_NAME earshot_static LINKER_LANGUAGE CXX
   ARCHIVE_OUTPUT_DIRECTORY ${PROJECT_BINARY_DIR}/lib)
@@ -57,7 +62,10 @@ target_compile_options(earshot_game_loop PRIVATE -Wall -Wextra -pedantic -Werror
 # ---- install ----
 set(EARSHOT_CMAKE_DIR ${CMAKE_INSTALL_LIBDIR}/cmake/earshot)
 
-install(DIRECTORY ${PROJECT_SOURCE_DIR}/include/earshot DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
+# The public headers only: the C API, its C++ layer and the version. The
+# engine's internal headers (include/earshot/<module>/) are not an API.
+install(FILES ${PROJECT_SOURCE_DIR}/include/earshot/earshot.h ${PROJECT_SOURCE_DIR}/include/earshot/earshot.hpp
+  ${PROJECT_BINARY_DIR}/include/earshot/earshot_version.h DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/earshot)
 install(TARGETS earshot_shared EXPORT earshotTargets
   LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}
   INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "command.h"
+#include "earshot/earshot_version.h"
 #include "earshot/core/math.h"
 #include "earshot/io/input_file.h"
 #include "earshot/scene/gltf_loader.h"
@@ -138,7 +139,7 @@ CLI::Option* addVec3Option(CLI::App& app, const std::string& name, std::array<do
 int main(int argc, char** argv) {
   CLI::App app{"earshot: CPU audio propagation for VR spatial audio (impulse responses, rendering, analysis)"};
   app.require_subcommand(1);
-  app.set_version_flag("--version", "earshot 0.1.0");
+  app.set_version_flag("--version", "earshot " EARSHOT_VERSION_STRING);
   // Limits on what input files may make earshot do (README "Untrusted
   // input"); given before or after the subcommand.
   app.fallthrough();
