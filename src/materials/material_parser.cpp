@@ -1,4 +1,4 @@
-// Materials file parser (DESIGN.md "Materials file"). Band resampling is
+// Materials file parser (docs/design.md "Materials file"). Band resampling is
 // linear interpolation in log-frequency between given centres, held constant
 // beyond the ends; see interpolateToEngineBands.
 #include <cmath>

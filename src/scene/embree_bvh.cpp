@@ -111,7 +111,7 @@ Result<std::shared_ptr<const TriangleBvh>> buildTriangleBvh(const std::shared_pt
   rtcSetSceneBuildQuality(bvh->scene, RTC_BUILD_QUALITY_MEDIUM);
   // Robust (watertight) traversal: without it a ray hitting an edge exactly can
   // slip between two triangles and leave a closed room (1 in ~2e7 segments
-  // here). It costs ~20 % of tracing time (DESIGN.md).
+  // here). It costs ~20 % of tracing time (docs/design.md).
   rtcSetSceneFlags(bvh->scene, RTC_SCENE_FLAG_ROBUST);
   if (!bvh->primToTriangle.empty()) {
     RTCGeometry geom = rtcNewGeometry(device->get(), RTC_GEOMETRY_TYPE_TRIANGLE);

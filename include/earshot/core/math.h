@@ -5,7 +5,7 @@
 namespace earshot {
 
 constexpr double kPi = 3.14159265358979323846;
-constexpr double kDefaultSpeedOfSound = 343.0;  ///< m/s (DESIGN.md)
+constexpr double kDefaultSpeedOfSound = 343.0;  ///< m/s (docs/design.md)
 /** Largest coordinate magnitude accepted anywhere (geometry, sources,
  *  listener), metres: beyond it float geometry loses centimetres, and from
  *  ~1.8e18 Embree's BVH builder asserts and aborts the process. */

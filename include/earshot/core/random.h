@@ -2,7 +2,7 @@
 /** @file PCG32 (O'Neill 2014, pcg-random.org, XSH-RR variant): a small, fast
  *  generator with independent streams. earshot seeds one stream per ray index
  *  from (seed, ray index) so that results do not depend on which thread traced
- *  which ray. std::mt19937 per path is ~5x slower (DESIGN.md). */
+ *  which ray. std::mt19937 per path is ~5x slower (docs/design.md). */
 #include <cstdint>
 
 namespace earshot {

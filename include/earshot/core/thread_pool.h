@@ -1,5 +1,5 @@
 #pragma once
-/** @file A persistent worker pool (spawning a thread costs ~26 us; DESIGN.md).
+/** @file A persistent worker pool (spawning a thread costs ~26 us; docs/design.md).
  *  parallelFor hands out task indices dynamically; callers that need
  *  bit-identical results for any thread count make each task's output depend
  *  only on its index and combine outputs in index order afterwards. */

@@ -1,7 +1,7 @@
 #pragma once
 /** @file Conversions between earshot's listener head frame and SOFA's frame.
  *
- *  earshot head frame (glTF convention, DESIGN.md): +x = right, +y = up,
+ *  earshot head frame (glTF convention, docs/design.md): +x = right, +y = up,
  *  -z = forward. So forward is (0, 0, -1), left is (-1, 0, 0), up is (0, 1, 0).
  *
  *  SOFA frame (AES69, listener view +x, up +z): +x = forward, +y = left,

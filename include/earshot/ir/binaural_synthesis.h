@@ -27,7 +27,7 @@
  *  With an identity HRTF (every HRIR a unit pulse, zero delays, e.g. the
  *  test set Pulse.sofa) both ears equal the omni IR of the same seed.
  *
- *  Conventions (DESIGN.md): channel 0 left, channel 1 right; time 0 is the
+ *  Conventions (docs/design.md): channel 0 left, channel 1 right; time 0 is the
  *  emission; amplitudes are the omni pressure filtered by the HRTF. */
 #include <array>
 #include <complex>

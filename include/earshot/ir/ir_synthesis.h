@@ -11,7 +11,7 @@
  *  centres), filtered by W_b and summed (Kuttruff, Room Acoustics, 5th ed.,
  *  sec. 9.7; Vorlaender, Auralization, sec. 11.4). With equal bands this is
  *  just the noise times the envelope: bands recombine flat.
- *  Conventions (DESIGN.md): time 0 = emission, 1/r amplitude, float, no
+ *  Conventions (docs/design.md): time 0 = emission, 1/r amplitude, float, no
  *  normalisation. */
 #include <cstdint>
 #include <vector>

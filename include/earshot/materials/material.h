@@ -1,6 +1,6 @@
 #pragma once
 /** @file Acoustic materials: per-band energy fractions, and the table that
- *  scenes index by material id. File format: DESIGN.md "Materials file". */
+ *  scenes index by material id. File format: docs/design.md "Materials file". */
 #include <cstdint>
 #include <optional>
 #include <string>

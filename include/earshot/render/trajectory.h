@@ -11,7 +11,7 @@
 
 namespace earshot {
 
-/** Default orientation (DESIGN.md: glTF convention): forward -Z, up +Y. */
+/** Default orientation (docs/design.md: glTF convention): forward -Z, up +Y. */
 constexpr Vec3d kDefaultForward{0.0, 0.0, -1.0};
 constexpr Vec3d kDefaultUp{0.0, 1.0, 0.0};
 
