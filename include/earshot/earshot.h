@@ -66,9 +66,10 @@ extern "C" {
 
 /* ---------------------------------------------------------------- versions */
 
-#define EARSHOT_VERSION_MAJOR 0
-#define EARSHOT_VERSION_MINOR 1
-#define EARSHOT_VERSION_PATCH 0
+/* EARSHOT_VERSION_MAJOR, _MINOR, _PATCH and EARSHOT_VERSION_STRING, from
+ * the project's version (generated at configure time, installed beside this
+ * header). */
+#include "earshot/earshot_version.h"
 /** The version this header describes, as (major << 16) | (minor << 8) | patch. */
 #define EARSHOT_VERSION ((EARSHOT_VERSION_MAJOR << 16) | (EARSHOT_VERSION_MINOR << 8) | EARSHOT_VERSION_PATCH)
 
@@ -113,6 +114,7 @@ typedef struct earshot_context earshot_context;
 typedef struct earshot_scene earshot_scene;
 typedef struct earshot_mesh earshot_mesh;
 typedef struct earshot_source earshot_source;
+typedef struct earshot_ir earshot_ir;
 
 /* ------------------------------------------------------ log and allocator */
 
@@ -148,8 +150,13 @@ typedef struct earshot_context_settings {
   uint32_t struct_size;        /**< sizeof(earshot_context_settings) */
   uint32_t flags;              /**< EARSHOT_CONTEXT_* flags; default 0 */
   double sample_rate_hz;       /**< audio rate, [8000, 384000]; default 48000 */
-  uint32_t block_frames;       /**< convolver partition and latency (frames), even, [8, 65536]; default 256.
-                                    earshot_process() accepts blocks of any size regardless. */
+  /** The host's usual block (frames), [1, 65536]; default 256. The
+   *  convolver's partition, and so the latency (earshot_context_info's
+   *  latency_frames), is the smallest even 2^a 3^b 5^c number at least this
+   *  and 8: 254 -> 256, 441 -> 450, 1 -> 8 (other prime factors would make
+   *  the FFT allocate on the audio thread). earshot_process() accepts blocks
+   *  of any size regardless. */
+  uint32_t block_frames;
   uint32_t max_sources;        /**< source slots allocated up front, [1, 4096]; default 32 */
   double max_ir_seconds;       /**< reflections are cut here (10 ms fade), (0, 60]; default 3 */
   uint32_t rays;               /**< rays traced per source and simulation, [1, 100000000]; default 16384 */
@@ -232,8 +239,10 @@ EARSHOT_API earshot_status earshot_context_set_scene(earshot_context* context, e
  *  sources in round-robin order (0 or more than active: all of them) and
  *  updates their direct paths' occlusion, from the poses set so far. Takes
  *  time (milliseconds per source; see earshot_context_get_info) on the
- *  context's worker threads. A new source is silent until its first
- *  simulation. Errors: INVALID_ARGUMENT, INVALID_STATE (the built-in
+ *  context's worker threads. A new source's direct sound plays from its
+ *  first audio block (EARSHOT_DIRECT_PER_BLOCK; unoccluded until its first
+ *  simulation has traced the path); its reflections join when its first
+ *  simulation lands. Errors: INVALID_ARGUMENT, INVALID_STATE (the built-in
  *  simulation thread is running), OUT_OF_MEMORY, INTERNAL. Simulation thread
  *  (any thread but the audio thread; one at a time). */
 EARSHOT_API earshot_status earshot_simulate(earshot_context* context, uint32_t source_count);
@@ -277,7 +286,7 @@ EARSHOT_API earshot_status earshot_hrtf_default_path(char* buffer, size_t capaci
 
 typedef struct earshot_scene_settings {
   uint32_t struct_size;        /**< sizeof(earshot_scene_settings) */
-  /** Acoustic materials JSON file (format: DESIGN.md "Materials file");
+  /** Acoustic materials JSON file (format: docs/design.md "Materials file");
    *  NULL = earshot's default set (materials/default.json). */
   const char* materials_path;
 } earshot_scene_settings;
@@ -463,7 +472,10 @@ typedef struct earshot_source_settings {
 EARSHOT_API earshot_status earshot_source_settings_init(earshot_source_settings* settings);
 
 /** Creates a source in one of the context's slots (settings NULL: defaults),
- *  at the origin; it stays silent until simulated once. The source holds a
+ *  at the origin. Its direct sound plays from the next audio block
+ *  (EARSHOT_DIRECT_PER_BLOCK, the default), its reflections once simulated;
+ *  a source with EARSHOT_DIRECT_IN_IMPULSE_RESPONSE is heard once simulated
+ *  (its direct sound is part of its IR). The source holds a
  *  reference to the context. *out holds one reference (NULL on failure).
  *  Errors: INVALID_ARGUMENT, OUT_OF_RANGE (all max_sources slots in use). Game thread. */
 EARSHOT_API earshot_status earshot_source_create(earshot_context* context, const earshot_source_settings* settings,
@@ -484,6 +496,77 @@ EARSHOT_API earshot_status earshot_source_set_position(earshot_source* source, e
 /** Sets the source's gain in dB, [-120, 40]; ramped over the next audio
  *  block. Game thread (any thread but the audio thread). */
 EARSHOT_API earshot_status earshot_source_set_gain_db(earshot_source* source, float gain_db);
+
+/* ---------------------------------------------------------------------- IR */
+
+/* An impulse response, for baking, editor previews or a game's own
+ * convolution: immutable once made, so any thread may read it; released by
+ * its last reference. Layout: `channels` planar float channels (binaural:
+ * 0 left, 1 right; omni: 1) of `frames` samples at `sample_rate_hz`; time 0
+ * is the emission; amplitude is pressure with 1/r spreading (a source 1 m
+ * away has a direct sound of 1.0); never normalised. */
+
+typedef enum earshot_receiver {
+  EARSHOT_RECEIVER_BINAURAL = 0, /**< 2 channels through the context's HRTF */
+  EARSHOT_RECEIVER_OMNI = 1      /**< 1 channel */
+} earshot_receiver;
+
+typedef struct earshot_ir_info {
+  uint32_t struct_size;     /**< sizeof(earshot_ir_info), set by the caller */
+  uint32_t channels;        /**< 1 (omni) or 2 (binaural: left, right) */
+  uint64_t frames;          /**< samples per channel */
+  double sample_rate_hz;    /**< the context's rate */
+  uint32_t includes_direct; /**< 1 if the direct sound is in the IR */
+  uint64_t simulation;      /**< a source's IR: its number (1 = the source's first); 0 for a computed IR */
+} earshot_ir_info;
+
+/** The IR the source's last simulation made and its reflections are being
+ *  convolved with (a shared, immutable copy: later simulations do not change
+ *  it): binaural; with EARSHOT_DIRECT_IN_IMPULSE_RESPONSE it holds the
+ *  direct sound (then it is the IR `earshot ir` computes for the same
+ *  positions and settings), with EARSHOT_DIRECT_PER_BLOCK the reflections
+ *  only; cut at max_ir_seconds with a 10 ms fade. *out holds one reference.
+ *  Errors: NOT_FOUND (the source has not been simulated yet). Game thread or
+ *  any thread but the audio thread (takes a lock the simulation also takes,
+ *  briefly). */
+EARSHOT_API earshot_status earshot_source_get_ir(earshot_source* source, earshot_ir** out);
+
+typedef struct earshot_ir_request {
+  uint32_t struct_size;       /**< sizeof(earshot_ir_request) */
+  earshot_vec3 source;        /**< metres, finite; default (0, 0, -1) */
+  earshot_vec3 listener;      /**< metres, finite; default origin */
+  earshot_vec3 forward;       /**< listener's forward; default (0, 0, -1) */
+  earshot_vec3 up;            /**< listener's up; default (0, 1, 0) */
+  earshot_receiver receiver;  /**< default EARSHOT_RECEIVER_BINAURAL */
+  uint64_t seed;              /**< default 0: the context's seed */
+} earshot_ir_request;
+
+/** Fills `request` with the defaults above (and struct_size). Any thread. */
+EARSHOT_API earshot_status earshot_ir_request_init(earshot_ir_request* request);
+/** Computes the complete IR (direct sound included, not cut) of one
+ *  source/listener pair in the scene the context follows (its latest
+ *  commit; no scene: free field) with the context's simulation settings
+ *  (rays, bounces, image-source order, seed, HRTF, rate): the IR `earshot
+ *  ir` computes for the same inputs. Takes as long as a simulation (tens to
+ *  hundreds of ms) on the context's worker threads. *out holds one
+ *  reference. Errors: INVALID_ARGUMENT (non-finite or parallel vectors,
+ *  unknown receiver), OUT_OF_RANGE (positions beyond 1e6 m). Any thread but
+ *  the audio thread. */
+EARSHOT_API earshot_status earshot_context_compute_ir(earshot_context* context, const earshot_ir_request* request,
+                                                      earshot_ir** out);
+
+/** Its layout (info->struct_size set by the caller). Any thread. */
+EARSHOT_API earshot_status earshot_ir_get_info(const earshot_ir* ir, earshot_ir_info* info);
+/** Copies channel `channel` (all `frames` samples) into `buffer`, which
+ *  holds `capacity_frames` floats. Errors: INVALID_ARGUMENT (no such
+ *  channel, NULL buffer), OUT_OF_RANGE (capacity_frames < frames: nothing
+ *  copied). Any thread. */
+EARSHOT_API earshot_status earshot_ir_copy_channel(const earshot_ir* ir, uint32_t channel, float* buffer,
+                                                   uint64_t capacity_frames);
+/** Adds a reference. Any thread. */
+EARSHOT_API earshot_status earshot_ir_retain(earshot_ir* ir);
+/** Drops a reference; the last one frees it. Any thread but the audio thread. */
+EARSHOT_API earshot_status earshot_ir_release(earshot_ir* ir);
 
 #ifdef __cplusplus
 }  /* extern "C" */

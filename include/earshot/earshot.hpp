@@ -135,6 +135,36 @@ struct SourceSettings : earshot_source_settings {
   SourceSettings() noexcept : earshot_source_settings() { earshot_source_settings_init(this); }
 };
 
+struct IrRequest : earshot_ir_request {
+  IrRequest() noexcept : earshot_ir_request() { earshot_ir_request_init(this); }
+};
+
+/** An immutable impulse response (earshot_ir_*): channels() planar float
+ *  channels of frames() samples at sampleRateHz(). Any thread. */
+class Ir : public detail::Handle<earshot_ir, earshot_ir_retain, earshot_ir_release> {
+ public:
+  Ir() noexcept = default;
+  static Ir adopt(earshot_ir* adopted) noexcept { return Ir(adopted); }
+  earshot_ir_info info() const {
+    earshot_ir_info i{};
+    i.struct_size = sizeof(i);
+    check(earshot_ir_get_info(checked(), &i));
+    return i;
+  }
+  uint32_t channels() const { return info().channels; }
+  uint64_t frames() const { return info().frames; }
+  double sampleRateHz() const { return info().sample_rate_hz; }
+  /** A copy of one channel. */
+  std::vector<float> channel(uint32_t index) const {
+    std::vector<float> out(static_cast<size_t>(frames()));
+    check(earshot_ir_copy_channel(checked(), index, out.data(), out.size()));
+    return out;
+  }
+
+ private:
+  explicit Ir(earshot_ir* adopted) noexcept : Handle(adopted) {}
+};
+
 /** The engine (earshot_context_*). */
 class Context : public detail::Handle<earshot_context, earshot_context_retain, earshot_context_release> {
  public:
@@ -160,6 +190,12 @@ class Context : public detail::Handle<earshot_context, earshot_context_retain, e
     check(earshot_context_start_simulation(checked(), rateHz, sourcesPerStep));
   }
   void stopSimulation() { check(earshot_context_stop_simulation(checked())); }
+  /** earshot_context_compute_ir: the complete IR of one pair, as `earshot ir`. */
+  Ir computeIr(const earshot_ir_request& request) const {
+    earshot_ir* ir = nullptr;
+    check(earshot_context_compute_ir(checked(), &request, &ir));
+    return Ir::adopt(ir);
+  }
   /** Audio thread: earshot_process; never throws, returns the status.
    *  inputs[i] is the source with index i (Source::index()). */
   earshot_status process(Span<const float* const> inputs, float* left, float* right, size_t frames) noexcept {
@@ -295,6 +331,12 @@ class Source : public detail::Handle<earshot_source, earshot_source_retain, ears
   }
   void setPosition(earshot_vec3 position) { check(earshot_source_set_position(checked(), position)); }
   void setGainDb(float gainDb) { check(earshot_source_set_gain_db(checked(), gainDb)); }
+  /** earshot_source_get_ir: the IR of the source's last simulation. */
+  Ir ir() const {
+    earshot_ir* ir = nullptr;
+    check(earshot_source_get_ir(checked(), &ir));
+    return Ir::adopt(ir);
+  }
 
  private:
   explicit Source(earshot_source* adopted) noexcept : Handle(adopted) {}

@@ -30,6 +30,7 @@ enum class Kind : uint32_t {
   kScene = 0x4e435345,    // "ESCN"
   kMesh = 0x48534d45,     // "EMSH"
   kSource = 0x43525345,   // "ESRC"
+  kIr = 0x52494945,       // "EIIR"
   kDead = 0xdeaddead,
 };
 
@@ -212,6 +213,15 @@ struct earshot_source : earshot::capi::Object {
 
   earshot_context* context = nullptr;  // holds a reference
   uint32_t slot = 0;
+};
+
+struct earshot_ir : earshot::capi::Object {
+  static constexpr earshot::capi::Kind kKind = earshot::capi::Kind::kIr;
+  explicit earshot_ir(const earshot::capi::Env& e) : Object(kKind, e) {}
+
+  std::shared_ptr<const earshot::AudioBuffer> ir;  // never modified
+  bool includesDirect = false;
+  uint64_t simulation = 0;
 };
 
 namespace earshot::capi {

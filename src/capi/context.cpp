@@ -1,4 +1,5 @@
 // The C API's context (engine, listener, simulation, audio) and sources.
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
@@ -16,13 +17,26 @@ namespace {
 // bound that catches sizes that are garbage rather than limits real use.
 constexpr size_t kMaxProcessFrames = size_t(1) << 24;
 
+/** The convolver's block for a requested block size: the smallest even
+ *  2^a 3^b 5^c number >= max(requested, 8) (KissFFT allocates inside its
+ *  transform for other prime factors, which the audio thread must not). */
+uint32_t convolverBlock(uint32_t requested) {
+  for (uint32_t m = std::max<uint32_t>(requested, 8);; ++m) {
+    if (m % 2 != 0) continue;
+    uint32_t rest = m;
+    for (uint32_t f : {2u, 3u, 5u})
+      while (rest % f == 0) rest /= f;
+    if (rest == 1) return m;
+  }
+}
+
 std::string checkSettings(const earshot_context_settings& s) {
   if (s.flags & ~uint32_t(EARSHOT_CONTEXT_VALIDATION))
     return "settings->flags has unknown bits " + std::to_string(s.flags);
   if (!(s.sample_rate_hz >= 8000.0 && s.sample_rate_hz <= 384000.0))
     return "settings->sample_rate_hz " + describe(s.sample_rate_hz) + " is outside [8000, 384000]";
-  if (s.block_frames < 8 || s.block_frames > 65536 || s.block_frames % 2 != 0)
-    return "settings->block_frames " + std::to_string(s.block_frames) + " is not an even number in [8, 65536]";
+  if (s.block_frames < 1 || s.block_frames > 65536)
+    return "settings->block_frames " + std::to_string(s.block_frames) + " is outside [1, 65536]";
   if (s.max_sources < 1 || s.max_sources > 4096)
     return "settings->max_sources " + std::to_string(s.max_sources) + " is outside [1, 4096]";
   if (!(s.max_ir_seconds > 0.0 && s.max_ir_seconds <= 60.0))
@@ -187,7 +201,7 @@ earshot_status earshot_context_create(const earshot_context_settings* settings, 
 
       runtime::EngineSettings es;
       es.sampleRateHz = settings->sample_rate_hz;
-      es.blockFrames = settings->block_frames;
+      es.blockFrames = convolverBlock(settings->block_frames);
       es.maxSources = settings->max_sources;
       es.maxIrSeconds = settings->max_ir_seconds;
       es.simulation.rays = settings->rays;

@@ -38,9 +38,14 @@ struct Engine::Slot {
   std::unique_ptr<DirectVoice> voice;  // audio thread
   uint32_t voiceGeneration = ~0u;      // audio thread
   bool live = false;                   // audio thread: playing in this process() call
+  bool reflectionsLive = false;        // audio thread: its IR is this source's (simulated since added)
   bool mutedChunk = false;             // audio thread: this chunk's input was not finite (muted)
   double appliedGain = 1.0;            // audio thread: gain at the end of the last chunk
   std::vector<float> scaled;           // audio thread: gained input for the mixer
+  // The last IR posted (guarded by Engine::mIrMutex; never the audio thread).
+  std::shared_ptr<const AudioBuffer> lastIr;
+  bool lastIrIncludesDirect = false;
+  uint64_t irCount = 0;
   Slot() {
     for (auto& t : transmission) t.store(1.0);
   }
@@ -163,6 +168,18 @@ Status Engine::setListener(const Vec3d& position, const ListenerOrientation& o) 
 
 SimulationStats Engine::lastSimulation() const { return mStats; }
 
+SourceIr Engine::sourceIr(uint32_t source) const {
+  SourceIr out;
+  if (!validSource(source)) return out;
+  std::lock_guard<std::mutex> lock(mIrMutex);
+  const Slot& slot = *mSlots[source];
+  if (slot.generation.load() != slot.simulatedGeneration.load()) return out;  // not simulated since (re)added
+  out.ir = slot.lastIr;
+  out.includesDirect = slot.lastIrIncludesDirect;
+  out.simulations = slot.irCount;
+  return out;
+}
+
 Status Engine::simulate(uint32_t count) {
   std::lock_guard<std::mutex> simLock(mSimulationMutex);
   std::vector<uint32_t> order;
@@ -244,6 +261,16 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& order) {
     auto prepared = PreparedIr::create(ir, mMixer->layout());
     if (!prepared.isOk()) return prepared.status();
     EARSHOT_RETURN_IF_ERROR(mMixer->setIr(j.slot, *prepared));
+    {
+      // Kept for sourceIr(), unless the slot was released or reused meanwhile.
+      auto kept = std::make_shared<const AudioBuffer>(std::move(ir));
+      std::lock_guard<std::mutex> lock(mIrMutex);
+      if (slot.generation.load() == j.generation) {
+        slot.lastIr = std::move(kept);
+        slot.lastIrIncludesDirect = j.settings.includeDirect;
+        ++slot.irCount;
+      }
+    }
     // Transmission through occluders: the direct path's band gains without air.
     const DirectPath& d = r->direct;
     const BandArrayD air = j.settings.air.enabled ? airAttenuationDbPerMeter(j.settings.air) : filledBands(0.0);
@@ -275,9 +302,17 @@ void Engine::process(const float* const* inputs, float* left, float* right, size
   for (size_t i = 0; i < n; ++i) {
     Slot& slot = *mSlots[i];
     const uint32_t generation = slot.generation.load(std::memory_order_acquire);
-    const bool live = inputs && inputs[i] && slot.active.load(std::memory_order_acquire) &&
-                      slot.simulatedGeneration.load(std::memory_order_acquire) == generation;
+    // A per-block source's direct sound plays from its first block (issue
+    // 19: unoccluded until its first simulation says otherwise); its
+    // reflections join when its first IR lands (the convolution starts from
+    // silence then, as a sound starting in the room). A source whose IR holds
+    // the direct sound waits for that IR.
+    const bool active = inputs && inputs[i] && slot.active.load(std::memory_order_acquire);
+    const bool simulated = slot.simulatedGeneration.load(std::memory_order_acquire) == generation;
+    const bool perBlock = DirectMode(slot.direct.load(std::memory_order_relaxed)) == DirectMode::kPerBlock;
+    const bool live = active && (simulated || perBlock);
     slot.live = live;
+    slot.reflectionsLive = active && simulated;
     if (live && slot.voiceGeneration != generation) {
       slot.voice->reset();
       slot.voiceGeneration = generation;
@@ -308,7 +343,7 @@ void Engine::process(const float* const* inputs, float* left, float* right, size
         for (size_t k = 0; k < m; ++k) g[k] = in[k] * (from + (to - from) * float(k + 1) / float(m));
       }
       slot.appliedGain = to;
-      mInputs[i] = g;
+      mInputs[i] = slot.reflectionsLive ? g : nullptr;
     }
     float* outs[2] = {left + off, right + off};
     mMixer->process(mInputs.data(), outs, m);

@@ -156,7 +156,7 @@ TEST(CApiFuzz, ThousandInvalidCallsReturnErrorsAndChangeNothing) {
         switch (pick(16)) {
           case 0: s.struct_size = wrongSize(sizeof(s)); break;
           case 1: s.sample_rate_hz = pick(2) ? double(badFloat()) : 1e9; break;
-          case 2: s.block_frames = pick(2) ? 7u : 1u << 20; break;
+          case 2: s.block_frames = pick(2) ? 0u : 1u << 20; break;
           case 3: s.max_sources = pick(2) ? 0u : 5000u; break;
           case 4: s.max_ir_seconds = pick(2) ? double(badFloat()) : 61.0; break;
           case 5: s.rays = 0; break;
@@ -764,10 +764,11 @@ TEST(CApiThreads, BuiltInSimulationThreadUpdatesSources) {
   ASSERT_EQ(earshot_source_create(c, nullptr, &src), EARSHOT_OK);
   ASSERT_EQ(earshot_source_set_position(src, {0, 0, -2}), EARSHOT_OK);
 
-  // Not simulated yet: silent.
+  // Not simulated yet: the direct sound plays from the first block (issue
+  // 19), the reflections do not (free field here: there are none anyway).
   std::vector<float> l, r;
   render(c, 2048, 256, l, r);
-  EXPECT_EQ(energy(l) + energy(r), 0.0);
+  EXPECT_GT(energy(l) + energy(r), 0.0);
 
   ASSERT_EQ(earshot_context_start_simulation(c, 50.0, 0), EARSHOT_OK);
   EXPECT_EQ(earshot_context_start_simulation(c, 50.0, 0), EARSHOT_ERROR_INVALID_STATE);

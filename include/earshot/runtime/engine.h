@@ -16,7 +16,7 @@
  *  is then the dry signal convolved with the IR `earshot ir` computes for the
  *  same poses and settings, delayed by latencyFrames().
  *
- *  Threads (DESIGN.md): the game thread (sources, listener, scene: the
+ *  Threads (docs/design.md): the game thread (sources, listener, scene: the
  *  set, add and remove calls), one simulation thread at a time (simulate()),
  *  and the audio thread (process()). Poses and gains cross to the audio thread
  *  through atomics; IRs through the mixer's lock-free mailbox. process()
@@ -91,6 +91,14 @@ struct ContainmentStats {
  *  for corrupt and its chunk muted like a NaN. */
 constexpr float kMaxInputSample = 1e6f;
 
+/** A source's latest IR as its last simulation posted it (binaural: left,
+ *  right; cut at maxIrSeconds with a 10 ms fade), shared, never modified. */
+struct SourceIr {
+  std::shared_ptr<const AudioBuffer> ir;  ///< null: not simulated since the source was added
+  bool includesDirect = false;            ///< DirectMode::kInImpulseResponse: the IR holds the direct sound
+  uint64_t simulations = 0;               ///< IRs posted for this source so far
+};
+
 class Engine {
  public:
   /** Allocates everything the audio thread will use. Thread: any but audio. */
@@ -101,6 +109,7 @@ class Engine {
   Engine& operator=(const Engine&) = delete;
 
   const EngineSettings& settings() const { return mSettings; }
+  const std::shared_ptr<const BinauralModel>& model() const { return mModel; }
   /** Counts of NaN/Inf containment on the audio path since creation. Any thread. */
   ContainmentStats containment() const;
   size_t latencyFrames() const;
@@ -109,7 +118,8 @@ class Engine {
   /** Replaces the scene (an immutable snapshot; null: free field). The next
    *  simulate() uses it; the previous one is released when no longer used. */
   void setScene(std::shared_ptr<const RayTracer> tracer, std::shared_ptr<const MaterialTable> materials);
-  /** A source slot, silent until positioned and simulated. Error when all
+  /** A source slot: its direct sound (DirectMode::kPerBlock) plays from the
+   *  next process() call, its reflections once simulated. Error when all
    *  maxSources slots are in use or the settings are out of range. */
   Result<uint32_t> addSource(const SourceSettings& settings);
   Status removeSource(uint32_t source);
@@ -126,6 +136,9 @@ class Engine {
   /** Simulates exactly these sources (in this order). */
   Status simulate(const std::vector<uint32_t>& sources);
   SimulationStats lastSimulation() const;
+  /** The source's latest IR (a shared copy of what is being convolved).
+   *  Game or simulation thread; never the audio thread (takes a lock). */
+  SourceIr sourceIr(uint32_t source) const;
 
   // ---- audio thread ----
   /** Renders `frames` frames: inputs[s] is source slot s's dry mono input
@@ -152,6 +165,7 @@ class Engine {
   std::shared_ptr<const MaterialTable> mMaterials;
   std::shared_ptr<const RayTracer> mEmptyTracer;
   std::mutex mSimulationMutex;  // serialises simulate()
+  mutable std::mutex mIrMutex;  // Slot::lastIr (game and simulation threads only)
   uint32_t mNextRoundRobin = 0;
   SimulationStats mStats;
   std::atomic<uint64_t> mMutedSourceChunks{0}, mClearedOutputChunks{0};  // written by the audio thread
