@@ -4,6 +4,7 @@
 
 #include <unistd.h>
 
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <memory>
@@ -67,7 +68,56 @@ Result<AudioBuffer> readAudioFile(const std::string& path, size_t maxSamples) {
   return out;
 }
 
+Result<AudioFileFormat> audioFormatForPath(const std::string& path) {
+  const size_t slash = path.find_last_of('/');
+  const std::string name = slash == std::string::npos ? path : path.substr(slash + 1);
+  const size_t dot = name.find_last_of('.');
+  std::string ext = dot == std::string::npos || dot == 0 ? "" : name.substr(dot + 1);
+  for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+  if (ext.empty() || ext == "wav" || ext == "wave") return AudioFileFormat{SF_FORMAT_WAV | SF_FORMAT_FLOAT, false, "WAV, 32-bit float"};
+  if (ext == "flac") return AudioFileFormat{SF_FORMAT_FLAC | SF_FORMAT_PCM_24, true, "FLAC, 24-bit"};
+  if (ext == "ogg" || ext == "oga") return AudioFileFormat{SF_FORMAT_OGG | SF_FORMAT_VORBIS, true, "Ogg Vorbis"};
+  return unsupported(path + ": '." + ext.substr(0, 16) +
+                     "' names no format earshot writes: .wav (32-bit float), .flac (24-bit) or .ogg (Vorbis)");
+}
+
+namespace {
+
+/** Opens `tmp` for writing in `format` (no PEAK chunk: it carries a
+ *  timestamp, and identical audio must give identical files); fixed-point
+ *  formats clip beyond full scale instead of wrapping. */
+SNDFILE* openForWriting(const std::string& tmp, const AudioFileFormat& format, size_t channels, double rate) {
+  SF_INFO info{};
+  info.channels = int(channels);
+  info.samplerate = int(std::lround(rate));
+  info.format = format.sndfileFormat;
+  SNDFILE* f = sf_open(tmp.c_str(), SFM_WRITE, &info);
+  if (!f) return nullptr;
+  sf_command(f, SFC_SET_ADD_PEAK_CHUNK, nullptr, SF_FALSE);
+  if (format.clipsAtFullScale) sf_command(f, SFC_SET_CLIPPING, nullptr, SF_TRUE);
+  return f;
+}
+
+}  // namespace
+
+Status writeInFormat(const std::string& path, const AudioBuffer& audio, const AudioFileFormat& format,
+                     uint64_t* clippedSamples);
+
 Status writeWavFloat(const std::string& path, const AudioBuffer& audio) {
+  return writeInFormat(path, audio, AudioFileFormat{SF_FORMAT_WAV | SF_FORMAT_FLOAT, false, "WAV, 32-bit float"},
+                       nullptr);
+}
+
+Status writeAudioFile(const std::string& path, const AudioBuffer& audio, uint64_t* clippedSamples) {
+  if (clippedSamples) *clippedSamples = 0;
+  auto format = audioFormatForPath(path);
+  if (!format.isOk()) return format.status();
+  return writeInFormat(path, audio, *format, clippedSamples);
+}
+
+Status writeInFormat(const std::string& path, const AudioBuffer& audio, const AudioFileFormat& fmt,
+                     uint64_t* clippedSamples) {
+  const AudioFileFormat* format = &fmt;
   const size_t ch = audio.channelCount(), frames = audio.frameCount();
   if (ch == 0) return invalidArgument(path + ": no channels to write");
   if (!(audio.sampleRateHz >= 1.0 && audio.sampleRateHz <= 1e6))
@@ -79,16 +129,12 @@ Status writeWavFloat(const std::string& path, const AudioBuffer& audio) {
         return invalidArgument(path + ": sample " + std::to_string(i) + " of channel " + std::to_string(c) +
                                " is not finite; nothing written");
   }
+  if (format->clipsAtFullScale && clippedSamples)
+    for (const auto& c : audio.channels)
+      for (float v : c) *clippedSamples += std::fabs(v) > 1.0f ? 1 : 0;
   return writeFileAtomically(path, [&](const std::string& tmp) -> Status {
-    SF_INFO info{};
-    info.channels = int(ch);
-    info.samplerate = int(std::lround(audio.sampleRateHz));
-    info.format = SF_FORMAT_WAV | SF_FORMAT_FLOAT;
-    SndPtr f(sf_open(tmp.c_str(), SFM_WRITE, &info));
+    SndPtr f(openForWriting(tmp, *format, ch, audio.sampleRateHz));
     if (!f) return ioError(path + ": cannot open for writing (" + sf_strerror(nullptr) + ")");
-    // No PEAK chunk: it carries a timestamp, and identical audio must give
-    // identical files (same inputs and seed, same bytes).
-    sf_command(f.get(), SFC_SET_ADD_PEAK_CHUNK, nullptr, SF_FALSE);
     std::vector<float> block(4096 * ch);
     for (size_t start = 0; start < frames; start += 4096) {
       size_t n = std::min<size_t>(4096, frames - start);
@@ -107,18 +153,16 @@ Result<std::unique_ptr<WavStreamWriter>> WavStreamWriter::open(const std::string
   if (channels == 0 || channels > 64) return invalidArgument(path + ": " + std::to_string(channels) + " channels");
   if (!(sampleRateHz >= 1.0 && sampleRateHz <= 1e6))
     return invalidArgument(path + ": sample rate " + std::to_string(sampleRateHz) + " is outside [1, 1e6] Hz");
+  auto format = audioFormatForPath(path);
+  if (!format.isOk()) return format.status();
   EARSHOT_RETURN_IF_ERROR(checkOutputPath(path));
   std::unique_ptr<WavStreamWriter> w(new WavStreamWriter());
+  w->mFormat = *format;
   w->mPath = path;
   w->mTmp = path + ".tmp-" + std::to_string(::getpid()) + "-" + std::to_string(reinterpret_cast<uintptr_t>(w.get()));
   w->mChannels = channels;
-  SF_INFO info{};
-  info.channels = int(channels);
-  info.samplerate = int(std::lround(sampleRateHz));
-  info.format = SF_FORMAT_WAV | SF_FORMAT_FLOAT;
-  SNDFILE* f = sf_open(w->mTmp.c_str(), SFM_WRITE, &info);
+  SNDFILE* f = openForWriting(w->mTmp, *format, channels, sampleRateHz);
   if (!f) return ioError(path + ": cannot open for writing (" + sf_strerror(nullptr) + ")");
-  sf_command(f, SFC_SET_ADD_PEAK_CHUNK, nullptr, SF_FALSE);  // no timestamp: same audio, same bytes
   w->mFile = f;
   return w;
 }
@@ -132,7 +176,7 @@ WavStreamWriter::~WavStreamWriter() {
 
 Status WavStreamWriter::write(const float* const* planar, size_t frames) {
   if (!mFile) return ioError(mPath + ": already committed");
-  if ((mFrames + frames) * mChannels * sizeof(float) > kMaxWavBytes)
+  if (!mFormat.clipsAtFullScale && (mFrames + frames) * mChannels * sizeof(float) > kMaxWavBytes)
     return outOfRange(mPath + ": over the 4 GiB a WAV file can hold");
   mInterleaved.resize(frames * mChannels);
   for (size_t i = 0; i < frames; ++i)
@@ -142,6 +186,7 @@ Status WavStreamWriter::write(const float* const* planar, size_t frames) {
         return invalidArgument(mPath + ": sample " + std::to_string(mFrames + i) + " of channel " + std::to_string(c) +
                                " is not finite; nothing written");
       mInterleaved[i * mChannels + c] = v;
+      mClipped += mFormat.clipsAtFullScale && std::fabs(v) > 1.0f ? 1 : 0;
     }
   if (sf_writef_float(static_cast<SNDFILE*>(mFile), mInterleaved.data(), sf_count_t(frames)) != sf_count_t(frames))
     return ioError(mPath + ": write failed");

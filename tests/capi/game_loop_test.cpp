@@ -3,6 +3,7 @@
 // open at 3-4 s and shut at 7-8 s changes what the listener hears.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -34,6 +35,11 @@ TEST(GameLoopSample, WritesTenSecondsOfFiniteBinauralAudio) {
       total[c] += double(v) * v;
     }
   }
+  // Below full scale (issue 19: it peaked at +5.9 dBFS).
+  float peak = 0;
+  for (const auto& ch : wav->channels)
+    for (float v : ch) peak = std::max(peak, std::fabs(v));
+  EXPECT_LT(peak, 1.0f);
   // Both ears hear it (the source circles the listener).
   EXPECT_GT(total[0], 0.0);
   EXPECT_GT(total[1], 0.0);

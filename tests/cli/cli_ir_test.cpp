@@ -141,3 +141,45 @@ INSTANTIATE_TEST_SUITE_P(
     [](const ::testing::TestParamInfo<BadInput>& i) { return i.param.name; });
 
 }  // namespace earshot
+
+namespace earshot {
+
+// -o writes the format its extension names, or refuses it (issue 19).
+TEST(CliIr, OutputFormatFollowsTheExtension) {
+  TempDir dir("cli_formats");
+  const std::string common = "ir --source 0,0,-3.43 --listener 0,0,0 --receiver omni --air off --length 0.1 -o ";
+  for (const char* name : {"ir.wav", "ir.flac", "ir.ogg", "IR.FLAC"}) {
+    auto r = runEarshot(common + dir / name);
+    ASSERT_EQ(r.exitCode, 0) << name << ": " << r.output;
+  }
+  EXPECT_EQ(readFile(dir / "ir.wav").substr(0, 4), "RIFF");
+  EXPECT_EQ(readFile(dir / "ir.flac").substr(0, 4), "fLaC");
+  EXPECT_EQ(readFile(dir / "IR.FLAC").substr(0, 4), "fLaC");
+  EXPECT_EQ(readFile(dir / "ir.ogg").substr(0, 4), "OggS");
+  auto wav = readAudioFile(dir / "ir.wav");
+  auto flac = readAudioFile(dir / "ir.flac");
+  ASSERT_TRUE(wav.isOk() && flac.isOk());
+  ASSERT_EQ(wav->frameCount(), flac->frameCount());
+  for (size_t i = 0; i < wav->frameCount(); ++i)
+    ASSERT_NEAR(wav->channels[0][i], flac->channels[0][i], 1.0 / (1 << 23)) << i;  // 24-bit
+
+  // Unknown extensions are refused before any work, naming what is written.
+  auto bad = runEarshot(common + dir / "ir.mp3");
+  EXPECT_EQ(bad.exitCode, 2);
+  EXPECT_NE(bad.output.find(".flac"), std::string::npos) << bad.output;
+  EXPECT_FALSE(fs::exists(dir / "ir.mp3"));
+
+  // A source closer than 1 m peaks above full scale: float keeps it, FLAC
+  // clips it and says so.
+  const std::string close = "ir --source 0,0,-0.25 --listener 0,0,0 --receiver omni --air off --length 0.1 -o ";
+  auto w = runEarshot(close + dir / "close.wav");
+  ASSERT_EQ(w.exitCode, 0) << w.output;
+  EXPECT_EQ(w.output.find("clipped"), std::string::npos) << w.output;
+  auto f = runEarshot(close + dir / "close.flac --json " + dir / "close.json");
+  ASSERT_EQ(f.exitCode, 0) << f.output;
+  EXPECT_NE(f.output.find("clipped"), std::string::npos) << f.output;
+  const auto stats = nlohmann::json::parse(readFile(dir / "close.json"));
+  EXPECT_NE(stats["warnings"].dump().find("clipped"), std::string::npos);
+}
+
+}  // namespace earshot

@@ -123,6 +123,7 @@ int run(const IrOptions& o, const CLI::App& cmd) {
   // FIFO, a device) before computing (the writes check again).
   for (const std::string* out : {&o.output, &o.json})
     if (!out->empty() && !check(checkOutputPath(*out))) return 2;
+  if (!check(audioFormatForPath(o.output).status())) return 2;
 
   ThreadPool pool(o.threads);
   const Vec3d source{o.source[0], o.source[1], o.source[2]};
@@ -149,9 +150,14 @@ int run(const IrOptions& o, const CLI::App& cmd) {
   stats["receiver"] = o.receiver;
   stats["threads"] = pool.threadCount();
   if (stats["silent"].get<bool>()) warn("the IR is silent: nothing of the source reaches the listener", warnings);
-  stats["warnings"] = warnings;
 
-  if (!check(writeWavFloat(o.output, r.ir))) return 2;
+  uint64_t clipped = 0;
+  if (!check(writeAudioFile(o.output, r.ir, &clipped))) return 2;
+  if (clipped > 0)
+    warn(std::to_string(clipped) + " samples beyond full scale were clipped in " + o.output +
+             " (a source closer than 1 m; .wav keeps them as float)",
+         warnings);
+  stats["warnings"] = warnings;
   stats["total_ms"] = msSince(t0);
   if (!o.json.empty() && !check(writeTextFileAtomically(o.json, stats.dump(2) + "\n"))) return 2;
   return 0;
@@ -164,7 +170,7 @@ const Registrar registrar([](CLI::App& root) {
       ->check(CLI::ExistingFile);
   addVec3Option(*cmd, "--source", o->source, "Source position in metres")->required();
   addVec3Option(*cmd, "--listener", o->listener, "Listener position in metres")->required();
-  cmd->add_option("-o,--output", o->output, "Output WAV (32-bit float; binaural: 2 channels left, right; omni: 1)")
+  cmd->add_option("-o,--output", o->output, "Output audio file, format by extension: .wav (32-bit float), .flac (24-bit), .ogg (Vorbis); binaural: 2 channels left, right; omni: 1")
       ->required();
   cmd->add_option("--materials", o->materials, "Materials JSON (default: the built-in materials/default.json)");
   cmd->add_option("--material-map", o->materialMap, "JSON object mapping glTF material names to acoustic materials");

@@ -128,7 +128,12 @@ int run(const RenderCliOptions& o, const CLI::App& cmd) {
                  (unsigned long long)r.simulations, r.audioProcessSeconds, o.output.c_str());
     std::fprintf(stderr, "earshot: peak %.2f dBFS (%.4f)\n", 20.0 * std::log10(std::max(r.peak, 1e-30)), r.peak);
   }
-  if (r.clipped)
+  if ((*writer)->clippedSamples() > 0)
+    std::fprintf(stderr,
+                 "earshot: warning: %llu samples beyond full scale were clipped in %s (%s); lower the sources' "
+                 "gain_db, or write .wav (float keeps them)\n",
+                 (unsigned long long)(*writer)->clippedSamples(), o.output.c_str(), (*writer)->format().name);
+  else if (r.clipped)
     std::fprintf(stderr,
                  "earshot: warning: the peak %.3f (%+.2f dBFS) exceeds full scale; the float WAV keeps it, but lower "
                  "the sources' gain_db to play it without clipping\n",
@@ -139,11 +144,12 @@ int run(const RenderCliOptions& o, const CLI::App& cmd) {
 const Registrar registrar([](CLI::App& root) {
   auto o = std::make_shared<RenderCliOptions>();
   CLI::App* cmd = root.add_subcommand(
-      "render", "Render a scene file (moving sources and listener) to a binaural float WAV (docs/scene-format.md)");
+      "render", "Render a scene file (moving sources and listener) to binaural audio: WAV, FLAC or Ogg (docs/scene-format.md)");
   cmd->add_option("scene", o->scene, "Scene file (JSON)")->required()->check(CLI::ExistingFile);
   cmd->add_option("-o,--output", o->output,
-                  "Output WAV (32-bit float, 2 channels: left, right). Written to a temporary file and renamed at the "
-                  "end: an existing file is replaced only on success")
+                  "Output audio, 2 channels (left, right), format by extension: .wav (32-bit float), .flac (24-bit), "
+                  ".ogg (Vorbis; FLAC and Ogg clip beyond full scale, and say how many samples). Written to a "
+                  "temporary file and renamed at the end: an existing file is replaced only on success")
       ->required();
   cmd->add_option("--quality", o->quality, "Override the scene's preset: draft | balanced | high | reference")
       ->check(CLI::IsMember({"draft", "balanced", "high", "reference"}));

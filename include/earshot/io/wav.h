@@ -26,7 +26,25 @@ size_t defaultMaxReadSamples();
  *  Errors name the file. */
 Result<AudioBuffer> readAudioFile(const std::string& path, size_t maxSamples = 0);
 
-/** Writes a 32-bit float WAV. Writes to a temporary file beside `path` and
+/** What an output file's extension names: .wav (or none) 32-bit float WAV;
+ *  .flac 24-bit FLAC; .ogg/.oga Ogg Vorbis. Fixed-point and Vorbis output
+ *  clips samples beyond full scale (|x| > 1), which the writers count. */
+struct AudioFileFormat {
+  int sndfileFormat = 0;          ///< libsndfile's SF_FORMAT_* major | subtype
+  bool clipsAtFullScale = false;  ///< not float: |x| > 1 is clipped
+  const char* name = "";          ///< e.g. "FLAC, 24-bit"
+};
+/** The format `path`'s extension names (case-insensitive); any other
+ *  extension is an error (kUnsupported) naming the formats earshot writes. */
+Result<AudioFileFormat> audioFormatForPath(const std::string& path);
+
+/** Writes `audio` in the format its extension names (audioFormatForPath),
+ *  as writeWavFloat does (temporary file, rename, non-finite refused).
+ *  clippedSamples (if given): samples beyond full scale a FLAC or Vorbis
+ *  file clipped (0 for WAV: float keeps them). */
+Status writeAudioFile(const std::string& path, const AudioBuffer& audio, uint64_t* clippedSamples = nullptr);
+
+/** Writes a 32-bit float WAV (a path naming another format is refused). Writes to a temporary file beside `path` and
  *  renames it over `path` only when everything was written, so an existing
  *  file is replaced only on success and no partial file is left. Refuses
  *  non-finite samples (naming channel and frame). */
@@ -36,7 +54,8 @@ Status writeWavFloat(const std::string& path, const AudioBuffer& audio);
  *  holds are refused before they start. */
 constexpr uint64_t kMaxWavBytes = (uint64_t(1) << 32) - 4096;
 
-/** A 32-bit float WAV written block by block (a long render never holds its
+/** An audio file (format by extension: audioFormatForPath; 32-bit float WAV
+ *  by default) written block by block (a long render never holds its
  *  output in memory), to a temporary file beside the target that commit()
  *  renames over it; destroyed uncommitted, it removes the temporary file, so
  *  the target is never partial. The target is checked as writeWavFloat's
@@ -54,12 +73,17 @@ class WavStreamWriter {
   /** Closes the file and renames it over the target. */
   Status commit();
   uint64_t framesWritten() const { return mFrames; }
+  /** Samples clipped at full scale so far (FLAC, Vorbis; 0 for WAV). */
+  uint64_t clippedSamples() const { return mClipped; }
+  const AudioFileFormat& format() const { return mFormat; }
 
  private:
   WavStreamWriter() = default;
   std::string mPath, mTmp;
   size_t mChannels = 0;
   uint64_t mFrames = 0;
+  uint64_t mClipped = 0;
+  AudioFileFormat mFormat;
   void* mFile = nullptr;  // SNDFILE*
   std::vector<float> mInterleaved;
 };
