@@ -462,10 +462,41 @@ typedef enum earshot_direct_mode {
   EARSHOT_DIRECT_IN_IMPULSE_RESPONSE = 1
 } earshot_direct_mode;
 
+/** How the per-block direct sound falls off with distance d (pressure
+ *  gain); the reflections stay physical whatever the curve. D is d clamped
+ *  to [min_distance, max_distance]. */
+typedef enum earshot_distance_model {
+  EARSHOT_DISTANCE_PHYSICAL = 0,    /**< 1 / max(d, 0.1 m): the physics (default) */
+  EARSHOT_DISTANCE_INVERSE = 1,     /**< min / (min + rolloff (D - min)) */
+  EARSHOT_DISTANCE_LINEAR = 2,      /**< 1 - rolloff (D - min) / (max - min), at least 0 */
+  EARSHOT_DISTANCE_EXPONENTIAL = 3  /**< (D / min)^-rolloff */
+} earshot_distance_model;
+
+/** How geometry between source and listener occludes the direct sound. */
+typedef enum earshot_occlusion_mode {
+  EARSHOT_OCCLUSION_RAY = 0,        /**< one ray from the source's centre (default) */
+  EARSHOT_OCCLUSION_OFF = 1,        /**< never occluded */
+  EARSHOT_OCCLUSION_VOLUMETRIC = 2  /**< energy average of 16 rays to points on a sphere of `radius` m */
+} earshot_occlusion_mode;
+
 typedef struct earshot_source_settings {
   uint32_t struct_size;           /**< sizeof(earshot_source_settings) */
-  float gain_db;                  /**< [-120, 40]; default 0 */
-  earshot_direct_mode direct;     /**< default EARSHOT_DIRECT_PER_BLOCK */
+  float gain_db;                  /**< the whole source, [-120, 40]; default 0 */
+  earshot_direct_mode direct;     /**< default EARSHOT_DIRECT_PER_BLOCK; fixed at creation */
+  float direct_gain_db;           /**< the per-block direct sound, [-120, 40]; default 0 */
+  float reflections_gain_db;      /**< the reflections and reverberation, [-120, 40]; default 0 */
+  earshot_distance_model distance_model; /**< the direct sound's fall-off; default PHYSICAL */
+  float min_distance;             /**< metres, (0, 1e6]; default 1 */
+  float max_distance;             /**< metres, [min_distance, 1e6]; default 100 */
+  float rolloff;                  /**< [0, 100]; default 1 */
+  earshot_occlusion_mode occlusion; /**< default EARSHOT_OCCLUSION_RAY */
+  float radius;                   /**< VOLUMETRIC's sphere, metres, (0, 100]; default 0.5 */
+  /** 1 (default): an occluded direct path passes through the surfaces,
+   *  filtered by their materials' transmission; 0: it is silent. */
+  int32_t transmission;
+  /** Higher first when a simulation step cannot take every source
+   *  (earshot_simulate's source_count); default 0. */
+  int32_t priority;
 } earshot_source_settings;
 
 /** Fills `settings` with the defaults (and struct_size). Any thread. */
@@ -496,6 +527,17 @@ EARSHOT_API earshot_status earshot_source_set_position(earshot_source* source, e
 /** Sets the source's gain in dB, [-120, 40]; ramped over the next audio
  *  block. Game thread (any thread but the audio thread). */
 EARSHOT_API earshot_status earshot_source_set_gain_db(earshot_source* source, float gain_db);
+/** Replaces the source's controls with `settings` (all fields but `direct`,
+ *  which must equal the source's: it is fixed at creation). Gains and the
+ *  distance curve ramp over the next audio block (no clicks);
+ *  EARSHOT_OCCLUSION_OFF applies from the next block, the other occlusion
+ *  modes, `radius` and `transmission` at the source's next simulation.
+ *  Errors: INVALID_ARGUMENT (naming the field). Game thread. */
+EARSHOT_API earshot_status earshot_source_set_settings(earshot_source* source,
+                                                       const earshot_source_settings* settings);
+/** The source's current controls (settings->struct_size set by the caller).
+ *  Game thread. */
+EARSHOT_API earshot_status earshot_source_get_settings(earshot_source* source, earshot_source_settings* settings);
 
 /* ---------------------------------------------------------------------- IR */
 

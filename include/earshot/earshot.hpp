@@ -331,6 +331,16 @@ class Source : public detail::Handle<earshot_source, earshot_source_retain, ears
   }
   void setPosition(earshot_vec3 position) { check(earshot_source_set_position(checked(), position)); }
   void setGainDb(float gainDb) { check(earshot_source_set_gain_db(checked(), gainDb)); }
+  /** earshot_source_get_settings / _set_settings: the source's controls
+   *  (gains, distance curve, occlusion, transmission, priority). */
+  SourceSettings settings() const {
+    SourceSettings s;
+    check(earshot_source_get_settings(checked(), &s));
+    return s;
+  }
+  void setSettings(const earshot_source_settings& settings) {
+    check(earshot_source_set_settings(checked(), &settings));
+  }
   /** earshot_source_get_ir: the IR of the source's last simulation. */
   Ir ir() const {
     earshot_ir* ir = nullptr;

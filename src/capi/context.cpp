@@ -376,8 +376,64 @@ earshot_status earshot_source_settings_init(earshot_source_settings* s) {
   s->struct_size = sizeof(earshot_source_settings);
   s->gain_db = 0.0f;
   s->direct = EARSHOT_DIRECT_PER_BLOCK;
+  s->direct_gain_db = 0.0f;
+  s->reflections_gain_db = 0.0f;
+  s->distance_model = EARSHOT_DISTANCE_PHYSICAL;
+  s->min_distance = 1.0f;
+  s->max_distance = 100.0f;
+  s->rolloff = 1.0f;
+  s->occlusion = EARSHOT_OCCLUSION_RAY;
+  s->radius = 0.5f;
+  s->transmission = 1;
+  s->priority = 0;
   return EARSHOT_OK;
 }
+
+namespace {
+
+/** The runtime's settings from the C struct, or a message naming the field. */
+std::string toRuntime(const earshot_source_settings& s, runtime::SourceSettings& rs) {
+  auto gainOk = [](float db) { return db >= -120.0f && db <= 40.0f; };
+  if (!gainOk(s.gain_db)) return "settings->gain_db " + describe(s.gain_db) + " is outside [-120, 40]";
+  if (!gainOk(s.direct_gain_db)) return "settings->direct_gain_db " + describe(s.direct_gain_db) + " is outside [-120, 40]";
+  if (!gainOk(s.reflections_gain_db))
+    return "settings->reflections_gain_db " + describe(s.reflections_gain_db) + " is outside [-120, 40]";
+  const int64_t direct = rawEnum(s.direct);
+  if (direct != EARSHOT_DIRECT_PER_BLOCK && direct != EARSHOT_DIRECT_IN_IMPULSE_RESPONSE)
+    return "settings->direct " + std::to_string(direct) + " is not an earshot_direct_mode";
+  const int64_t model = rawEnum(s.distance_model);
+  if (model < EARSHOT_DISTANCE_PHYSICAL || model > EARSHOT_DISTANCE_EXPONENTIAL)
+    return "settings->distance_model " + std::to_string(model) + " is not an earshot_distance_model";
+  const int64_t occlusion = rawEnum(s.occlusion);
+  if (occlusion < EARSHOT_OCCLUSION_RAY || occlusion > EARSHOT_OCCLUSION_VOLUMETRIC)
+    return "settings->occlusion " + std::to_string(occlusion) + " is not an earshot_occlusion_mode";
+  if (!(s.min_distance > 0.0f && s.min_distance <= 1e6f))
+    return "settings->min_distance " + describe(s.min_distance) + " is outside (0, 1e6]";
+  if (!(s.max_distance >= s.min_distance && s.max_distance <= 1e6f))
+    return "settings->max_distance " + describe(s.max_distance) + " is not in [min_distance, 1e6]";
+  if (!(s.rolloff >= 0.0f && s.rolloff <= 100.0f)) return "settings->rolloff " + describe(s.rolloff) + " is outside [0, 100]";
+  if (!(s.radius > 0.0f && s.radius <= 100.0f)) return "settings->radius " + describe(s.radius) + " is outside (0, 100]";
+  if (s.transmission != 0 && s.transmission != 1)
+    return "settings->transmission " + std::to_string(s.transmission) + " is not 0 or 1";
+  rs.gainDb = s.gain_db;
+  rs.direct = direct == EARSHOT_DIRECT_PER_BLOCK ? runtime::DirectMode::kPerBlock
+                                                 : runtime::DirectMode::kInImpulseResponse;
+  rs.directGainDb = s.direct_gain_db;
+  rs.reflectionsGainDb = s.reflections_gain_db;
+  rs.distance.model = runtime::DistanceModel(model);  // the enumerators match
+  rs.distance.minDistance = s.min_distance;
+  rs.distance.maxDistance = s.max_distance;
+  rs.distance.rolloff = s.rolloff;
+  rs.occlusion = occlusion == EARSHOT_OCCLUSION_OFF          ? runtime::OcclusionMode::kOff
+                 : occlusion == EARSHOT_OCCLUSION_VOLUMETRIC ? runtime::OcclusionMode::kVolumetric
+                                                             : runtime::OcclusionMode::kRay;
+  rs.radiusMeters = s.radius;
+  rs.transmission = s.transmission != 0;
+  rs.priority = s.priority;
+  return "";
+}
+
+}  // namespace
 
 earshot_status earshot_source_create(earshot_context* c, const earshot_source_settings* settings,
                                      earshot_source** out) {
@@ -393,15 +449,9 @@ earshot_status earshot_source_create(earshot_context* c, const earshot_source_se
       if (!badSize.empty()) return argError(&c->env, kFn, badSize);
       s = *settings;
     }
-    if (!(s.gain_db >= -120.0f && s.gain_db <= 40.0f))
-      return argError(&c->env, kFn, "settings->gain_db " + describe(s.gain_db) + " is outside [-120, 40]");
-    const int64_t direct = rawEnum(s.direct);
-    if (direct != EARSHOT_DIRECT_PER_BLOCK && direct != EARSHOT_DIRECT_IN_IMPULSE_RESPONSE)
-      return argError(&c->env, kFn, "settings->direct " + std::to_string(direct) + " is not an earshot_direct_mode");
     runtime::SourceSettings rs;
-    rs.gainDb = s.gain_db;
-    rs.direct = direct == EARSHOT_DIRECT_PER_BLOCK ? runtime::DirectMode::kPerBlock
-                                                   : runtime::DirectMode::kInImpulseResponse;
+    const std::string bad = toRuntime(s, rs);
+    if (!bad.empty()) return argError(&c->env, kFn, bad);
     std::lock_guard<std::mutex> lock(c->sourcesMutex);
     auto slot = c->engine->addSource(rs);
     if (!slot.isOk()) return fromStatus(&c->env, kFn, slot.status());
@@ -472,3 +522,50 @@ earshot_status earshot_source_set_gain_db(earshot_source* s, float gainDb) {
 }
 
 }  // extern "C"
+
+earshot_status earshot_source_set_settings(earshot_source* src, const earshot_source_settings* settings) {
+  static const char* kFn = "earshot_source_set_settings";
+  if (!alive(src)) return argError(nullptr, kFn, "source is not a live earshot_source");
+  if (!settings) return argError(&src->env, kFn, "settings is NULL");
+  return guard(&src->env, kFn, [&]() -> earshot_status {
+    const std::string badSize = checkStructSize(settings->struct_size, sizeof(earshot_source_settings), "settings");
+    if (!badSize.empty()) return argError(&src->env, kFn, badSize);
+    runtime::SourceSettings rs;
+    const std::string bad = toRuntime(*settings, rs);
+    if (!bad.empty()) return argError(&src->env, kFn, bad);
+    auto current = src->context->engine->sourceControls(src->slot);
+    if (!current.isOk()) return fromStatus(&src->env, kFn, current.status());
+    if (current->direct != rs.direct)
+      return argError(&src->env, kFn, "settings->direct differs from the source's: the direct mode is fixed at creation");
+    return fromStatus(&src->env, kFn, src->context->engine->setSourceControls(src->slot, rs));
+  });
+}
+
+earshot_status earshot_source_get_settings(earshot_source* src, earshot_source_settings* out) {
+  static const char* kFn = "earshot_source_get_settings";
+  if (!alive(src)) return argError(nullptr, kFn, "source is not a live earshot_source");
+  if (!out) return argError(&src->env, kFn, "settings is NULL");
+  return guard(&src->env, kFn, [&]() -> earshot_status {
+    const std::string badSize = checkStructSize(out->struct_size, sizeof(earshot_source_settings), "settings");
+    if (!badSize.empty()) return argError(&src->env, kFn, badSize);
+    auto rs = src->context->engine->sourceControls(src->slot);
+    if (!rs.isOk()) return fromStatus(&src->env, kFn, rs.status());
+    earshot_source_settings_init(out);
+    out->gain_db = float(rs->gainDb);
+    out->direct = rs->direct == runtime::DirectMode::kPerBlock ? EARSHOT_DIRECT_PER_BLOCK
+                                                               : EARSHOT_DIRECT_IN_IMPULSE_RESPONSE;
+    out->direct_gain_db = float(rs->directGainDb);
+    out->reflections_gain_db = float(rs->reflectionsGainDb);
+    out->distance_model = earshot_distance_model(int(rs->distance.model));
+    out->min_distance = float(rs->distance.minDistance);
+    out->max_distance = float(rs->distance.maxDistance);
+    out->rolloff = float(rs->distance.rolloff);
+    out->occlusion = rs->occlusion == runtime::OcclusionMode::kOff          ? EARSHOT_OCCLUSION_OFF
+                     : rs->occlusion == runtime::OcclusionMode::kVolumetric ? EARSHOT_OCCLUSION_VOLUMETRIC
+                                                                           : EARSHOT_OCCLUSION_RAY;
+    out->radius = float(rs->radiusMeters);
+    out->transmission = rs->transmission ? 1 : 0;
+    out->priority = rs->priority;
+    return EARSHOT_OK;
+  });
+}

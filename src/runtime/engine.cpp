@@ -33,6 +33,11 @@ struct Engine::Slot {
   std::atomic<int> direct{0};
   std::atomic<double> position[3] = {{0.0}, {0.0}, {0.0}};
   std::atomic<double> gain{1.0};
+  // Controls (SourceSettings), written by the game thread.
+  std::atomic<double> directGain{1.0}, reflectionsGain{1.0};
+  std::atomic<int> distanceModel{0}, occlusion{int(OcclusionMode::kRay)}, priority{0};
+  std::atomic<double> distanceMin{1.0}, distanceMax{100.0}, rolloff{1.0}, radius{0.5};
+  std::atomic<bool> transmissionOn{true};
   std::atomic<double> transmission[kNumBands];
   std::atomic<bool> audible{true};
   std::unique_ptr<DirectVoice> voice;  // audio thread
@@ -41,6 +46,7 @@ struct Engine::Slot {
   bool reflectionsLive = false;        // audio thread: its IR is this source's (simulated since added)
   bool mutedChunk = false;             // audio thread: this chunk's input was not finite (muted)
   double appliedGain = 1.0;            // audio thread: gain at the end of the last chunk
+  double appliedReflectionsGain = 1.0; // audio thread: the reflections' gain at the end of the last chunk
   std::vector<float> scaled;           // audio thread: gained input for the mixer
   // The last IR posted (guarded by Engine::mIrMutex; never the audio thread).
   std::shared_ptr<const AudioBuffer> lastIr;
@@ -50,6 +56,130 @@ struct Engine::Slot {
     for (auto& t : transmission) t.store(1.0);
   }
 };
+
+namespace {
+
+double dbToGain(double db) { return std::pow(10.0, db / 20.0); }
+
+void storeControls(Engine::Slot& slot, const SourceSettings& s);
+
+}  // namespace
+
+double distanceGain(const DistanceCurve& c, double d) {
+  // Physical: the direct voice's own 1/r with its 0.1 m clamp.
+  if (c.model == DistanceModel::kPhysical) return 1.0 / std::max(d, DirectVoiceSettings{}.minDistanceMeters);
+  const double D = std::clamp(d, c.minDistance, std::max(c.minDistance, c.maxDistance));
+  switch (c.model) {
+    case DistanceModel::kInverse:
+      return c.minDistance / (c.minDistance + c.rolloff * (D - c.minDistance));
+    case DistanceModel::kLinear:
+      if (c.maxDistance <= c.minDistance) return 1.0;
+      return std::max(0.0, 1.0 - c.rolloff * (D - c.minDistance) / (c.maxDistance - c.minDistance));
+    case DistanceModel::kExponential:
+      return std::pow(D / c.minDistance, -c.rolloff);
+    default:
+      return 1.0 / std::max(d, 0.1);
+  }
+}
+
+Status validate(const SourceSettings& s) {
+  auto gainOk = [](double db) { return db >= -120.0 && db <= 60.0; };
+  if (!gainOk(s.gainDb)) return invalidArgument("source gain " + std::to_string(s.gainDb) + " dB is outside [-120, 60]");
+  if (!gainOk(s.directGainDb))
+    return invalidArgument("source direct gain " + std::to_string(s.directGainDb) + " dB is outside [-120, 60]");
+  if (!gainOk(s.reflectionsGainDb))
+    return invalidArgument("source reflections gain " + std::to_string(s.reflectionsGainDb) +
+                           " dB is outside [-120, 60]");
+  const int model = int(s.distance.model);
+  if (model < 0 || model > int(DistanceModel::kExponential)) return invalidArgument("unknown distance model");
+  if (!(s.distance.minDistance > 0 && s.distance.minDistance <= 1e6))
+    return invalidArgument("distance curve min distance " + std::to_string(s.distance.minDistance) +
+                           " m is outside (0, 1e6]");
+  if (!(s.distance.maxDistance >= s.distance.minDistance && s.distance.maxDistance <= 1e6))
+    return invalidArgument("distance curve max distance " + std::to_string(s.distance.maxDistance) +
+                           " m is not in [min distance, 1e6]");
+  if (!(s.distance.rolloff >= 0 && s.distance.rolloff <= 100))
+    return invalidArgument("distance curve rolloff " + std::to_string(s.distance.rolloff) + " is outside [0, 100]");
+  const int occ = int(s.occlusion);
+  if (occ < 0 || occ > int(OcclusionMode::kVolumetric)) return invalidArgument("unknown occlusion mode");
+  if (!(s.radiusMeters > 0 && s.radiusMeters <= 100))
+    return invalidArgument("source radius " + std::to_string(s.radiusMeters) + " m is outside (0, 100]");
+  return Status::ok();
+}
+
+namespace {
+
+void storeControls(Engine::Slot& slot, const SourceSettings& s) {
+  slot.directGain.store(dbToGain(s.directGainDb));
+  slot.reflectionsGain.store(dbToGain(s.reflectionsGainDb));
+  slot.distanceModel.store(int(s.distance.model));
+  slot.distanceMin.store(s.distance.minDistance);
+  slot.distanceMax.store(s.distance.maxDistance);
+  slot.rolloff.store(s.distance.rolloff);
+  slot.occlusion.store(int(s.occlusion));
+  slot.radius.store(s.radiusMeters);
+  slot.transmissionOn.store(s.transmission);
+  slot.priority.store(s.priority);
+}
+
+}  // namespace
+
+Status Engine::setSourceControls(uint32_t s, const SourceSettings& settings) {
+  if (!validSource(s)) return invalidArgument("source " + std::to_string(s) + " does not exist");
+  EARSHOT_RETURN_IF_ERROR(validate(settings));
+  Slot& slot = *mSlots[s];
+  slot.gain.store(dbToGain(settings.gainDb), std::memory_order_relaxed);
+  storeControls(slot, settings);
+  return Status::ok();
+}
+
+Result<SourceSettings> Engine::sourceControls(uint32_t s) const {
+  if (!validSource(s)) return invalidArgument("source " + std::to_string(s) + " does not exist");
+  const Slot& slot = *mSlots[s];
+  SourceSettings out;
+  out.gainDb = 20.0 * std::log10(std::max(slot.gain.load(), 1e-12));
+  out.direct = DirectMode(slot.direct.load());
+  out.directGainDb = 20.0 * std::log10(std::max(slot.directGain.load(), 1e-12));
+  out.reflectionsGainDb = 20.0 * std::log10(std::max(slot.reflectionsGain.load(), 1e-12));
+  out.distance.model = DistanceModel(slot.distanceModel.load());
+  out.distance.minDistance = slot.distanceMin.load();
+  out.distance.maxDistance = slot.distanceMax.load();
+  out.distance.rolloff = slot.rolloff.load();
+  out.occlusion = OcclusionMode(slot.occlusion.load());
+  out.radiusMeters = slot.radius.load();
+  out.transmission = slot.transmissionOn.load();
+  out.priority = slot.priority.load();
+  return out;
+}
+
+namespace {
+
+/** kVolumetric: the energy average, per band, of the transmission along 16
+ *  rays from the listener to points spread over a sphere of `radius` around
+ *  the source (a Fibonacci sphere: deterministic). A ray that crosses a
+ *  surface counts its transmission, or 0 without transmission. */
+BandArrayD volumetricTransmission(const RayTracer& tracer, const MaterialTable& materials, const Vec3d& source,
+                                  const Vec3d& listener, double radius, bool transmissionOn) {
+  constexpr int kRays = 16;
+  DirectPathSettings ds;
+  ds.air.enabled = false;
+  BandArrayD energy = filledBands(0.0);
+  const double golden = 3.14159265358979323846 * (3.0 - std::sqrt(5.0));
+  for (int k = 0; k < kRays; ++k) {
+    const double z = 1.0 - 2.0 * (k + 0.5) / kRays, rho = std::sqrt(std::max(0.0, 1.0 - z * z));
+    const Vec3d p{source.x + radius * rho * std::cos(golden * k), source.y + radius * rho * std::sin(golden * k),
+                  source.z + radius * z};
+    const DirectPath path = computeDirectPath(&tracer, materials, p, listener, ds);
+    for (int b = 0; b < kNumBands; ++b) {
+      const double g = path.surfacesCrossed > 0 && !transmissionOn ? 0.0 : path.bandGain[b];
+      energy[b] += g * g / kRays;
+    }
+  }
+  for (auto& e : energy) e = std::sqrt(e);
+  return energy;
+}
+
+}  // namespace
 
 Engine::~Engine() = default;
 
@@ -118,13 +248,13 @@ void Engine::setScene(std::shared_ptr<const RayTracer> tracer, std::shared_ptr<c
 bool Engine::validSource(uint32_t s) const { return s < mSlots.size() && mSlots[s]->active.load(); }
 
 Result<uint32_t> Engine::addSource(const SourceSettings& settings) {
-  if (!(settings.gainDb >= -120.0 && settings.gainDb <= 60.0))
-    return invalidArgument("source gain " + std::to_string(settings.gainDb) + " dB is outside [-120, 60]");
+  EARSHOT_RETURN_IF_ERROR(validate(settings));
   for (uint32_t i = 0; i < mSlots.size(); ++i) {
     Slot& slot = *mSlots[i];
     if (slot.active.load()) continue;
     slot.gain.store(std::pow(10.0, settings.gainDb / 20.0));
     slot.direct.store(int(settings.direct));
+    storeControls(slot, settings);
     for (auto& t : slot.transmission) t.store(1.0);
     slot.audible.store(true);
     slot.generation.fetch_add(1);
@@ -188,8 +318,19 @@ Status Engine::simulate(uint32_t count) {
     const uint32_t i = (mNextRoundRobin + k) % n;
     if (mSlots[i]->active.load()) order.push_back(i);
   }
+  // Higher priority first; round-robin order among equals.
+  std::stable_sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) {
+    return mSlots[a]->priority.load() > mSlots[b]->priority.load();
+  });
   if (count > 0 && count < order.size()) order.resize(count);
-  if (!order.empty()) mNextRoundRobin = (order.back() + 1) % n;
+  if (!order.empty()) {
+    // Continue the round robin after the last source taken in its order.
+    uint32_t last = order.front();
+    auto rank = [&](uint32_t i) { return (i + n - mNextRoundRobin) % n; };
+    for (uint32_t i : order)
+      if (rank(i) > rank(last)) last = i;
+    mNextRoundRobin = (last + 1) % n;
+  }
   return simulateLocked(order);
 }
 
@@ -271,14 +412,28 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& order) {
         ++slot.irCount;
       }
     }
-    // Transmission through occluders: the direct path's band gains without air.
+    // Transmission through occluders: the direct path's band gains without
+    // air, by the source's occlusion mode (kOff is applied per block).
     const DirectPath& d = r->direct;
-    const BandArrayD air = j.settings.air.enabled ? airAttenuationDbPerMeter(j.settings.air) : filledBands(0.0);
-    for (int b = 0; b < kNumBands; ++b) {
-      const double airGain = std::pow(10.0, -air[b] * d.distanceMeters / 20.0);
-      slot.transmission[b].store(airGain > 0 ? d.bandGain[b] / airGain : 0.0);
+    const bool transmissionOn = slot.transmissionOn.load();
+    BandArrayD transmission = filledBands(1.0);
+    if (OcclusionMode(slot.occlusion.load()) == OcclusionMode::kVolumetric) {
+      transmission = volumetricTransmission(*tracer, *materials, j.source, listener, slot.radius.load(),
+                                            transmissionOn);
+    } else {
+      const BandArrayD air = j.settings.air.enabled ? airAttenuationDbPerMeter(j.settings.air) : filledBands(0.0);
+      for (int b = 0; b < kNumBands; ++b) {
+        const double airGain = std::pow(10.0, -air[b] * d.distanceMeters / 20.0);
+        transmission[b] = airGain > 0 ? d.bandGain[b] / airGain : 0.0;
+        if (!transmissionOn && d.surfacesCrossed > 0) transmission[b] = 0.0;
+      }
     }
-    slot.audible.store(d.audible);
+    bool audible = false;
+    for (int b = 0; b < kNumBands; ++b) {
+      slot.transmission[b].store(transmission[b]);
+      audible = audible || transmission[b] > 0;
+    }
+    slot.audible.store(audible);
     slot.simulatedGeneration.store(j.generation);
     stats.prepareMs += msSince(tPrepare);
     ++stats.sourcesSimulated;
@@ -317,6 +472,7 @@ void Engine::process(const float* const* inputs, float* left, float* right, size
       slot.voice->reset();
       slot.voiceGeneration = generation;
       slot.appliedGain = slot.gain.load(std::memory_order_relaxed);
+      slot.appliedReflectionsGain = slot.reflectionsGain.load(std::memory_order_relaxed);
     }
   }
   // Chunks bound the gain scratch buffers whatever the host block size.
@@ -340,8 +496,12 @@ void Engine::process(const float* const* inputs, float* left, float* right, size
         std::fill(g, g + m, 0.0f);
         mMutedSourceChunks.fetch_add(1, std::memory_order_relaxed);
       } else {
-        for (size_t k = 0; k < m; ++k) g[k] = in[k] * (from + (to - from) * float(k + 1) / float(m));
+        // The source gain and the reflections' gain, both ramped.
+        const float rFrom = from * float(slot.appliedReflectionsGain);
+        const float rTo = to * float(slot.reflectionsGain.load(std::memory_order_relaxed));
+        for (size_t k = 0; k < m; ++k) g[k] = in[k] * (rFrom + (rTo - rFrom) * float(k + 1) / float(m));
       }
+      slot.appliedReflectionsGain = slot.reflectionsGain.load(std::memory_order_relaxed);
       slot.appliedGain = to;
       mInputs[i] = slot.reflectionsLive ? g : nullptr;
     }
@@ -353,9 +513,27 @@ void Engine::process(const float* const* inputs, float* left, float* right, size
       target.source = {slot.position[0].load(std::memory_order_relaxed),
                        slot.position[1].load(std::memory_order_relaxed),
                        slot.position[2].load(std::memory_order_relaxed)};
-      target.gain = slot.appliedGain;
-      for (int b = 0; b < kNumBands; ++b) target.transmission[b] = slot.transmission[b].load(std::memory_order_relaxed);
-      target.audible = slot.audible.load(std::memory_order_relaxed);
+      // The direct gain and the distance curve, relative to the voice's own
+      // physical 1/r (ramped by the voice across the chunk).
+      DistanceCurve curve;
+      curve.model = DistanceModel(slot.distanceModel.load(std::memory_order_relaxed));
+      double shape = 1.0;
+      if (curve.model != DistanceModel::kPhysical) {
+        curve.minDistance = slot.distanceMin.load(std::memory_order_relaxed);
+        curve.maxDistance = slot.distanceMax.load(std::memory_order_relaxed);
+        curve.rolloff = slot.rolloff.load(std::memory_order_relaxed);
+        const double r = length(target.source - target.listener);
+        shape = distanceGain(curve, r) * std::max(r, DirectVoiceSettings{}.minDistanceMeters);
+      }
+      target.gain = slot.appliedGain * slot.directGain.load(std::memory_order_relaxed) * shape;
+      if (OcclusionMode(slot.occlusion.load(std::memory_order_relaxed)) == OcclusionMode::kOff) {
+        target.transmission = filledBands(1.0);
+        target.audible = true;
+      } else {
+        for (int b = 0; b < kNumBands; ++b)
+          target.transmission[b] = slot.transmission[b].load(std::memory_order_relaxed);
+        target.audible = slot.audible.load(std::memory_order_relaxed);
+      }
       // A muted chunk feeds the voice the zeros the mixer got.
       slot.voice->process(slot.mutedChunk ? slot.scaled.data() : inputs[i] + off, left + off, right + off, m, target);
     }

@@ -67,10 +67,43 @@ enum class DirectMode {
   kInImpulseResponse,  ///< direct sound inside the convolved IR (static sources; exact)
 };
 
-struct SourceSettings {
-  double gainDb = 0.0;  ///< [-120, 60]
-  DirectMode direct = DirectMode::kPerBlock;
+/** How the direct sound falls off with distance d (pressure gain). The
+ *  reflections stay physical whatever the curve. */
+enum class DistanceModel {
+  kPhysical,     ///< 1 / max(d, 0.1 m): the engine's physics (default)
+  kInverse,      ///< min / (min + rolloff (D - min)), D = d clamped to [min, max]
+  kLinear,       ///< 1 - rolloff (D - min) / (max - min), at least 0
+  kExponential,  ///< (D / min)^-rolloff
 };
+struct DistanceCurve {
+  DistanceModel model = DistanceModel::kPhysical;
+  double minDistance = 1.0;    ///< metres, (0, 1e6]; gain 1 up to here
+  double maxDistance = 100.0;  ///< metres, >= minDistance; the curve stays flat beyond
+  double rolloff = 1.0;        ///< [0, 100]
+};
+/** The curve's pressure gain at distance d (metres, >= 0). */
+double distanceGain(const DistanceCurve& curve, double d);
+
+/** How the direct sound is occluded by geometry between source and listener. */
+enum class OcclusionMode {
+  kOff,         ///< never occluded (applies from the next block)
+  kRay,         ///< one ray, source centre to listener (default)
+  kVolumetric,  ///< the energy average over 16 rays to points on a sphere of radiusMeters around the source
+};
+
+struct SourceSettings {
+  double gainDb = 0.0;  ///< [-120, 60]: the whole source (direct and reflections)
+  DirectMode direct = DirectMode::kPerBlock;
+  double directGainDb = 0.0;       ///< [-120, 60]: the per-block direct sound only
+  double reflectionsGainDb = 0.0;  ///< [-120, 60]: the convolved IR (reflections, reverberation)
+  DistanceCurve distance;          ///< the per-block direct sound's fall-off
+  OcclusionMode occlusion = OcclusionMode::kRay;
+  double radiusMeters = 0.5;       ///< kVolumetric's sphere, (0, 100]
+  bool transmission = true;        ///< false: an occluded path is silent instead of filtered by the surfaces
+  int priority = 0;                ///< higher first when simulate(count) cannot take every source
+};
+/** Error (naming the field) unless every value is in range. */
+Status validate(const SourceSettings& settings);
 
 struct SimulationStats {
   uint32_t sourcesSimulated = 0;
@@ -125,6 +158,12 @@ class Engine {
   Status removeSource(uint32_t source);
   Status setSourcePosition(uint32_t source, const Vec3d& position);
   Status setSourceGainDb(uint32_t source, double gainDb);
+  /** Every control but the direct mode (fixed at addSource). Gains and the
+   *  distance curve ramp over the next block; the occlusion mode kOff
+   *  applies from the next block, the others (and transmission) at the
+   *  source's next simulation. */
+  Status setSourceControls(uint32_t source, const SourceSettings& settings);
+  Result<SourceSettings> sourceControls(uint32_t source) const;
   Status setListener(const Vec3d& position, const ListenerOrientation& orientation);
 
   // ---- one simulation thread at a time (never the audio thread) ----
@@ -146,8 +185,9 @@ class Engine {
    *  right are overwritten. No allocation, lock, log or exception. */
   void process(const float* const* inputs, float* left, float* right, size_t frames);
 
+  struct Slot;  // one source's state (engine.cpp)
+
  private:
-  struct Slot;
   Engine() = default;
   bool validSource(uint32_t s) const;
   Status simulateLocked(const std::vector<uint32_t>& sources);
