@@ -577,8 +577,12 @@ def make(spec, out_dir, *, workers=None, scheduler=None, in_process=False, progr
                                    silence_logs=40)
             client = Client(cluster)
         try:
-            if client.dashboard_link:
+            try:  # the dashboard needs bokeh, which Debian 12 does not package
+                import bokeh  # noqa: F401
                 log(f"Dask dashboard: {client.dashboard_link}")
+            except ImportError:
+                log("Dask dashboard: not available (it needs bokeh: Debian 12 has no python3-bokeh); "
+                    "progress below")
             futures = {client.submit(run_shard, spec, out_dir, k, key=f"earshot-shard-{k}-{_spec_hash(spec)[:8]}",
                                      pure=False): k for k in todo}
             done = 0
