@@ -497,6 +497,17 @@ typedef struct earshot_source_settings {
   /** Higher first when a simulation step cannot take every source
    *  (earshot_simulate's source_count); default 0. */
   int32_t priority;
+  /** Directivity about the source's forward vector (earshot_source_set_orientation):
+   *  g(theta) = |(1 - alpha) + alpha cos(theta)|^sharpness; alpha [0, 1]
+   *  (0 omni, default; 0.5 cardioid; 1 figure-8), sharpness [1, 16]
+   *  (default 1). Power-normalised: the source radiates an omni source's
+   *  power, so its reverberation does not depend on where it faces, and on
+   *  its axis it is louder by its directivity index (cardioid 4.8 dB). The
+   *  direct sound follows the pattern every block; the reflections leave
+   *  along each ray's and image source's own direction (a source facing a
+   *  wall still fills the room), updated at the next simulation. */
+  float directivity_alpha;
+  float directivity_sharpness;
 } earshot_source_settings;
 
 /** Fills `settings` with the defaults (and struct_size). Any thread. */
@@ -527,6 +538,10 @@ EARSHOT_API earshot_status earshot_source_set_position(earshot_source* source, e
 /** Sets the source's gain in dB, [-120, 40]; ramped over the next audio
  *  block. Game thread (any thread but the audio thread). */
 EARSHOT_API earshot_status earshot_source_set_gain_db(earshot_source* source, float gain_db);
+/** Turns the source: `forward` (world frame, finite, non-zero) is the axis
+ *  of its directivity. Default (0, 0, -1). The direct sound follows at the
+ *  next audio block, the reflections at the next simulation. Game thread. */
+EARSHOT_API earshot_status earshot_source_set_orientation(earshot_source* source, earshot_vec3 forward);
 /** Replaces the source's controls with `settings` (all fields but `direct`,
  *  which must equal the source's: it is fixed at creation). Gains and the
  *  distance curve ramp over the next audio block (no clicks);

@@ -331,6 +331,7 @@ class Source : public detail::Handle<earshot_source, earshot_source_retain, ears
   }
   void setPosition(earshot_vec3 position) { check(earshot_source_set_position(checked(), position)); }
   void setGainDb(float gainDb) { check(earshot_source_set_gain_db(checked(), gainDb)); }
+  void setOrientation(earshot_vec3 forward) { check(earshot_source_set_orientation(checked(), forward)); }
   /** earshot_source_get_settings / _set_settings: the source's controls
    *  (gains, distance curve, occlusion, transmission, priority). */
   SourceSettings settings() const {

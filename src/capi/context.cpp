@@ -386,6 +386,8 @@ earshot_status earshot_source_settings_init(earshot_source_settings* s) {
   s->radius = 0.5f;
   s->transmission = 1;
   s->priority = 0;
+  s->directivity_alpha = 0.0f;
+  s->directivity_sharpness = 1.0f;
   return EARSHOT_OK;
 }
 
@@ -413,6 +415,10 @@ std::string toRuntime(const earshot_source_settings& s, runtime::SourceSettings&
     return "settings->max_distance " + describe(s.max_distance) + " is not in [min_distance, 1e6]";
   if (!(s.rolloff >= 0.0f && s.rolloff <= 100.0f)) return "settings->rolloff " + describe(s.rolloff) + " is outside [0, 100]";
   if (!(s.radius > 0.0f && s.radius <= 100.0f)) return "settings->radius " + describe(s.radius) + " is outside (0, 100]";
+  if (!(s.directivity_alpha >= 0.0f && s.directivity_alpha <= 1.0f))
+    return "settings->directivity_alpha " + describe(s.directivity_alpha) + " is outside [0, 1]";
+  if (!(s.directivity_sharpness >= 1.0f && s.directivity_sharpness <= 16.0f))
+    return "settings->directivity_sharpness " + describe(s.directivity_sharpness) + " is outside [1, 16]";
   if (s.transmission != 0 && s.transmission != 1)
     return "settings->transmission " + std::to_string(s.transmission) + " is not 0 or 1";
   rs.gainDb = s.gain_db;
@@ -430,6 +436,8 @@ std::string toRuntime(const earshot_source_settings& s, runtime::SourceSettings&
   rs.radiusMeters = s.radius;
   rs.transmission = s.transmission != 0;
   rs.priority = s.priority;
+  rs.directivityAlpha = s.directivity_alpha;
+  rs.directivitySharpness = s.directivity_sharpness;
   return "";
 }
 
@@ -566,6 +574,19 @@ earshot_status earshot_source_get_settings(earshot_source* src, earshot_source_s
     out->radius = float(rs->radiusMeters);
     out->transmission = rs->transmission ? 1 : 0;
     out->priority = rs->priority;
+    out->directivity_alpha = float(rs->directivityAlpha);
+    out->directivity_sharpness = float(rs->directivitySharpness);
     return EARSHOT_OK;
+  });
+}
+
+earshot_status earshot_source_set_orientation(earshot_source* src, earshot_vec3 forward) {
+  static const char* kFn = "earshot_source_set_orientation";
+  if (!alive(src)) return argError(nullptr, kFn, "source is not a live earshot_source");
+  const std::string bad = checkVec3(forward, "forward");
+  if (!bad.empty()) return argError(&src->env, kFn, bad);
+  return guard(&src->env, kFn, [&]() -> earshot_status {
+    return fromStatus(&src->env, kFn,
+                      src->context->engine->setSourceOrientation(src->slot, {forward.x, forward.y, forward.z}));
   });
 }

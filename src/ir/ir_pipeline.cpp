@@ -119,7 +119,9 @@ Result<OmniIrResult> computeIr(const RayTracer& tracer, const MaterialTable& mat
   DirectPathSettings ds;
   ds.speedOfSound = s.speedOfSound;
   ds.air = s.air;
+  ds.directivity = s.directivity;
   EARSHOT_RETURN_IF_ERROR(validate(ds.air));
+  EARSHOT_RETURN_IF_ERROR(validate(s.directivity));
   out.direct = computeDirectPath(&tracer, materials, source, listener, ds);
   out.timings.directMs = msSince(t);
   if (tracer.empty()) out.skipped.push_back("reflections: no geometry");
@@ -144,6 +146,24 @@ Result<OmniIrResult> computeIr(const RayTracer& tracer, const MaterialTable& mat
     ism = std::move(r.value());
     out.timings.imageSourcesMs = msSince(t);
     out.early = ism.paths;
+    if (!s.directivity.isOmni()) {
+      // Each path leaves the source along its first segment: the straight
+      // line image source -> listener, unfolded through its planes from the
+      // last to the first (v -> v - 2 (v.n) n each).
+      const double ms = s.directivity.meanSquare();
+      const auto& planes = tracer.planes().planes;
+      for (SpecularPath& p : out.early) {
+        Vec3d v = normalize(listener - p.imageSource);
+        for (int k = int(p.order) - 1; k >= 0; --k) {
+          const uint32_t id = p.planes[size_t(k)];
+          if (id >= planes.size()) continue;
+          const Vec3d& n = planes[id].normal;
+          v = v - n * (2.0 * dot(v, n));
+        }
+        const double g = std::sqrt(s.directivity.energyFactor(v, ms));
+        for (auto& b : p.bandGain) b *= g;
+      }
+    }
     out.imageSourceCandidates = ism.candidates;
     out.imageSourcesExhaustive = ism.exhaustive;
     excluded = &ism.found;
@@ -153,6 +173,7 @@ Result<OmniIrResult> computeIr(const RayTracer& tracer, const MaterialTable& mat
   const EnergyHistogram* late = nullptr;
   if (!tracer.empty() && s.bounces > 0) {
     ReflectionSettings rs;
+    rs.directivity = s.directivity;
     rs.rays = s.rays;
     rs.bounces = s.bounces;
     rs.seed = s.seed;

@@ -38,7 +38,7 @@ Status validate(const IrSynthesisSettings& s) {
 Arrival toArrival(const DirectPath& direct) {
   Arrival a;
   a.delaySeconds = direct.delaySeconds;
-  a.gain = direct.audible ? direct.spreadingGain : 0.0;
+  a.gain = direct.audible ? direct.spreadingGain * direct.directivityGain : 0.0;
   a.bandGain = direct.bandGain;
   a.direction = direct.directionFromListener;
   return a;

@@ -41,19 +41,21 @@ constexpr double kBytesPerSourceIrFrame = 26.0;
 // What a source's last simulation saw (relative poses decide re-simulation).
 struct SimulatedPose {
   bool valid = false;
-  Vec3d source, listener, forward, up;
+  Vec3d source, listener, forward, up, sourceForward;
   // Close enough to `o` that the reflections need no new simulation: neither
   // end moved more than minMove metres, the head turned less than minTurn
   // radians. Zero thresholds: any change at all.
   bool closeTo(const SimulatedPose& o, double minMove, double minTurn) const {
     if (!valid || !o.valid) return false;
     if (minMove <= 0 && minTurn <= 0)
-      return source == o.source && listener == o.listener && forward == o.forward && up == o.up;
+      return source == o.source && listener == o.listener && forward == o.forward && up == o.up &&
+             sourceForward == o.sourceForward;
     auto angle = [](const Vec3d& a, const Vec3d& b) {
       return std::acos(std::clamp(dot(normalize(a), normalize(b)), -1.0, 1.0));
     };
     return length(source - o.source) <= minMove && length(listener - o.listener) <= minMove &&
-           angle(forward, o.forward) <= minTurn && angle(up, o.up) <= minTurn;
+           angle(forward, o.forward) <= minTurn && angle(up, o.up) <= minTurn &&
+           angle(sourceForward, o.sourceForward) <= minTurn;
   }
 };
 
@@ -169,6 +171,8 @@ Result<RenderResult> renderScene(const SceneDescription& scene, const RenderOpti
     dryLengths.push_back(double(d->samples.size()) / fs);
     dry.push_back(std::move(d.value()));
     runtime::SourceSettings s;
+    s.gainDb = clampGainDb(src.gainDb);
+    s.directivityAlpha = src.directivity == SourceDirectivity::kCardioid ? 0.5 : 0.0;
     const bool still = listenerStatic && src.trajectory.isStatic();
     s.direct = still ? runtime::DirectMode::kInImpulseResponse : runtime::DirectMode::kPerBlock;
     out.log.push_back("source \"" + src.name + "\": " +
@@ -226,12 +230,9 @@ Result<RenderResult> renderScene(const SceneDescription& scene, const RenderOpti
     for (size_t i = 0; i < ids.size(); ++i) {
       const Pose sp = scene.sources[i].trajectory.at(t);
       EARSHOT_RETURN_IF_ERROR(engine.setSourcePosition(ids[i], sp.position));
-      const Vec3d toListener = lp.position - sp.position;
-      const double r = length(toListener);
-      const double cosAngle = r > 1e-9 ? dot(normalize(sp.forward), toListener / r) : 1.0;
-      const double g = directivityGain(scene.sources[i].directivity, cosAngle);
-      EARSHOT_RETURN_IF_ERROR(
-          engine.setSourceGainDb(ids[i], clampGainDb(scene.sources[i].gainDb + (g > 0 ? gainToDb(g) : -300.0))));
+      // The pattern's axis; the engine weights the direct sound toward the
+      // listener and each reflection by its own emission direction.
+      EARSHOT_RETURN_IF_ERROR(engine.setSourceOrientation(ids[i], sp.forward));
     }
     return Status::ok();
   };
@@ -245,7 +246,10 @@ Result<RenderResult> renderScene(const SceneDescription& scene, const RenderOpti
       const Pose lp = scene.listener.trajectory.at(t);
       std::vector<uint32_t> changed;
       for (size_t i = 0; i < ids.size(); ++i) {
-        SimulatedPose now{true, scene.sources[i].trajectory.at(t).position, lp.position, lp.forward, lp.up};
+        const Pose sp = scene.sources[i].trajectory.at(t);
+        SimulatedPose now{true, sp.position, lp.position, lp.forward, lp.up,
+                          // A directional source's reflections change when it turns.
+                          scene.sources[i].directivity == SourceDirectivity::kOmni ? Vec3d{0, 0, -1} : sp.forward};
         if (!now.closeTo(simulated[i], options.minMoveMeters, options.minTurnDegrees * kPi / 180.0)) {
           changed.push_back(ids[i]);
           simulated[i] = now;

@@ -15,6 +15,7 @@ DirectPath computeDirectPath(const RayTracer* tracer, const MaterialTable& mater
   d.delaySeconds = d.distanceMeters / settings.speedOfSound;
   d.spreadingGain = 1.0 / std::max(d.distanceMeters, settings.minDistanceMeters);
   d.directionFromListener = d.distanceMeters > 0 ? delta / d.distanceMeters : Vec3d{0, 0, -1};
+  d.directivityGain = std::sqrt(settings.directivity.energyFactor(-d.directionFromListener));
 
   const BandArrayD airDb = airAttenuationDbPerMeter(settings.air);
   BandArrayD energy{};
@@ -44,6 +45,35 @@ DirectPath computeDirectPath(const RayTracer* tracer, const MaterialTable& mater
     d.audible |= d.bandGain[b] > 0.0;
   }
   return d;
+}
+
+double Directivity::meanSquare() const {
+  if (isOmni()) return 1.0;
+  // <g^2> over the sphere: g depends on cos(theta) only, uniform in [-1, 1].
+  constexpr int kSteps = 4096;
+  double sum = 0;
+  for (int i = 0; i < kSteps; ++i) {
+    const double c = -1.0 + (i + 0.5) * 2.0 / kSteps;
+    const double g = std::pow(std::fabs((1.0 - alpha) + alpha * c), sharpness);
+    sum += g * g;
+  }
+  return sum / kSteps;
+}
+
+double Directivity::energyFactor(const Vec3d& u, double ms) const {
+  if (isOmni()) return 1.0;
+  const double len = length(forward);
+  const double c = len > 0 ? dot(u, forward) / len : 1.0;
+  const double g = std::pow(std::fabs((1.0 - alpha) + alpha * std::clamp(c, -1.0, 1.0)), sharpness);
+  return g * g / ms;
+}
+
+Status validate(const Directivity& d) {
+  if (!(d.alpha >= 0.0 && d.alpha <= 1.0)) return invalidArgument("directivity alpha " + std::to_string(d.alpha) + " is outside [0, 1]");
+  if (!(d.sharpness >= 1.0 && d.sharpness <= 16.0))
+    return invalidArgument("directivity sharpness " + std::to_string(d.sharpness) + " is outside [1, 16]");
+  if (!isFinite(d.forward) || !(length(d.forward) > 0)) return invalidArgument("directivity forward is zero or not finite");
+  return Status::ok();
 }
 
 }  // namespace earshot

@@ -602,6 +602,8 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
   // trace stops after the round where the late histogram's estimated error
   // falls below it. The decision depends on completed rounds only: the
   // same whatever the thread count.
+  const bool directional = !settings.directivity.isOmni();
+  const double directivityMeanSquare = settings.directivity.meanSquare();
   const uint32_t rounds = settings.convergenceDb > 0 ? std::min(kConvergenceRounds, settings.rays) : 1u;
   uint32_t traced = 0;
   ConvergenceMonitor monitor(bins, settings.binSeconds, rounds);
@@ -619,10 +621,14 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
         Vec3d direction;
         double startEnergy;
         sampler.ray(rayIndex, direction, startEnergy);
-        float energy[kNumBands];
-        for (float& e : energy) e = float(startEnergy);
         const float rouletteThreshold = float(startEnergy) * 1e-6f;  // 60 dB down
         float thinBelow = float(startEnergy) * kProbeThinFrom, probeWeight = 1.0f;
+        // The source's directivity weights what the ray carries (the
+        // thresholds stay the omni ray's: a ray sent backwards by a
+        // cardioid carries little and ends soon).
+        if (directional) startEnergy *= settings.directivity.energyFactor(direction, directivityMeanSquare);
+        float energy[kNumBands];
+        for (float& e : energy) e = float(startEnergy);
         // Positions (ray origins, hit points) in double world coordinates: in
         // float they are ~8 mm apart at 1e5 m, and a hit point near an edge
         // could round to beyond the neighbouring wall. Directions and

@@ -38,6 +38,8 @@ struct Engine::Slot {
   std::atomic<int> distanceModel{0}, occlusion{int(OcclusionMode::kRay)}, priority{0};
   std::atomic<double> distanceMin{1.0}, distanceMax{100.0}, rolloff{1.0}, radius{0.5};
   std::atomic<bool> transmissionOn{true};
+  std::atomic<double> directivityAlpha{0.0}, directivitySharpness{1.0}, directivityMeanSquare{1.0};
+  std::atomic<double> forward[3] = {{0.0}, {0.0}, {-1.0}};
   std::atomic<double> transmission[kNumBands];
   std::atomic<bool> audible{true};
   std::unique_ptr<DirectVoice> voice;  // audio thread
@@ -100,6 +102,10 @@ Status validate(const SourceSettings& s) {
                            " m is not in [min distance, 1e6]");
   if (!(s.distance.rolloff >= 0 && s.distance.rolloff <= 100))
     return invalidArgument("distance curve rolloff " + std::to_string(s.distance.rolloff) + " is outside [0, 100]");
+  Directivity d;
+  d.alpha = s.directivityAlpha;
+  d.sharpness = s.directivitySharpness;
+  EARSHOT_RETURN_IF_ERROR(validate(d));
   const int occ = int(s.occlusion);
   if (occ < 0 || occ > int(OcclusionMode::kVolumetric)) return invalidArgument("unknown occlusion mode");
   if (!(s.radiusMeters > 0 && s.radiusMeters <= 100))
@@ -120,6 +126,12 @@ void storeControls(Engine::Slot& slot, const SourceSettings& s) {
   slot.radius.store(s.radiusMeters);
   slot.transmissionOn.store(s.transmission);
   slot.priority.store(s.priority);
+  Directivity d;
+  d.alpha = s.directivityAlpha;
+  d.sharpness = s.directivitySharpness;
+  slot.directivityMeanSquare.store(d.meanSquare());  // once here, not per audio block
+  slot.directivityAlpha.store(s.directivityAlpha);
+  slot.directivitySharpness.store(s.directivitySharpness);
 }
 
 }  // namespace
@@ -149,7 +161,17 @@ Result<SourceSettings> Engine::sourceControls(uint32_t s) const {
   out.radiusMeters = slot.radius.load();
   out.transmission = slot.transmissionOn.load();
   out.priority = slot.priority.load();
+  out.directivityAlpha = slot.directivityAlpha.load();
+  out.directivitySharpness = slot.directivitySharpness.load();
   return out;
+}
+
+Status Engine::setSourceOrientation(uint32_t s, const Vec3d& forward) {
+  if (!validSource(s)) return invalidArgument("source " + std::to_string(s) + " does not exist");
+  if (!isFinite(forward) || !(length(forward) > 0)) return invalidArgument("source forward is zero or not finite");
+  const Vec3d f = normalize(forward);
+  for (int i = 0; i < 3; ++i) mSlots[s]->forward[i].store((&f.x)[i], std::memory_order_relaxed);
+  return Status::ok();
 }
 
 namespace {
@@ -257,6 +279,9 @@ Result<uint32_t> Engine::addSource(const SourceSettings& settings) {
     storeControls(slot, settings);
     for (auto& t : slot.transmission) t.store(1.0);
     slot.audible.store(true);
+    slot.forward[0].store(0.0);
+    slot.forward[1].store(0.0);
+    slot.forward[2].store(-1.0);
     slot.generation.fetch_add(1);
     slot.active.store(true);
     return i;
@@ -370,6 +395,9 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& order) {
     Job j{i, slot.generation.load(), mSettings.simulation,
           {slot.position[0].load(), slot.position[1].load(), slot.position[2].load()}, std::nullopt};
     j.settings.includeDirect = DirectMode(slot.direct.load()) == DirectMode::kInImpulseResponse;
+    j.settings.directivity.alpha = slot.directivityAlpha.load();
+    j.settings.directivity.sharpness = slot.directivitySharpness.load();
+    j.settings.directivity.forward = {slot.forward[0].load(), slot.forward[1].load(), slot.forward[2].load()};
     jobs.push_back(std::move(j));
   }
   // Several sources: one per worker, each traced single-threaded (synthesis
@@ -524,6 +552,18 @@ void Engine::process(const float* const* inputs, float* left, float* right, size
         curve.rolloff = slot.rolloff.load(std::memory_order_relaxed);
         const double r = length(target.source - target.listener);
         shape = distanceGain(curve, r) * std::max(r, DirectVoiceSettings{}.minDistanceMeters);
+      }
+      // Directivity toward the listener: sqrt(D) = g / sqrt(<g^2>).
+      const double alpha = slot.directivityAlpha.load(std::memory_order_relaxed);
+      if (alpha > 0.0) {
+        const Vec3d toListener = target.listener - target.source;
+        const double r = length(toListener);
+        const Vec3d f{slot.forward[0].load(std::memory_order_relaxed), slot.forward[1].load(std::memory_order_relaxed),
+                      slot.forward[2].load(std::memory_order_relaxed)};
+        const double c = r > 1e-9 ? std::clamp(dot(f, toListener) / r, -1.0, 1.0) : 1.0;
+        const double g =
+            std::pow(std::fabs((1.0 - alpha) + alpha * c), slot.directivitySharpness.load(std::memory_order_relaxed));
+        shape *= g / std::sqrt(slot.directivityMeanSquare.load(std::memory_order_relaxed));
       }
       target.gain = slot.appliedGain * slot.directGain.load(std::memory_order_relaxed) * shape;
       if (OcclusionMode(slot.occlusion.load(std::memory_order_relaxed)) == OcclusionMode::kOff) {

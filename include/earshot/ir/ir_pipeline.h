@@ -23,6 +23,9 @@ class RayTracer;
 class ThreadPool;
 
 struct OmniIrSettings {
+  /** The source's directivity (direct_path.h): the direct sound, each image
+   *  source and each traced ray weighted by it; omni by default. */
+  Directivity directivity;
   double sampleRateHz = 48000.0;
   double lengthSeconds = 0.0;      ///< 0: automatic (from the decay)
   uint32_t rays = 16384;

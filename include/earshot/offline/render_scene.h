@@ -14,9 +14,12 @@
  *  exactly its dry signal convolved with the IR `earshot ir` computes for the
  *  same positions and settings.
  *
- *  Directivity: a source's pattern scales its whole output by the pattern's
- *  gain toward the listener (reflections leave in other directions; a known
- *  simplification).
+ *  Directivity: a cardioid source is the engine's power-normalised cardioid
+ *  about its trajectory's forward vector (runtime SourceSettings): the
+ *  direct sound follows the pattern toward the listener every block, each
+ *  reflection its own emission direction (a source facing away still fills
+ *  the room); a directional source is simulated again when it turns more
+ *  than minTurnDegrees.
  *
  *  Threading: renderScene() is a blocking call; it uses settings.threads (or
  *  the options' override) worker threads for tracing. Same scene, options

@@ -2,6 +2,7 @@
 /** @file The direct sound from a source to a listener: delay r/c, 1/r
  *  spreading, air absorption, and transmission through every surface crossed. */
 #include "earshot/core/bands.h"
+#include "earshot/core/status.h"
 #include "earshot/core/vec3.h"
 #include "earshot/materials/material.h"
 #include "earshot/propagation/air_absorption.h"
@@ -10,7 +11,33 @@ namespace earshot {
 
 class RayTracer;
 
+/** A source's directivity: the dipole family g(theta) = |(1 - alpha) +
+ *  alpha cos(theta)|^sharpness about the source's forward axis (alpha 0
+ *  omni, 0.5 cardioid, 1 figure-8). Power-normalised: the source radiates
+ *  the same total power as an omni source of the same gain, in direction u
+ *  the energy factor D(u) = g^2 / <g^2> (mean over the sphere), so its
+ *  reverberation matches the omni source's whatever it faces, and on its
+ *  axis it is louder by its directivity index (cardioid: 4.8 dB). The
+ *  direct sound is scaled by sqrt(D(toward the listener)), each image
+ *  source by sqrt(D(its first segment)), each traced ray's energy by D(its
+ *  emission direction). */
+struct Directivity {
+  double alpha = 0.0;      ///< [0, 1]
+  double sharpness = 1.0;  ///< [1, 16]
+  Vec3d forward{0.0, 0.0, -1.0};  ///< the axis, world frame (normalised on use)
+  bool isOmni() const { return alpha == 0.0; }
+  /** D(u): energy factor in the unit direction u (1 for omni). */
+  double energyFactor(const Vec3d& u) const { return energyFactor(u, meanSquare()); }
+  /** The same with meanSquare() computed once by the caller (hot loops). */
+  double energyFactor(const Vec3d& u, double meanSquare) const;
+  /** <g^2> over the sphere (4096-point quadrature in cos(theta)). */
+  double meanSquare() const;
+};
+/** Error unless alpha in [0, 1], sharpness in [1, 16] and forward finite, non-zero. */
+Status validate(const Directivity& d);
+
 struct DirectPathSettings {
+  Directivity directivity;            ///< the source's; the gain toward the listener scales bandGain
   double speedOfSound = 343.0;        ///< m/s
   double minDistanceMeters = 0.1;     ///< spreading is clamped here (1/r would diverge at 0)
   AirConditions air;
@@ -25,6 +52,10 @@ struct DirectPath {
   bool occlusionTested = false;     ///< false: no geometry, or provably nothing between (RayTracer::nothingBetween)
   bool audible = true;              ///< false when fully blocked (some band gain > 0 otherwise)
   Vec3d directionFromListener;      ///< unit vector from the listener toward the source (world frame)
+  /** Pressure factor of the source's directivity toward the listener,
+   *  sqrt(D) (DirectPathSettings::directivity); not in bandGain, which stays
+   *  the path's own (air, transmission). */
+  double directivityGain = 1.0;
 };
 
 /** Computes the direct path. `tracer` may be null (free field). Each surface

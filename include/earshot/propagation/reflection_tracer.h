@@ -37,6 +37,7 @@
 #include "earshot/core/vec3.h"
 #include "earshot/materials/material.h"
 #include "earshot/propagation/air_absorption.h"
+#include "earshot/propagation/direct_path.h"
 #include "earshot/propagation/energy_histogram.h"
 #include "earshot/propagation/image_sources.h"
 
@@ -49,6 +50,7 @@ class ThreadPool;
 constexpr uint32_t kEveryRay = 0xFFFFFFFFu;
 
 struct ReflectionSettings {
+  Directivity directivity;            ///< the source's: each ray's energy times D(its emission direction)
   uint32_t rays = 16384;              ///< [1, 1e8]
   uint32_t bounces = 12;              ///< reflections per ray, [0, 100000]
   uint64_t seed = 1;

@@ -101,6 +101,12 @@ struct SourceSettings {
   double radiusMeters = 0.5;       ///< kVolumetric's sphere, (0, 100]
   bool transmission = true;        ///< false: an occluded path is silent instead of filtered by the surfaces
   int priority = 0;                ///< higher first when simulate(count) cannot take every source
+  /** The source's directivity pattern (direct_path.h Directivity: alpha 0
+   *  omni .. 0.5 cardioid .. 1 figure-8, sharpness >= 1), about its forward
+   *  vector (setSourceOrientation). The per-block direct sound follows it
+   *  every block, the reflections at the next simulation. */
+  double directivityAlpha = 0.0;
+  double directivitySharpness = 1.0;
 };
 /** Error (naming the field) unless every value is in range. */
 Status validate(const SourceSettings& settings);
@@ -163,6 +169,9 @@ class Engine {
    *  applies from the next block, the others (and transmission) at the
    *  source's next simulation. */
   Status setSourceControls(uint32_t source, const SourceSettings& settings);
+  /** The source's forward vector (world frame; finite, non-zero): the axis
+   *  of its directivity. Default (0, 0, -1). */
+  Status setSourceOrientation(uint32_t source, const Vec3d& forward);
   Result<SourceSettings> sourceControls(uint32_t source) const;
   Status setListener(const Vec3d& position, const ListenerOrientation& orientation);
 
