@@ -172,7 +172,23 @@ Result<RenderResult> renderScene(const SceneDescription& scene, const RenderOpti
     dry.push_back(std::move(d.value()));
     runtime::SourceSettings s;
     s.gainDb = clampGainDb(src.gainDb);
-    s.directivityAlpha = src.directivity == SourceDirectivity::kCardioid ? 0.5 : 0.0;
+    s.directivityAlpha = src.directivityAlpha;
+    s.directivitySharpness = src.directivitySharpness;
+    s.directGainDb = src.directGainDb;
+    s.reflectionsGainDb = src.reflectionsGainDb;
+    s.distance.model = src.distanceModel == "inverse"       ? runtime::DistanceModel::kInverse
+                       : src.distanceModel == "linear"      ? runtime::DistanceModel::kLinear
+                       : src.distanceModel == "exponential" ? runtime::DistanceModel::kExponential
+                                                            : runtime::DistanceModel::kPhysical;
+    s.distance.minDistance = src.minDistance;
+    s.distance.maxDistance = src.maxDistance;
+    s.distance.rolloff = src.rolloff;
+    s.occlusion = src.occlusion == "off"          ? runtime::OcclusionMode::kOff
+                  : src.occlusion == "volumetric" ? runtime::OcclusionMode::kVolumetric
+                                                  : runtime::OcclusionMode::kRay;
+    s.radiusMeters = src.radius;
+    s.transmission = src.transmission;
+    s.priority = src.priority;
     const bool still = listenerStatic && src.trajectory.isStatic();
     s.direct = still ? runtime::DirectMode::kInImpulseResponse : runtime::DirectMode::kPerBlock;
     out.log.push_back("source \"" + src.name + "\": " +
@@ -249,7 +265,7 @@ Result<RenderResult> renderScene(const SceneDescription& scene, const RenderOpti
         const Pose sp = scene.sources[i].trajectory.at(t);
         SimulatedPose now{true, sp.position, lp.position, lp.forward, lp.up,
                           // A directional source's reflections change when it turns.
-                          scene.sources[i].directivity == SourceDirectivity::kOmni ? Vec3d{0, 0, -1} : sp.forward};
+                          scene.sources[i].directivityAlpha == 0.0 ? Vec3d{0, 0, -1} : sp.forward};
         if (!now.closeTo(simulated[i], options.minMoveMeters, options.minTurnDegrees * kPi / 180.0)) {
           changed.push_back(ids[i]);
           simulated[i] = now;

@@ -13,6 +13,7 @@
 #include <limits>
 #include <set>
 #include <sstream>
+#include <tuple>
 
 #include "earshot/materials/material.h"
 #include "json_reader.h"
@@ -33,7 +34,10 @@ const std::vector<std::string> kSceneKeys = {"$schema", "description", "geometry
                                              "listener", "sources", "settings"};
 const std::vector<std::string> kListenerKeys = {"position", "forward", "up", "path"};
 const std::vector<std::string> kSourceKeys = {"name", "audio", "position", "forward", "up", "path",
-                                              "gain_db", "directivity", "start"};
+                                              "gain_db", "directivity", "start", "directivity_sharpness",
+                                              "direct_gain_db", "reflections_gain_db", "distance_model",
+                                              "min_distance", "max_distance", "rolloff", "occlusion", "radius",
+                                              "transmission", "priority"};
 const std::vector<std::string> kKeyframeKeys = {"t", "position", "forward", "up"};
 const std::vector<std::string> kSettingsKeys = {"sample_rate", "quality", "rays", "bounces", "hrtf", "seed",
                                                 "update_rate_hz", "duration", "air", "speed_of_sound"};
@@ -324,16 +328,71 @@ Status SceneReader::readSource(const json& v, const std::string& path, SceneSour
     out.gainDb = *g;
   }
   if (v.contains("directivity")) {
+    // A pattern's name, or alpha of (1 - alpha) + alpha cos(angle).
     const std::string dp = jsonKeyPath(path, "directivity");
-    auto d = text(v["directivity"], dp, "\"omni\" or \"cardioid\"");
-    if (!d) return d.status();
-    if (*d == "omni") {
-      out.directivity = SourceDirectivity::kOmni;
-    } else if (*d == "cardioid") {
-      out.directivity = SourceDirectivity::kCardioid;
+    static const std::vector<std::pair<std::string, double>> kPatterns = {
+        {"omni", 0.0}, {"subcardioid", 0.25}, {"cardioid", 0.5}, {"supercardioid", 0.63},
+        {"hypercardioid", 0.75}, {"figure8", 1.0}};
+    const char* expected = "omni, subcardioid, cardioid, supercardioid, hypercardioid, figure8 or a number in [0, 1]";
+    if (v["directivity"].is_number()) {
+      auto a = number(v["directivity"], dp, {0.0, 1.0, false, ""});
+      if (!a) return a.status();
+      out.directivityAlpha = *a;
     } else {
-      return fail(dp, "expected \"omni\" or \"cardioid\", got " + jsonQuoted(*d));
+      auto d = text(v["directivity"], dp, expected);
+      if (!d) return d.status();
+      auto it = std::find_if(kPatterns.begin(), kPatterns.end(), [&](const auto& p) { return p.first == *d; });
+      if (it == kPatterns.end()) return fail(dp, std::string("expected ") + expected + ", got " + jsonQuoted(*d));
+      out.directivityAlpha = it->second;
     }
+    out.directivity = out.directivityAlpha == 0.0 ? SourceDirectivity::kOmni : SourceDirectivity::kCardioid;
+  }
+  if (v.contains("directivity_sharpness")) {
+    auto k = number(v["directivity_sharpness"], jsonKeyPath(path, "directivity_sharpness"), {1.0, 16.0, false, ""});
+    if (!k) return k.status();
+    out.directivitySharpness = *k;
+  }
+  for (auto [key, field] : {std::pair{"direct_gain_db", &out.directGainDb}, {"reflections_gain_db", &out.reflectionsGainDb}})
+    if (v.contains(key)) {
+      auto g = number(v[key], jsonKeyPath(path, key), {-120.0, 60.0, false, " dB"});
+      if (!g) return g.status();
+      *field = *g;
+    }
+  if (v.contains("distance_model")) {
+    const std::string dp = jsonKeyPath(path, "distance_model");
+    auto m = text(v["distance_model"], dp, "physical, inverse, linear or exponential");
+    if (!m) return m.status();
+    if (*m != "physical" && *m != "inverse" && *m != "linear" && *m != "exponential")
+      return fail(dp, "expected physical, inverse, linear or exponential, got " + jsonQuoted(*m));
+    out.distanceModel = *m;
+  }
+  for (auto [key, field, lo] : {std::tuple{"min_distance", &out.minDistance, 0.0}, {"max_distance", &out.maxDistance, 0.0},
+                                {"rolloff", &out.rolloff, -1.0}, {"radius", &out.radius, 0.0}})
+    if (v.contains(key)) {
+      const double hi = std::string(key) == "rolloff" ? 100.0 : std::string(key) == "radius" ? 100.0 : 1e6;
+      auto x = number(v[key], jsonKeyPath(path, key), {lo < 0 ? 0.0 : lo, hi, lo >= 0, std::string(key) == "rolloff" ? "" : " m"});
+      if (!x) return x.status();
+      *field = *x;
+    }
+  if (out.maxDistance < out.minDistance)
+    return fail(jsonKeyPath(path, "max_distance"), fmt(out.maxDistance) + " is below min_distance " + fmt(out.minDistance));
+  if (v.contains("occlusion")) {
+    const std::string op = jsonKeyPath(path, "occlusion");
+    auto o = text(v["occlusion"], op, "ray, off or volumetric");
+    if (!o) return o.status();
+    if (*o != "ray" && *o != "off" && *o != "volumetric")
+      return fail(op, "expected ray, off or volumetric, got " + jsonQuoted(*o));
+    out.occlusion = *o;
+  }
+  if (v.contains("transmission")) {
+    if (!v["transmission"].is_boolean())
+      return fail(jsonKeyPath(path, "transmission"), "expected true or false");
+    out.transmission = v["transmission"].get<bool>();
+  }
+  if (v.contains("priority")) {
+    auto p = wholeNumber(v["priority"], jsonKeyPath(path, "priority"), 0, 1000);
+    if (!p) return p.status();
+    out.priority = int(*p);
   }
   if (v.contains("start")) {
     auto s = time(v["start"], jsonKeyPath(path, "start"));

@@ -267,3 +267,48 @@ TEST(RenderCli, FromToWindowIsTheSamePartOfTheFullRender) {
 }
 
 }  // namespace earshot
+
+namespace earshot {
+
+// Issue 19: a scene's per-source controls reach the render. A moving source
+// (direct sound per block) with its reflections at -120 dB is quieter than
+// the same source with them, and silencing the direct sound instead leaves
+// the reflections; a cardioid facing away keeps its reverberation.
+TEST(RenderCli, SceneControlsReachTheRender) {
+  TempDir dir("render_controls");
+  // Noise: direct sound and reflections add in energy (a sine's would interfere).
+  std::vector<float> noise(48000);
+  Pcg32 rng(3, 0);
+  for (float& v : noise) v = float(0.2 * (double(rng.next()) / 4294967296.0 - 0.5));
+  writeMono(dir / "sine.wav", noise);
+  auto energyOf = [&](const std::string& sourceExtra) {
+    std::ofstream(dir / "scene.json") << R"({"geometry": ")" << kSamples << R"(shoebox/shoebox.gltf",
+      "material_map": ")" << kSamples << R"(shoebox/materials_map.json",
+      "listener": {"position": [7, 3.5, 1.5], "forward": [-1, 0, 0], "up": [0, 0, 1]},
+      "sources": [{"name": "s", "audio": "sine.wav", "forward": [-1, 0, 0],
+                   "path": [{"t": 0, "position": [2, 3, 1.5]}, {"t": 1, "position": [2.5, 3, 1.5]}])"
+                                      << sourceExtra << R"(}],
+      "settings": {"quality": "draft", "duration": 1.5, "update_rate_hz": 10}})";
+    auto r = runEarshot("render " + dir / "scene.json" + " -o " + dir / "out.wav --quiet --allow-outside-paths");
+    EXPECT_EQ(r.exitCode, 0) << r.output;
+    const AudioBuffer b = read(dir / "out.wav");
+    double e = 0;
+    for (const auto& ch : b.channels)
+      for (float v : ch) e += double(v) * v;
+    return e;
+  };
+  const double both = energyOf("");
+  const double direct = energyOf(R"(, "reflections_gain_db": -120)");
+  const double reflections = energyOf(R"(, "direct_gain_db": -120)");
+  ASSERT_GT(both, 0.0);
+  EXPECT_LT(direct, 0.9 * both);
+  EXPECT_LT(reflections, 0.9 * both);
+  EXPECT_NEAR(direct + reflections, both, 0.05 * both);  // they add in energy
+  // Facing away (forward -x, the listener at +x): the direct sound is gone,
+  // the room still rings; within 1.5 dB of the omni source's reflections.
+  const double cardioidReflections = energyOf(R"(, "direct_gain_db": 0, "directivity": "cardioid")") ;
+  EXPECT_GT(cardioidReflections, 0.5 * reflections);
+  EXPECT_LT(cardioidReflections, 1.5 * reflections);
+}
+
+}  // namespace earshot

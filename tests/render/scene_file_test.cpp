@@ -187,8 +187,17 @@ TEST_F(SceneFileTest, WrongTypesSayWhatWasExpected) {
   EXPECT_HAS(error(R"({"listener": {"position": [1, true, 3]}, "sources": []})"),
              "scene.json: listener.position[1]: expected a number, got boolean true");
   EXPECT_HAS(error(scene(R"("gain_db": null)")), "scene.json: sources[0].gain_db: expected a number, got null");
-  EXPECT_HAS(error(scene(R"("directivity": "figure8")")),
-             "scene.json: sources[0].directivity: expected \"omni\" or \"cardioid\", got \"figure8\"");
+  EXPECT_HAS(error(scene(R"("directivity": "shotgun")")),
+             "scene.json: sources[0].directivity: expected omni, subcardioid, cardioid, supercardioid, "
+             "hypercardioid, figure8 or a number in [0, 1], got \"shotgun\"");
+  EXPECT_HAS(error(scene(R"("directivity": 1.5)")), "scene.json: sources[0].directivity:");
+  EXPECT_HAS(error(scene(R"("distance_model": "cubic")")),
+             "scene.json: sources[0].distance_model: expected physical, inverse, linear or exponential");
+  EXPECT_HAS(error(scene(R"("occlusion": "maybe")")), "scene.json: sources[0].occlusion: expected ray, off or volumetric");
+  EXPECT_HAS(error(scene(R"("transmission": 1)")), "scene.json: sources[0].transmission: expected true or false");
+  EXPECT_HAS(error(scene(R"("priority": -1)")), "scene.json: sources[0].priority:");
+  EXPECT_HAS(error(scene(R"("min_distance": 5, "max_distance": 2)")), "scene.json: sources[0].max_distance:");
+  EXPECT_HAS(error(scene(R"("radius": 0)")), "scene.json: sources[0].radius:");
   EXPECT_HAS(error(scene("", R"("settings": [])")), "scene.json: settings: expected an object, got array");
   EXPECT_HAS(error(scene("", R"("settings": {"rays": 1.5})")),
              "scene.json: settings.rays: expected a whole number, got number 1.5");
@@ -642,6 +651,50 @@ TEST(SceneDocs, TheFormatDocNamesEveryKeyAndItsExampleParses) {
   ASSERT_TRUE(r.isOk()) << r.status().message();
   EXPECT_TRUE(warnings.empty());
   EXPECT_GE(r->sources.size(), 2u);
+}
+
+}  // namespace
+}  // namespace earshot
+
+namespace earshot {
+namespace {
+
+// The per-source controls of issue 19 are read with their values.
+class SceneControlsTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    AudioBuffer a(1, 480, 48000.0);
+    ASSERT_TRUE(writeWavFloat(mDir / "dry.wav", a).isOk());
+  }
+  testing::TempDir mDir{"scene_controls"};
+};
+
+TEST_F(SceneControlsTest, EveryControlIsRead) {
+  const std::string text = R"({"listener": {"position": [0, 0, 0]}, "sources": [{"name": "a", "audio": "dry.wav",
+      "position": [0, 0, -2], "directivity": "hypercardioid", "directivity_sharpness": 2, "direct_gain_db": -3,
+      "reflections_gain_db": -6, "distance_model": "inverse", "min_distance": 2, "max_distance": 50, "rolloff": 1.5,
+      "occlusion": "volumetric", "radius": 0.75, "transmission": false, "priority": 7},
+      {"name": "b", "audio": "dry.wav", "position": [1, 0, -2], "directivity": 0.3}]})";
+  SceneParseOptions o;
+  o.strict = true;
+  auto r = parseSceneText(text, mDir.path.string(), "scene.json", o);
+  ASSERT_TRUE(r.isOk()) << r.status().message();
+  const SceneSource& a = r->sources[0];
+  EXPECT_EQ(a.directivityAlpha, 0.75);
+  EXPECT_EQ(a.directivitySharpness, 2.0);
+  EXPECT_EQ(a.directGainDb, -3.0);
+  EXPECT_EQ(a.reflectionsGainDb, -6.0);
+  EXPECT_EQ(a.distanceModel, "inverse");
+  EXPECT_EQ(a.minDistance, 2.0);
+  EXPECT_EQ(a.maxDistance, 50.0);
+  EXPECT_EQ(a.rolloff, 1.5);
+  EXPECT_EQ(a.occlusion, "volumetric");
+  EXPECT_EQ(a.radius, 0.75);
+  EXPECT_FALSE(a.transmission);
+  EXPECT_EQ(a.priority, 7);
+  EXPECT_EQ(r->sources[1].directivityAlpha, 0.3);
+  EXPECT_EQ(r->sources[1].distanceModel, "physical");
+  EXPECT_TRUE(r->sources[1].transmission);
 }
 
 }  // namespace

@@ -43,6 +43,17 @@ struct SceneSource {
   double gainDb = 0.0;      ///< applied to the dry audio, [-120, 60] dB
   SourceDirectivity directivity = SourceDirectivity::kOmni;
   double startSeconds = 0.0;  ///< scene time at which the dry audio's first sample plays, >= 0
+  // Per-source controls (the runtime's SourceSettings; docs/scene-format.md).
+  double directivityAlpha = 0.0;       ///< pattern (1 - a) + a cos: "directivity" as a name or a number
+  double directivitySharpness = 1.0;   ///< [1, 16]
+  double directGainDb = 0.0;           ///< [-120, 60]
+  double reflectionsGainDb = 0.0;      ///< [-120, 60]
+  std::string distanceModel = "physical";  ///< physical | inverse | linear | exponential
+  double minDistance = 1.0, maxDistance = 100.0, rolloff = 1.0;
+  std::string occlusion = "ray";       ///< ray | off | volumetric
+  double radius = 0.5;                 ///< volumetric occlusion's sphere, metres
+  bool transmission = true;
+  int priority = 0;                    ///< [0, 1000]
 };
 
 /** Air absorption (ISO 9613-1); the engine's AirConditions takes these values. */
