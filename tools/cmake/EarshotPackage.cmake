@@ -19,7 +19,7 @@ foreach(_m IN LISTS _earshot_modules)
 endforeach()
 
 # What the modules link beyond themselves (the header-only nlohmann_json,
-# CLI11 and Eigen are needed at compile time only). The package config finds
+# CLI11 are needed at compile time only). The package config finds
 # these for the static library; keep the three lists in step.
 set(EARSHOT_EXTERNAL_LIBS embree kissfft::kissfft SndFile::sndfile MySofa::mysofa TinyGLTF::TinyGLTF Threads::Threads)
 set(EARSHOT_PC_LIBS_PRIVATE "-lembree3 -lkissfft-float -lsndfile -lmysofa -ltinygltf -lpthread -lstdc++ -lm")
