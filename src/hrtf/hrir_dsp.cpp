@@ -99,79 +99,10 @@ inline std::complex<double> expOf(double r, double i) {
 
 }  // namespace
 
-Fft::Fft(std::size_t n) : mN(n), mTwRe(n > 1 ? n - 1 : 0), mTwIm(mTwRe.size()), mBitReverse(n) {
-  for (std::size_t h = 1; h < n; h <<= 1) {
-    const std::size_t step = n / (2 * h);
-    for (std::size_t j = 0; j < h; ++j) {
-      const double angle = -2.0 * kPi * double(j * step) / double(n);
-      mTwRe[h - 1 + j] = std::cos(angle);
-      mTwIm[h - 1 + j] = std::sin(angle);
-    }
-  }
-  int bits = 0;
-  while ((std::size_t(1) << bits) < n) ++bits;
-  for (std::size_t i = 0; i < n; ++i) {
-    std::size_t r = 0;
-    for (int b = 0; b < bits; ++b)
-      if (i & (std::size_t(1) << b)) r |= std::size_t(1) << (bits - 1 - b);
-    mBitReverse[i] = r;
-  }
-}
+Fft::Fft(std::size_t n) : mN(n), mForward(n, false), mInverse(n, true) {}
 
 namespace {
 
-// One radix-2 stage's butterflies for one block: a' = a + w b, b' = a - w b
-// (w conjugated for the inverse). Restrict pointers so the loop vectorises.
-template <bool kInverse>
-inline void butterflies(double* __restrict ar, double* __restrict ai, double* __restrict br, double* __restrict bi,
-                        const double* __restrict wr, const double* __restrict wi, std::size_t h) {
-  for (std::size_t j = 0; j < h; ++j) {
-    const double c = wr[j], d = kInverse ? -wi[j] : wi[j];
-    const double tr = br[j] * c - bi[j] * d, ti = br[j] * d + bi[j] * c;
-    br[j] = ar[j] - tr;
-    bi[j] = ai[j] - ti;
-    ar[j] += tr;
-    ai[j] += ti;
-  }
-}
-
-// Two radix-2 stages (half-lengths h and 2h) in one pass over a block of 4h:
-// the same operations in the same order as two calls of butterflies(), with
-// half the loads and stores. w1: stage h's twiddles, w2: stage 2h's.
-template <bool kInverse>
-inline void butterflies2(double* __restrict r0, double* __restrict i0, double* __restrict r1, double* __restrict i1,
-                         double* __restrict r2, double* __restrict i2, double* __restrict r3, double* __restrict i3,
-                         const double* __restrict w1r, const double* __restrict w1i, const double* __restrict w2r,
-                         const double* __restrict w2i, std::size_t h) {
-  for (std::size_t j = 0; j < h; ++j) {
-    const double c = w1r[j], d = kInverse ? -w1i[j] : w1i[j];
-    // Stage h: (x0, x1) and (x2, x3).
-    const double t1r = r1[j] * c - i1[j] * d, t1i = r1[j] * d + i1[j] * c;
-    const double t3r = r3[j] * c - i3[j] * d, t3i = r3[j] * d + i3[j] * c;
-    const double y0r = r0[j] + t1r, y0i = i0[j] + t1i, y1r = r0[j] - t1r, y1i = i0[j] - t1i;
-    const double y2r = r2[j] + t3r, y2i = i2[j] + t3i, y3r = r2[j] - t3r, y3i = i2[j] - t3i;
-    // Stage 2h: (y0, y2) with twiddle j, (y1, y3) with twiddle j + h.
-    const double c0 = w2r[j], d0 = kInverse ? -w2i[j] : w2i[j];
-    const double c1 = w2r[j + h], d1 = kInverse ? -w2i[j + h] : w2i[j + h];
-    const double u2r = y2r * c0 - y2i * d0, u2i = y2r * d0 + y2i * c0;
-    const double u3r = y3r * c1 - y3i * d1, u3i = y3r * d1 + y3i * c1;
-    r0[j] = y0r + u2r;
-    i0[j] = y0i + u2i;
-    r2[j] = y0r - u2r;
-    i2[j] = y0i - u2i;
-    r1[j] = y1r + u3r;
-    i1[j] = y1i + u3i;
-    r3[j] = y1r - u3r;
-    i3[j] = y1i - u3i;
-  }
-}
-
-// From the squared magnitudes of two spectra (logA, logB: bins 0..N/2 on
-// entry) to the log spectra of their minimum-phase versions in re/im (packed
-// as one complex FFT, Hermitian halves): log magnitude with a floor of
-// `floorRatio` times each peak (keeps log finite at spectral zeros; a silent
-// input gets 0 so it cannot spoil the other), real cepstrum, fold, FFT.
-// logA/logB hold the floored log magnitudes afterwards.
 void minimumPhaseLogSpectra(const Fft& fft, std::vector<double>& re, std::vector<double>& im,
                             std::vector<double>& logA, std::vector<double>& logB, double peakA, double peakB,
                             bool liveA, bool liveB, double floorRatio) {
@@ -189,40 +120,20 @@ void minimumPhaseLogSpectra(const Fft& fft, std::vector<double>& re, std::vector
 
 }  // namespace
 
-template <bool kInverse>
-void Fft::run(double* re, double* im) const {
+void Fft::transform(const kissfft<double>& plan, double* re, double* im) const {
+  // KissFFT works on interleaved complex numbers; the callers keep split
+  // arrays (two real signals packed as one complex FFT).
+  std::vector<std::complex<double>> in(mN), out(mN);
+  for (std::size_t i = 0; i < mN; ++i) in[i] = {re[i], im[i]};
+  plan.transform(in.data(), out.data());
   for (std::size_t i = 0; i < mN; ++i) {
-    const std::size_t r = mBitReverse[i];
-    if (i < r) {
-      std::swap(re[i], re[r]);
-      std::swap(im[i], im[r]);
-    }
-  }
-  // Decimation in time. First stage: the twiddle is 1.
-  for (std::size_t s = 0; s + 1 < mN; s += 2) {
-    const double tr = re[s + 1], ti = im[s + 1];
-    re[s + 1] = re[s] - tr;
-    im[s + 1] = im[s] - ti;
-    re[s] += tr;
-    im[s] += ti;
-  }
-  std::size_t h = 2;
-  for (; 4 * h <= mN; h *= 4) {
-    const double *w1r = mTwRe.data() + (h - 1), *w1i = mTwIm.data() + (h - 1);
-    const double *w2r = mTwRe.data() + (2 * h - 1), *w2i = mTwIm.data() + (2 * h - 1);
-    for (std::size_t s = 0; s < mN; s += 4 * h)
-      butterflies2<kInverse>(re + s, im + s, re + s + h, im + s + h, re + s + 2 * h, im + s + 2 * h, re + s + 3 * h,
-                             im + s + 3 * h, w1r, w1i, w2r, w2i, h);
-  }
-  for (; h < mN; h *= 2) {
-    const double *wr = mTwRe.data() + (h - 1), *wi = mTwIm.data() + (h - 1);
-    for (std::size_t s = 0; s < mN; s += 2 * h)
-      butterflies<kInverse>(re + s, im + s, re + s + h, im + s + h, wr, wi, h);
+    re[i] = out[i].real();
+    im[i] = out[i].imag();
   }
 }
 
 void Fft::inverse(double* re, double* im) const {
-  run<true>(re, im);
+  transform(mInverse, re, im);
   const double s = 1.0 / double(mN);
   for (std::size_t i = 0; i < mN; ++i) {
     re[i] *= s;

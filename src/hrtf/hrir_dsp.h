@@ -6,28 +6,26 @@
 #include <cstddef>
 #include <vector>
 
+#include <kissfft/kissfft.hh>
+
 #include "earshot/dsp/resample.h"
 
 namespace earshot::hrtf::detail {
 
-/** In-place iterative radix-2 complex FFT of a power-of-two length on split
- *  real/imaginary arrays (double); the inverse includes 1/N. Twiddles are
- *  computed once, stored per stage contiguously. Const methods: thread-safe. */
+/** In-place complex FFT (double) on split real/imaginary arrays, through
+ *  KissFFT's C++ template (kissfft.hh, Debian's libkissfft-dev); the
+ *  inverse includes 1/N. Const methods: thread-safe (scratch per call). */
 class Fft {
  public:
   explicit Fft(std::size_t n);
   std::size_t size() const { return mN; }
-  void forward(double* re, double* im) const { run<false>(re, im); }
+  void forward(double* re, double* im) const { transform(mForward, re, im); }
   void inverse(double* re, double* im) const;
 
  private:
-  template <bool kInverse>
-  void run(double* re, double* im) const;
+  void transform(const kissfft<double>& plan, double* re, double* im) const;
   std::size_t mN;
-  // Stage with half-length h (h = 1, 2, 4, ... N/2) uses entries [h - 1, 2h - 1):
-  // e^{-2 pi i j / (2h)}, j < h.
-  std::vector<double> mTwRe, mTwIm;
-  std::vector<std::size_t> mBitReverse;
+  kissfft<double> mForward, mInverse;
 };
 
 // The Kaiser-windowed sinc, band-limited interpolation and resampling live in
