@@ -12,7 +12,7 @@ cd "$(dirname "$0")/.."
 PACKAGES=(
   build-essential cmake ninja-build pkg-config git
   libembree-dev libtbb-dev libeigen3-dev libkissfft-dev libsndfile1-dev
-  libtinygltf-dev libmysofa-dev nlohmann-json3-dev libcli11-dev libqhull-dev
+  libtinygltf-dev libmysofa-dev nlohmann-json3-dev libcli11-dev libqhull-dev libsoxr-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   python3 python3-dev python3-numpy python3-matplotlib pybind11-dev
   python3-pytest python3-h5py python3-distributed

@@ -96,9 +96,10 @@ TEST(Resample, RoundTrip8000To48000To8000ReturnsTheSignal) {
   ASSERT_EQ(up.size(), 6 * x.size());
   auto back = resample(up.data(), up.size(), 48000.0, fs);
   ASSERT_EQ(back.size(), x.size());
-  // Upsampling by an integer factor with a kernel that is zero at the
-  // integers reproduces the input samples exactly (up to the table).
-  for (size_t i = 0; i < x.size(); i += 97) EXPECT_NEAR(up[6 * i], x[i], 1e-5) << i;
+  // Upsampling by an integer factor reproduces the input samples, away from
+  // the ends by more than the filter's reach (libsoxr's very-high-quality
+  // filter: 84 input samples here, measured; the signal is zero outside).
+  for (size_t i = 100; i < x.size() - 100; i += 97) EXPECT_NEAR(up[6 * i], x[i], 1e-5) << i;
   double err = 0, ref = 0;
   for (size_t i = 100; i < x.size() - 100; ++i) {
     err += (double(back[i]) - x[i]) * (double(back[i]) - x[i]);

@@ -21,8 +21,8 @@ endforeach()
 # What the modules link beyond themselves (the header-only nlohmann_json,
 # CLI11 are needed at compile time only). The package config finds
 # these for the static library; keep the three lists in step.
-set(EARSHOT_EXTERNAL_LIBS embree kissfft::kissfft SndFile::sndfile MySofa::mysofa TinyGLTF::TinyGLTF Qhull::qhull_r Threads::Threads)
-set(EARSHOT_PC_LIBS_PRIVATE "-lembree3 -lkissfft-float -lsndfile -lmysofa -ltinygltf -lqhull_r -lpthread -lstdc++ -lm")
+set(EARSHOT_EXTERNAL_LIBS embree kissfft::kissfft SndFile::sndfile MySofa::mysofa TinyGLTF::TinyGLTF Qhull::qhull_r PkgConfig::SOXR Threads::Threads)
+set(EARSHOT_PC_LIBS_PRIVATE "-lembree3 -lkissfft-float -lsndfile -lmysofa -ltinygltf -lqhull_r -lsoxr -lpthread -lstdc++ -lm")
 
 set(_earshot_includes $<BUILD_INTERFACE:${PROJECT_SOURCE_DIR}/include> $<BUILD_INTERFACE:${PROJECT_BINARY_DIR}/include>
   $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>)

