@@ -469,8 +469,12 @@ typedef enum earshot_distance_model {
   EARSHOT_DISTANCE_PHYSICAL = 0,    /**< 1 / max(d, 0.1 m): the physics (default) */
   EARSHOT_DISTANCE_INVERSE = 1,     /**< min / (min + rolloff (D - min)) */
   EARSHOT_DISTANCE_LINEAR = 2,      /**< 1 - rolloff (D - min) / (max - min), at least 0 */
-  EARSHOT_DISTANCE_EXPONENTIAL = 3  /**< (D / min)^-rolloff */
+  EARSHOT_DISTANCE_EXPONENTIAL = 3, /**< (D / min)^-rolloff */
+  EARSHOT_DISTANCE_TABLE = 4        /**< distance_table: linear between its points, flat beyond its ends */
 } earshot_distance_model;
+
+/** Points of EARSHOT_DISTANCE_TABLE, at most this many. */
+#define EARSHOT_DISTANCE_TABLE_POINTS 16
 
 /** How geometry between source and listener occludes the direct sound. */
 typedef enum earshot_occlusion_mode {
@@ -489,6 +493,12 @@ typedef struct earshot_source_settings {
   float min_distance;             /**< metres, (0, 1e6]; default 1 */
   float max_distance;             /**< metres, [min_distance, 1e6]; default 100 */
   float rolloff;                  /**< [0, 100]; default 1 */
+  /** EARSHOT_DISTANCE_TABLE: distance_table_count points (1 ..
+   *  EARSHOT_DISTANCE_TABLE_POINTS), distances (m) ascending in [0, 1e6],
+   *  pressure gains in [0, 10]. */
+  uint32_t distance_table_count;
+  float distance_table_distance[EARSHOT_DISTANCE_TABLE_POINTS];
+  float distance_table_gain[EARSHOT_DISTANCE_TABLE_POINTS];
   earshot_occlusion_mode occlusion; /**< default EARSHOT_OCCLUSION_RAY */
   float radius;                   /**< VOLUMETRIC's sphere, metres, (0, 100]; default 0.5 */
   /** 1 (default): an occluded direct path passes through the surfaces,

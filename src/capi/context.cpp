@@ -404,7 +404,7 @@ std::string toRuntime(const earshot_source_settings& s, runtime::SourceSettings&
   if (direct != EARSHOT_DIRECT_PER_BLOCK && direct != EARSHOT_DIRECT_IN_IMPULSE_RESPONSE)
     return "settings->direct " + std::to_string(direct) + " is not an earshot_direct_mode";
   const int64_t model = rawEnum(s.distance_model);
-  if (model < EARSHOT_DISTANCE_PHYSICAL || model > EARSHOT_DISTANCE_EXPONENTIAL)
+  if (model < EARSHOT_DISTANCE_PHYSICAL || model > EARSHOT_DISTANCE_TABLE)
     return "settings->distance_model " + std::to_string(model) + " is not an earshot_distance_model";
   const int64_t occlusion = rawEnum(s.occlusion);
   if (occlusion < EARSHOT_OCCLUSION_RAY || occlusion > EARSHOT_OCCLUSION_VOLUMETRIC)
@@ -430,6 +430,15 @@ std::string toRuntime(const earshot_source_settings& s, runtime::SourceSettings&
   rs.distance.minDistance = s.min_distance;
   rs.distance.maxDistance = s.max_distance;
   rs.distance.rolloff = s.rolloff;
+  if (model == EARSHOT_DISTANCE_TABLE) {
+    if (s.distance_table_count < 1 || s.distance_table_count > EARSHOT_DISTANCE_TABLE_POINTS)
+      return "settings->distance_table_count " + std::to_string(s.distance_table_count) + " is outside [1, " +
+             std::to_string(EARSHOT_DISTANCE_TABLE_POINTS) + "]";
+    for (uint32_t i = 0; i < s.distance_table_count; ++i)
+      rs.distance.table.emplace_back(s.distance_table_distance[i], s.distance_table_gain[i]);
+    const Status v = runtime::validate(rs);
+    if (!v.isOk()) return "settings->" + v.message();
+  }
   rs.occlusion = occlusion == EARSHOT_OCCLUSION_OFF          ? runtime::OcclusionMode::kOff
                  : occlusion == EARSHOT_OCCLUSION_VOLUMETRIC ? runtime::OcclusionMode::kVolumetric
                                                              : runtime::OcclusionMode::kRay;
@@ -568,6 +577,11 @@ earshot_status earshot_source_get_settings(earshot_source* src, earshot_source_s
     out->min_distance = float(rs->distance.minDistance);
     out->max_distance = float(rs->distance.maxDistance);
     out->rolloff = float(rs->distance.rolloff);
+    out->distance_table_count = uint32_t(rs->distance.table.size());
+    for (size_t i = 0; i < rs->distance.table.size() && i < EARSHOT_DISTANCE_TABLE_POINTS; ++i) {
+      out->distance_table_distance[i] = float(rs->distance.table[i].first);
+      out->distance_table_gain[i] = float(rs->distance.table[i].second);
+    }
     out->occlusion = rs->occlusion == runtime::OcclusionMode::kOff          ? EARSHOT_OCCLUSION_OFF
                      : rs->occlusion == runtime::OcclusionMode::kVolumetric ? EARSHOT_OCCLUSION_VOLUMETRIC
                                                                            : EARSHOT_OCCLUSION_RAY;

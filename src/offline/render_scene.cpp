@@ -179,7 +179,9 @@ Result<RenderResult> renderScene(const SceneDescription& scene, const RenderOpti
     s.distance.model = src.distanceModel == "inverse"       ? runtime::DistanceModel::kInverse
                        : src.distanceModel == "linear"      ? runtime::DistanceModel::kLinear
                        : src.distanceModel == "exponential" ? runtime::DistanceModel::kExponential
+                       : src.distanceModel == "table"       ? runtime::DistanceModel::kTable
                                                             : runtime::DistanceModel::kPhysical;
+    s.distance.table = src.distanceTable;
     s.distance.minDistance = src.minDistance;
     s.distance.maxDistance = src.maxDistance;
     s.distance.rolloff = src.rolloff;

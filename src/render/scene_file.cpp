@@ -37,7 +37,7 @@ const std::vector<std::string> kSourceKeys = {"name", "audio", "position", "forw
                                               "gain_db", "directivity", "start", "directivity_sharpness",
                                               "direct_gain_db", "reflections_gain_db", "distance_model",
                                               "min_distance", "max_distance", "rolloff", "occlusion", "radius",
-                                              "transmission", "priority"};
+                                              "transmission", "priority", "distance_table"};
 const std::vector<std::string> kKeyframeKeys = {"t", "position", "forward", "up"};
 const std::vector<std::string> kSettingsKeys = {"sample_rate", "quality", "rays", "bounces", "hrtf", "seed",
                                                 "update_rate_hz", "duration", "air", "speed_of_sound"};
@@ -360,12 +360,31 @@ Status SceneReader::readSource(const json& v, const std::string& path, SceneSour
     }
   if (v.contains("distance_model")) {
     const std::string dp = jsonKeyPath(path, "distance_model");
-    auto m = text(v["distance_model"], dp, "physical, inverse, linear or exponential");
+    auto m = text(v["distance_model"], dp, "physical, inverse, linear, exponential or table");
     if (!m) return m.status();
-    if (*m != "physical" && *m != "inverse" && *m != "linear" && *m != "exponential")
-      return fail(dp, "expected physical, inverse, linear or exponential, got " + jsonQuoted(*m));
+    if (*m != "physical" && *m != "inverse" && *m != "linear" && *m != "exponential" && *m != "table")
+      return fail(dp, "expected physical, inverse, linear, exponential or table, got " + jsonQuoted(*m));
     out.distanceModel = *m;
   }
+  if (v.contains("distance_table")) {
+    // [[distance_m, gain], ...]: 1 to 16 points, distances ascending.
+    const std::string tp = jsonKeyPath(path, "distance_table");
+    const json& t = v["distance_table"];
+    if (!t.is_array() || t.empty() || t.size() > 16)
+      return fail(tp, "expected 1 to 16 points [distance_m, gain]");
+    for (size_t i = 0; i < t.size(); ++i) {
+      const std::string ip = tp + "[" + std::to_string(i) + "]";
+      if (!t[i].is_array() || t[i].size() != 2) return fail(ip, "expected [distance_m, gain]");
+      auto d = number(t[i][0], ip + "[0]", {0.0, 1e6, false, " m"});
+      if (!d) return d.status();
+      auto g = number(t[i][1], ip + "[1]", {0.0, 10.0, false, ""});
+      if (!g) return g.status();
+      if (i > 0 && !(*d > out.distanceTable.back().first)) return fail(ip, "distances must ascend");
+      out.distanceTable.emplace_back(*d, *g);
+    }
+  }
+  if (out.distanceModel == "table" && out.distanceTable.empty())
+    return fail(jsonKeyPath(path, "distance_table"), "missing (distance_model is \"table\")");
   for (auto [key, field, lo] : {std::tuple{"min_distance", &out.minDistance, 0.0}, {"max_distance", &out.maxDistance, 0.0},
                                 {"rolloff", &out.rolloff, -1.0}, {"radius", &out.radius, 0.0}})
     if (v.contains(key)) {

@@ -38,6 +38,12 @@ struct Engine::Slot {
   std::atomic<int> distanceModel{0}, occlusion{int(OcclusionMode::kRay)}, priority{0};
   std::atomic<double> distanceMin{1.0}, distanceMax{100.0}, rolloff{1.0}, radius{0.5};
   std::atomic<bool> transmissionOn{true};
+  // kTable: two buffers, the audio thread reading the one tableIndex names
+  // (the game thread writes the other, then flips; a read that overlaps two
+  // flips within one block may see a mix for that block, never garbage).
+  std::atomic<double> tableDistance[2][kMaxDistanceTablePoints] = {}, tableGain[2][kMaxDistanceTablePoints] = {};
+  std::atomic<int> tableCount[2] = {{0}, {0}};
+  std::atomic<int> tableIndex{0};
   std::atomic<double> directivityAlpha{0.0}, directivitySharpness{1.0}, directivityMeanSquare{1.0};
   std::atomic<double> forward[3] = {{0.0}, {0.0}, {-1.0}};
   std::atomic<double> transmission[kNumBands];
@@ -67,6 +73,18 @@ void storeControls(Engine::Slot& slot, const SourceSettings& s);
 
 }  // namespace
 
+double tableGain(const std::pair<double, double>* t, size_t n, double d) {
+  if (n == 0) return 1.0;
+  if (d <= t[0].first) return t[0].second;
+  for (size_t i = 1; i < n; ++i)
+    if (d <= t[i].first) {
+      const double span = t[i].first - t[i - 1].first;
+      const double f = span > 0 ? (d - t[i - 1].first) / span : 1.0;
+      return t[i - 1].second + f * (t[i].second - t[i - 1].second);
+    }
+  return t[n - 1].second;
+}
+
 double distanceGain(const DistanceCurve& c, double d) {
   // Physical: the direct voice's own 1/r with its 0.1 m clamp.
   if (c.model == DistanceModel::kPhysical) return 1.0 / std::max(d, DirectVoiceSettings{}.minDistanceMeters);
@@ -79,6 +97,8 @@ double distanceGain(const DistanceCurve& c, double d) {
       return std::max(0.0, 1.0 - c.rolloff * (D - c.minDistance) / (c.maxDistance - c.minDistance));
     case DistanceModel::kExponential:
       return std::pow(D / c.minDistance, -c.rolloff);
+    case DistanceModel::kTable:
+      return tableGain(c.table.data(), c.table.size(), d);
     default:
       return 1.0 / std::max(d, 0.1);
   }
@@ -93,7 +113,21 @@ Status validate(const SourceSettings& s) {
     return invalidArgument("source reflections gain " + std::to_string(s.reflectionsGainDb) +
                            " dB is outside [-120, 60]");
   const int model = int(s.distance.model);
-  if (model < 0 || model > int(DistanceModel::kExponential)) return invalidArgument("unknown distance model");
+  if (model < 0 || model > int(DistanceModel::kTable)) return invalidArgument("unknown distance model");
+  if (s.distance.model == DistanceModel::kTable) {
+    const auto& t = s.distance.table;
+    if (t.empty() || t.size() > size_t(kMaxDistanceTablePoints))
+      return invalidArgument("distance table: 1 to " + std::to_string(kMaxDistanceTablePoints) + " points, got " +
+                             std::to_string(t.size()));
+    for (size_t i = 0; i < t.size(); ++i) {
+      if (!(t[i].first >= 0 && t[i].first <= 1e6) || (i > 0 && !(t[i].first > t[i - 1].first)))
+        return invalidArgument("distance table: point " + std::to_string(i) + "'s distance " +
+                               std::to_string(t[i].first) + " m is not ascending in [0, 1e6]");
+      if (!(t[i].second >= 0 && t[i].second <= 10))
+        return invalidArgument("distance table: point " + std::to_string(i) + "'s gain " + std::to_string(t[i].second) +
+                               " is outside [0, 10]");
+    }
+  }
   if (!(s.distance.minDistance > 0 && s.distance.minDistance <= 1e6))
     return invalidArgument("distance curve min distance " + std::to_string(s.distance.minDistance) +
                            " m is outside (0, 1e6]");
@@ -122,6 +156,15 @@ void storeControls(Engine::Slot& slot, const SourceSettings& s) {
   slot.distanceMin.store(s.distance.minDistance);
   slot.distanceMax.store(s.distance.maxDistance);
   slot.rolloff.store(s.distance.rolloff);
+  if (s.distance.model == DistanceModel::kTable) {
+    const int next = 1 - slot.tableIndex.load();
+    for (size_t i = 0; i < s.distance.table.size(); ++i) {
+      slot.tableDistance[next][i].store(s.distance.table[i].first);
+      slot.tableGain[next][i].store(s.distance.table[i].second);
+    }
+    slot.tableCount[next].store(int(s.distance.table.size()));
+    slot.tableIndex.store(next);
+  }
   slot.occlusion.store(int(s.occlusion));
   slot.radius.store(s.radiusMeters);
   slot.transmissionOn.store(s.transmission);
@@ -157,6 +200,11 @@ Result<SourceSettings> Engine::sourceControls(uint32_t s) const {
   out.distance.minDistance = slot.distanceMin.load();
   out.distance.maxDistance = slot.distanceMax.load();
   out.distance.rolloff = slot.rolloff.load();
+  if (out.distance.model == DistanceModel::kTable) {
+    const int k = slot.tableIndex.load();
+    for (int i = 0; i < slot.tableCount[k].load(); ++i)
+      out.distance.table.emplace_back(slot.tableDistance[k][i].load(), slot.tableGain[k][i].load());
+  }
   out.occlusion = OcclusionMode(slot.occlusion.load());
   out.radiusMeters = slot.radius.load();
   out.transmission = slot.transmissionOn.load();
@@ -551,7 +599,20 @@ void Engine::process(const float* const* inputs, float* left, float* right, size
         curve.maxDistance = slot.distanceMax.load(std::memory_order_relaxed);
         curve.rolloff = slot.rolloff.load(std::memory_order_relaxed);
         const double r = length(target.source - target.listener);
-        shape = distanceGain(curve, r) * std::max(r, DirectVoiceSettings{}.minDistanceMeters);
+        double g;
+        if (curve.model == DistanceModel::kTable) {
+          // No allocation here: the table is copied to the stack.
+          std::pair<double, double> t[kMaxDistanceTablePoints];
+          const int k = slot.tableIndex.load(std::memory_order_acquire);
+          const int n = std::min(slot.tableCount[k].load(std::memory_order_relaxed), kMaxDistanceTablePoints);
+          for (int i = 0; i < n; ++i)
+            t[i] = {slot.tableDistance[k][i].load(std::memory_order_relaxed),
+                    slot.tableGain[k][i].load(std::memory_order_relaxed)};
+          g = tableGain(t, size_t(n), r);
+        } else {
+          g = distanceGain(curve, r);
+        }
+        shape = g * std::max(r, DirectVoiceSettings{}.minDistanceMeters);
       }
       // Directivity toward the listener: sqrt(D) = g / sqrt(<g^2>).
       const double alpha = slot.directivityAlpha.load(std::memory_order_relaxed);

@@ -112,6 +112,43 @@ TEST(CapiControls, DistanceCurvesMatchTheirFormulas) {
   }
 }
 
+TEST(CapiControls, DistanceTableIsInterpolatedLinearly) {
+  World w(false);
+  // Points (1 m, 1), (3 m, 0.5), (10 m, 0.1): at 2 m 0.75, at 20 m 0.1 (flat beyond).
+  earshot_source_settings s = defaults();
+  s.distance_model = EARSHOT_DISTANCE_TABLE;
+  s.distance_table_count = 3;
+  const float d[3] = {1, 3, 10}, g[3] = {1, 0.5f, 0.1f};
+  for (int i = 0; i < 3; ++i) {
+    s.distance_table_distance[i] = d[i];
+    s.distance_table_gain[i] = g[i];
+  }
+  for (auto [dist, gain] : {std::pair{2.0, 0.75}, std::pair{20.0, 0.1}, std::pair{0.5, 1.0}}) {
+    ASSERT_EQ(earshot_source_set_position(w.src, {0, 0, float(-dist)}), EARSHOT_OK);
+    w.set(defaults());
+    const double physical = w.impulseEnergy();
+    w.set(s);
+    const double expected = std::pow(gain * std::max(dist, 0.1), 2.0);
+    EXPECT_NEAR(w.impulseEnergy() / physical, expected, 1e-3 * expected) << dist << " m";
+  }
+  const earshot_source_settings back = w.get();
+  EXPECT_EQ(back.distance_model, EARSHOT_DISTANCE_TABLE);
+  EXPECT_EQ(back.distance_table_count, 3u);
+  EXPECT_FLOAT_EQ(back.distance_table_gain[1], 0.5f);
+  // Not ascending, too many or no points, a gain past 10: refused.
+  earshot_source_settings bad = s;
+  bad.distance_table_distance[2] = 2;
+  EXPECT_EQ(earshot_source_set_settings(w.src, &bad), EARSHOT_ERROR_INVALID_ARGUMENT);
+  bad = s;
+  bad.distance_table_count = 17;
+  EXPECT_EQ(earshot_source_set_settings(w.src, &bad), EARSHOT_ERROR_INVALID_ARGUMENT);
+  bad.distance_table_count = 0;
+  EXPECT_EQ(earshot_source_set_settings(w.src, &bad), EARSHOT_ERROR_INVALID_ARGUMENT);
+  bad = s;
+  bad.distance_table_gain[0] = 11;
+  EXPECT_EQ(earshot_source_set_settings(w.src, &bad), EARSHOT_ERROR_INVALID_ARGUMENT);
+}
+
 TEST(CapiControls, GainsScaleWhatTheyName) {
   // Direct gain, free field (no reflections).
   World w(false);

@@ -693,6 +693,17 @@ TEST_F(SceneControlsTest, EveryControlIsRead) {
   EXPECT_FALSE(a.transmission);
   EXPECT_EQ(a.priority, 7);
   EXPECT_EQ(r->sources[1].directivityAlpha, 0.3);
+  auto t = parseSceneText(R"({"listener": {"position": [0, 0, 0]}, "sources": [{"name": "a", "audio": "dry.wav",
+      "position": [0, 0, -2], "distance_model": "table", "distance_table": [[1, 1], [5, 0.2]]}]})",
+                          mDir.path.string(), "scene.json", o);
+  ASSERT_TRUE(t.isOk()) << t.status().message();
+  ASSERT_EQ(t->sources[0].distanceTable.size(), 2u);
+  EXPECT_EQ(t->sources[0].distanceTable[1], std::make_pair(5.0, 0.2));
+  auto noTable = parseSceneText(R"({"listener": {"position": [0, 0, 0]}, "sources": [{"name": "a", "audio": "dry.wav",
+      "position": [0, 0, -2], "distance_model": "table"}]})",
+                                mDir.path.string(), "scene.json", o);
+  ASSERT_FALSE(noTable.isOk());
+  EXPECT_NE(noTable.status().message().find("distance_table"), std::string::npos);
   EXPECT_EQ(r->sources[1].distanceModel, "physical");
   EXPECT_TRUE(r->sources[1].transmission);
 }

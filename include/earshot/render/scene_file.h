@@ -50,6 +50,7 @@ struct SceneSource {
   double reflectionsGainDb = 0.0;      ///< [-120, 60]
   std::string distanceModel = "physical";  ///< physical | inverse | linear | exponential
   double minDistance = 1.0, maxDistance = 100.0, rolloff = 1.0;
+  std::vector<std::pair<double, double>> distanceTable;  ///< distance_model "table": (m, gain) points
   std::string occlusion = "ray";       ///< ray | off | volumetric
   double radius = 0.5;                 ///< volumetric occlusion's sphere, metres
   bool transmission = true;

@@ -74,12 +74,17 @@ enum class DistanceModel {
   kInverse,      ///< min / (min + rolloff (D - min)), D = d clamped to [min, max]
   kLinear,       ///< 1 - rolloff (D - min) / (max - min), at least 0
   kExponential,  ///< (D / min)^-rolloff
+  kTable,        ///< the user's points (distance, gain), linear between them, flat beyond the ends
 };
+constexpr int kMaxDistanceTablePoints = 16;
 struct DistanceCurve {
   DistanceModel model = DistanceModel::kPhysical;
   double minDistance = 1.0;    ///< metres, (0, 1e6]; gain 1 up to here
   double maxDistance = 100.0;  ///< metres, >= minDistance; the curve stays flat beyond
   double rolloff = 1.0;        ///< [0, 100]
+  /** kTable: up to kMaxDistanceTablePoints points, distances ascending in
+   *  [0, 1e6] m, gains in [0, 10] (pressure). */
+  std::vector<std::pair<double, double>> table;
 };
 /** The curve's pressure gain at distance d (metres, >= 0). */
 double distanceGain(const DistanceCurve& curve, double d);
