@@ -208,4 +208,28 @@ Status WavStreamWriter::commit() {
   return s;
 }
 
+Status appendScaled(const std::string& path, float gain, WavStreamWriter& out) {
+  SF_INFO info{};
+  SndPtr f(sf_open(path.c_str(), SFM_READ, &info));
+  if (!f) return ioError(path + ": cannot read audio (" + sf_strerror(nullptr) + ")");
+  if (size_t(info.channels) != out.channels())
+    return invalidArgument(path + ": " + std::to_string(info.channels) + " channels, the output has " +
+                           std::to_string(out.channels()));
+  constexpr size_t kBlock = 4096;
+  const size_t ch = out.channels();
+  std::vector<float> interleaved(kBlock * ch);
+  std::vector<std::vector<float>> planar(ch, std::vector<float>(kBlock));
+  std::vector<const float*> ptrs(ch);
+  for (size_t c = 0; c < ch; ++c) ptrs[c] = planar[c].data();
+  for (;;) {
+    const sf_count_t got = sf_readf_float(f.get(), interleaved.data(), sf_count_t(kBlock));
+    if (got <= 0) break;
+    for (sf_count_t i = 0; i < got; ++i)
+      for (size_t c = 0; c < ch; ++c) planar[c][size_t(i)] = interleaved[size_t(i) * ch + c] * gain;
+    EARSHOT_RETURN_IF_ERROR(out.write(ptrs.data(), size_t(got)));
+    if (size_t(got) < kBlock) break;
+  }
+  return Status::ok();
+}
+
 }  // namespace earshot

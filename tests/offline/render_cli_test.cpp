@@ -312,3 +312,27 @@ TEST(RenderCli, SceneControlsReachTheRender) {
 }
 
 }  // namespace earshot
+
+namespace earshot {
+
+// Issue 19: --normalize scales the whole render to a peak level, in any
+// output format, and says so; nothing of the first pass is left behind.
+TEST(RenderCli, NormalizeSetsThePeakAndReportsIt) {
+  TempDir dir("render_normalize");
+  for (auto [name, dbfs] : {std::pair{"out.wav", -6.0}, std::pair{"out.flac", -1.0}}) {
+    auto r = runEarshot("render " + kSamples + "shoebox/static.json -o " + dir / name +
+                        " --quality draft --to 1 --quiet --normalize " + std::to_string(dbfs));
+    ASSERT_EQ(r.exitCode, 0) << r.output;
+    EXPECT_NE(r.output.find("normalised"), std::string::npos) << r.output;
+    const AudioBuffer b = read(dir / name);
+    float peak = 0;
+    for (const auto& ch : b.channels)
+      for (float v : ch) peak = std::max(peak, std::fabs(v));
+    EXPECT_NEAR(20.0 * std::log10(peak), dbfs, 0.01) << name;
+  }
+  int files = 0;
+  for (auto& e : std::filesystem::directory_iterator(dir.path)) files += e.is_regular_file();
+  EXPECT_EQ(files, 2);  // out.wav, out.flac: no first-pass file left
+}
+
+}  // namespace earshot

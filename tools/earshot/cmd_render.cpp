@@ -33,6 +33,7 @@ struct RenderCliOptions {
   double minMove = 0.25;
   double minTurn = 5.0;
   bool quiet = false;
+  double normalizeDbfs = 0.0;  // with --normalize
 };
 
 bool samePath(const std::string& a, const std::string& b) {
@@ -108,7 +109,18 @@ int run(const RenderCliOptions& o, const CLI::App& cmd) {
   ro.progress = [&](double f) { progress.update(f); };
   // The output streams to a temporary file renamed at the end: a render of
   // any length holds no output in memory, and the target is never partial.
-  auto writer = WavStreamWriter::open(o.output, 2, scene->settings.sampleRateHz);
+  // --normalize: a first pass into a float WAV beside the output (its peak
+  // unknown until the end), then scaled into the output's own format.
+  const bool normalize = cmd.count("--normalize") > 0;
+  if (normalize && !check(audioFormatForPath(o.output).status())) return 2;
+  const std::string firstPass = normalize ? o.output + ".first-pass-" + std::to_string(::getpid()) + ".wav" : o.output;
+  struct Remove {
+    std::string path;
+    ~Remove() {
+      if (!path.empty()) std::remove(path.c_str());
+    }
+  } removeFirstPass{normalize ? firstPass : std::string()};
+  auto writer = WavStreamWriter::open(firstPass, 2, scene->settings.sampleRateHz);
   if (!check(writer.status())) return 2;
   ro.sink = [&](const float* l, const float* r, size_t n) {
     const float* planar[2] = {l, r};
@@ -118,6 +130,16 @@ int run(const RenderCliOptions& o, const CLI::App& cmd) {
   if (!check(result.status())) return 2;
   const RenderResult& r = *result;
   if (!check((*writer)->commit())) return 2;
+  double normalizeGain = 1.0;
+  if (normalize) {
+    auto final = WavStreamWriter::open(o.output, 2, scene->settings.sampleRateHz);
+    if (!check(final.status())) return 2;
+    normalizeGain = r.peak > 0 ? std::pow(10.0, o.normalizeDbfs / 20.0) / r.peak : 1.0;
+    if (!check(appendScaled(firstPass, float(normalizeGain), **final)) || !check((*final)->commit())) return 2;
+    writer = std::move(final);
+    std::fprintf(stderr, "earshot: normalised: peak %.2f dBFS -> %.2f dBFS (gain %+.2f dB)\n",
+                 20.0 * std::log10(std::max(r.peak, 1e-30)), o.normalizeDbfs, 20.0 * std::log10(normalizeGain));
+  }
   for (const auto& line : r.log)  // warnings even with --quiet
     if (!o.quiet || line.rfind("warning:", 0) == 0) std::cerr << "earshot: " << line << "\n";
   if (!o.quiet) {
@@ -133,7 +155,7 @@ int run(const RenderCliOptions& o, const CLI::App& cmd) {
                  "earshot: warning: %llu samples beyond full scale were clipped in %s (%s); lower the sources' "
                  "gain_db, or write .wav (float keeps them)\n",
                  (unsigned long long)(*writer)->clippedSamples(), o.output.c_str(), (*writer)->format().name);
-  else if (r.clipped)
+  else if (r.clipped && !normalize)
     std::fprintf(stderr,
                  "earshot: warning: the peak %.3f (%+.2f dBFS) exceeds full scale; the float WAV keeps it, but lower "
                  "the sources' gain_db to play it without clipping\n",
@@ -171,6 +193,11 @@ const Registrar registrar([](CLI::App& root) {
   cmd->add_option("--min-turn", o->minTurn, "... or the listener turned this far (degrees; 0: any change)")
       ->check(CLI::Range(0.0, 180.0))
       ->capture_default_str();
+  cmd->add_option("--normalize", o->normalizeDbfs,
+                  "Scale the whole output so that its peak is at this level (dBFS, e.g. -1), reported on stderr; "
+                  "two passes through a temporary float WAV beside the output (default: no scaling, the levels "
+                  "stay physical and a peak over full scale is warned about)")
+      ->check(CLI::Range(-120.0, 0.0));
   cmd->add_flag("--strict", o->strict, "Unknown keys in the scene file are errors (default: warnings)");
   cmd->add_flag("-q,--quiet", o->quiet, "No progress, log or summary on stderr (errors and clipping warnings remain)");
   cmd->callback([o, cmd] { setExitCode(run(*o, *cmd)); });

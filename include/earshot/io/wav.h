@@ -44,6 +44,11 @@ Result<AudioFileFormat> audioFormatForPath(const std::string& path);
  *  file clipped (0 for WAV: float keeps them). */
 Status writeAudioFile(const std::string& path, const AudioBuffer& audio, uint64_t* clippedSamples = nullptr);
 
+/** Appends the audio of `path` (any libsndfile format, read in blocks: no
+ *  length limit) to `out`, every sample times `gain`; the channel counts
+ *  must match. For a second pass over a render (normalisation). */
+Status appendScaled(const std::string& path, float gain, class WavStreamWriter& out);
+
 /** Writes a 32-bit float WAV (a path naming another format is refused). Writes to a temporary file beside `path` and
  *  renames it over `path` only when everything was written, so an existing
  *  file is replaced only on success and no partial file is left. Refuses
@@ -73,6 +78,7 @@ class WavStreamWriter {
   /** Closes the file and renames it over the target. */
   Status commit();
   uint64_t framesWritten() const { return mFrames; }
+  size_t channels() const { return mChannels; }
   /** Samples clipped at full scale so far (FLAC, Vorbis; 0 for WAV). */
   uint64_t clippedSamples() const { return mClipped; }
   const AudioFileFormat& format() const { return mFormat; }
