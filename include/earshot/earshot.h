@@ -518,6 +518,11 @@ typedef struct earshot_source_settings {
    *  wall still fills the room), updated at the next simulation. */
   float directivity_alpha;
   float directivity_sharpness;
+  /** 1: directivity_band_alpha (one alpha per band, 125 Hz .. 8 kHz) instead
+   *  of directivity_alpha, e.g. a loudspeaker omni at 125 Hz and cardioid at
+   *  4 kHz. Default 0. */
+  int32_t directivity_per_band;
+  float directivity_band_alpha[EARSHOT_BAND_COUNT];
 } earshot_source_settings;
 
 /** Fills `settings` with the defaults (and struct_size). Any thread. */

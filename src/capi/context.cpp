@@ -419,6 +419,13 @@ std::string toRuntime(const earshot_source_settings& s, runtime::SourceSettings&
     return "settings->directivity_alpha " + describe(s.directivity_alpha) + " is outside [0, 1]";
   if (!(s.directivity_sharpness >= 1.0f && s.directivity_sharpness <= 16.0f))
     return "settings->directivity_sharpness " + describe(s.directivity_sharpness) + " is outside [1, 16]";
+  if (s.directivity_per_band != 0 && s.directivity_per_band != 1)
+    return "settings->directivity_per_band " + std::to_string(s.directivity_per_band) + " is not 0 or 1";
+  if (s.directivity_per_band)
+    for (int b = 0; b < EARSHOT_BAND_COUNT; ++b)
+      if (!(s.directivity_band_alpha[b] >= 0.0f && s.directivity_band_alpha[b] <= 1.0f))
+        return "settings->directivity_band_alpha[" + std::to_string(b) + "] " + describe(s.directivity_band_alpha[b]) +
+               " is outside [0, 1]";
   if (s.transmission != 0 && s.transmission != 1)
     return "settings->transmission " + std::to_string(s.transmission) + " is not 0 or 1";
   rs.gainDb = s.gain_db;
@@ -447,6 +454,8 @@ std::string toRuntime(const earshot_source_settings& s, runtime::SourceSettings&
   rs.priority = s.priority;
   rs.directivityAlpha = s.directivity_alpha;
   rs.directivitySharpness = s.directivity_sharpness;
+  rs.directivityPerBand = s.directivity_per_band != 0;
+  for (int b = 0; b < EARSHOT_BAND_COUNT; ++b) rs.directivityBandAlpha[size_t(b)] = s.directivity_band_alpha[b];
   return "";
 }
 
@@ -590,6 +599,8 @@ earshot_status earshot_source_get_settings(earshot_source* src, earshot_source_s
     out->priority = rs->priority;
     out->directivity_alpha = float(rs->directivityAlpha);
     out->directivity_sharpness = float(rs->directivitySharpness);
+    out->directivity_per_band = rs->directivityPerBand ? 1 : 0;
+    for (int b = 0; b < EARSHOT_BAND_COUNT; ++b) out->directivity_band_alpha[b] = float(rs->directivityBandAlpha[size_t(b)]);
     return EARSHOT_OK;
   });
 }

@@ -150,7 +150,7 @@ Result<OmniIrResult> computeIr(const RayTracer& tracer, const MaterialTable& mat
       // Each path leaves the source along its first segment: the straight
       // line image source -> listener, unfolded through its planes from the
       // last to the first (v -> v - 2 (v.n) n each).
-      const double ms = s.directivity.meanSquare();
+      const BandArrayD ms = s.directivity.meanSquares();
       const auto& planes = tracer.planes().planes;
       for (SpecularPath& p : out.early) {
         Vec3d v = normalize(listener - p.imageSource);
@@ -160,8 +160,8 @@ Result<OmniIrResult> computeIr(const RayTracer& tracer, const MaterialTable& mat
           const Vec3d& n = planes[id].normal;
           v = v - n * (2.0 * dot(v, n));
         }
-        const double g = std::sqrt(s.directivity.energyFactor(v, ms));
-        for (auto& b : p.bandGain) b *= g;
+        const BandArrayD d = s.directivity.energyFactors(v, ms);
+        for (int b = 0; b < kNumBands; ++b) p.bandGain[size_t(b)] *= std::sqrt(d[size_t(b)]);
       }
     }
     out.imageSourceCandidates = ism.candidates;

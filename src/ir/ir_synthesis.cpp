@@ -38,8 +38,9 @@ Status validate(const IrSynthesisSettings& s) {
 Arrival toArrival(const DirectPath& direct) {
   Arrival a;
   a.delaySeconds = direct.delaySeconds;
-  a.gain = direct.audible ? direct.spreadingGain * direct.directivityGain : 0.0;
+  a.gain = direct.audible ? direct.spreadingGain : 0.0;
   a.bandGain = direct.bandGain;
+  for (int b = 0; b < kNumBands; ++b) a.bandGain[size_t(b)] *= direct.directivityGain[size_t(b)];
   a.direction = direct.directionFromListener;
   return a;
 }

@@ -174,6 +174,10 @@ Result<RenderResult> renderScene(const SceneDescription& scene, const RenderOpti
     s.gainDb = clampGainDb(src.gainDb);
     s.directivityAlpha = src.directivityAlpha;
     s.directivitySharpness = src.directivitySharpness;
+    if (src.directivityBands.size() == size_t(kNumBands)) {
+      s.directivityPerBand = true;
+      for (int b = 0; b < kNumBands; ++b) s.directivityBandAlpha[size_t(b)] = src.directivityBands[size_t(b)];
+    }
     s.directGainDb = src.directGainDb;
     s.reflectionsGainDb = src.reflectionsGainDb;
     s.distance.model = src.distanceModel == "inverse"       ? runtime::DistanceModel::kInverse
@@ -267,7 +271,9 @@ Result<RenderResult> renderScene(const SceneDescription& scene, const RenderOpti
         const Pose sp = scene.sources[i].trajectory.at(t);
         SimulatedPose now{true, sp.position, lp.position, lp.forward, lp.up,
                           // A directional source's reflections change when it turns.
-                          scene.sources[i].directivityAlpha == 0.0 ? Vec3d{0, 0, -1} : sp.forward};
+                          scene.sources[i].directivityAlpha == 0.0 && scene.sources[i].directivityBands.empty()
+                              ? Vec3d{0, 0, -1}
+                              : sp.forward};
         if (!now.closeTo(simulated[i], options.minMoveMeters, options.minTurnDegrees * kPi / 180.0)) {
           changed.push_back(ids[i]);
           simulated[i] = now;

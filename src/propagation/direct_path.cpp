@@ -15,7 +15,8 @@ DirectPath computeDirectPath(const RayTracer* tracer, const MaterialTable& mater
   d.delaySeconds = d.distanceMeters / settings.speedOfSound;
   d.spreadingGain = 1.0 / std::max(d.distanceMeters, settings.minDistanceMeters);
   d.directionFromListener = d.distanceMeters > 0 ? delta / d.distanceMeters : Vec3d{0, 0, -1};
-  d.directivityGain = std::sqrt(settings.directivity.energyFactor(-d.directionFromListener));
+  const BandArrayD dirEnergy = settings.directivity.energyFactors(-d.directionFromListener);
+  for (int b = 0; b < kNumBands; ++b) d.directivityGain[size_t(b)] = std::sqrt(dirEnergy[size_t(b)]);
 
   const BandArrayD airDb = airAttenuationDbPerMeter(settings.air);
   BandArrayD energy{};
@@ -47,8 +48,10 @@ DirectPath computeDirectPath(const RayTracer* tracer, const MaterialTable& mater
   return d;
 }
 
-double Directivity::meanSquare() const {
-  if (isOmni()) return 1.0;
+namespace {
+
+double patternMeanSquare(double alpha, double sharpness) {
+  if (alpha == 0.0) return 1.0;
   // <g^2> over the sphere: g depends on cos(theta) only, uniform in [-1, 1].
   constexpr int kSteps = 4096;
   double sum = 0;
@@ -60,16 +63,42 @@ double Directivity::meanSquare() const {
   return sum / kSteps;
 }
 
-double Directivity::energyFactor(const Vec3d& u, double ms) const {
-  if (isOmni()) return 1.0;
+}  // namespace
+
+bool Directivity::isOmni() const {
+  for (int b = 0; b < kNumBands; ++b)
+    if (alphaOf(b) != 0.0) return false;
+  return true;
+}
+
+BandArrayD Directivity::meanSquares() const {
+  BandArrayD out = filledBands(1.0);
+  if (!perBand) {
+    out = filledBands(patternMeanSquare(alpha, sharpness));
+  } else {
+    for (int b = 0; b < kNumBands; ++b) out[size_t(b)] = patternMeanSquare(bandAlpha[size_t(b)], sharpness);
+  }
+  return out;
+}
+
+BandArrayD Directivity::energyFactors(const Vec3d& u, const BandArrayD& ms) const {
+  BandArrayD out = filledBands(1.0);
+  if (isOmni()) return out;
   const double len = length(forward);
-  const double c = len > 0 ? dot(u, forward) / len : 1.0;
-  const double g = std::pow(std::fabs((1.0 - alpha) + alpha * std::clamp(c, -1.0, 1.0)), sharpness);
-  return g * g / ms;
+  const double c = std::clamp(len > 0 ? dot(u, forward) / len : 1.0, -1.0, 1.0);
+  auto factor = [&](double a, double m) {
+    const double g = std::pow(std::fabs((1.0 - a) + a * c), sharpness);
+    return g * g / m;
+  };
+  if (!perBand) return filledBands(factor(alpha, ms[0]));
+  for (int b = 0; b < kNumBands; ++b) out[size_t(b)] = factor(bandAlpha[size_t(b)], ms[size_t(b)]);
+  return out;
 }
 
 Status validate(const Directivity& d) {
-  if (!(d.alpha >= 0.0 && d.alpha <= 1.0)) return invalidArgument("directivity alpha " + std::to_string(d.alpha) + " is outside [0, 1]");
+  for (int b = 0; b < kNumBands; ++b)
+    if (!(d.alphaOf(b) >= 0.0 && d.alphaOf(b) <= 1.0))
+      return invalidArgument("directivity alpha " + std::to_string(d.alphaOf(b)) + " is outside [0, 1]");
   if (!(d.sharpness >= 1.0 && d.sharpness <= 16.0))
     return invalidArgument("directivity sharpness " + std::to_string(d.sharpness) + " is outside [1, 16]");
   if (!isFinite(d.forward) || !(length(d.forward) > 0)) return invalidArgument("directivity forward is zero or not finite");

@@ -603,7 +603,7 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
   // falls below it. The decision depends on completed rounds only: the
   // same whatever the thread count.
   const bool directional = !settings.directivity.isOmni();
-  const double directivityMeanSquare = settings.directivity.meanSquare();
+  const BandArrayD directivityMeanSquares = settings.directivity.meanSquares();
   const uint32_t rounds = settings.convergenceDb > 0 ? std::min(kConvergenceRounds, settings.rays) : 1u;
   uint32_t traced = 0;
   ConvergenceMonitor monitor(bins, settings.binSeconds, rounds);
@@ -626,9 +626,13 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
         // The source's directivity weights what the ray carries (the
         // thresholds stay the omni ray's: a ray sent backwards by a
         // cardioid carries little and ends soon).
-        if (directional) startEnergy *= settings.directivity.energyFactor(direction, directivityMeanSquare);
         float energy[kNumBands];
-        for (float& e : energy) e = float(startEnergy);
+        if (directional) {
+          const BandArrayD d = settings.directivity.energyFactors(direction, directivityMeanSquares);
+          for (int b = 0; b < kNumBands; ++b) energy[b] = float(startEnergy * d[size_t(b)]);
+        } else {
+          for (float& e : energy) e = float(startEnergy);
+        }
         // Positions (ray origins, hit points) in double world coordinates: in
         // float they are ~8 mm apart at 1e5 m, and a hit point near an edge
         // could round to beyond the neighbouring wall. Directions and

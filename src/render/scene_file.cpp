@@ -37,7 +37,8 @@ const std::vector<std::string> kSourceKeys = {"name", "audio", "position", "forw
                                               "gain_db", "directivity", "start", "directivity_sharpness",
                                               "direct_gain_db", "reflections_gain_db", "distance_model",
                                               "min_distance", "max_distance", "rolloff", "occlusion", "radius",
-                                              "transmission", "priority", "distance_table"};
+                                              "transmission", "priority", "distance_table",
+                                              "directivity_bands"};
 const std::vector<std::string> kKeyframeKeys = {"t", "position", "forward", "up"};
 const std::vector<std::string> kSettingsKeys = {"sample_rate", "quality", "rays", "bounces", "hrtf", "seed",
                                                 "update_rate_hz", "duration", "air", "speed_of_sound"};
@@ -346,6 +347,17 @@ Status SceneReader::readSource(const json& v, const std::string& path, SceneSour
       out.directivityAlpha = it->second;
     }
     out.directivity = out.directivityAlpha == 0.0 ? SourceDirectivity::kOmni : SourceDirectivity::kCardioid;
+  }
+  if (v.contains("directivity_bands")) {
+    // One alpha per octave band, 125 Hz .. 8 kHz, instead of "directivity".
+    const std::string bp = jsonKeyPath(path, "directivity_bands");
+    const json& t = v["directivity_bands"];
+    if (!t.is_array() || t.size() != 7) return fail(bp, "expected 7 numbers in [0, 1] (125 Hz .. 8 kHz)");
+    for (size_t b = 0; b < 7; ++b) {
+      auto a = number(t[b], bp + "[" + std::to_string(b) + "]", {0.0, 1.0, false, ""});
+      if (!a) return a.status();
+      out.directivityBands.push_back(*a);
+    }
   }
   if (v.contains("directivity_sharpness")) {
     auto k = number(v["directivity_sharpness"], jsonKeyPath(path, "directivity_sharpness"), {1.0, 16.0, false, ""});

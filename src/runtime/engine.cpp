@@ -44,7 +44,9 @@ struct Engine::Slot {
   std::atomic<double> tableDistance[2][kMaxDistanceTablePoints] = {}, tableGain[2][kMaxDistanceTablePoints] = {};
   std::atomic<int> tableCount[2] = {{0}, {0}};
   std::atomic<int> tableIndex{0};
-  std::atomic<double> directivityAlpha{0.0}, directivitySharpness{1.0}, directivityMeanSquare{1.0};
+  std::atomic<double> directivityAlpha{0.0}, directivitySharpness{1.0};
+  std::atomic<bool> directivityPerBand{false};
+  std::atomic<double> directivityBandAlpha[kNumBands] = {}, directivityMeanSquare[kNumBands] = {};
   std::atomic<double> forward[3] = {{0.0}, {0.0}, {-1.0}};
   std::atomic<double> transmission[kNumBands];
   std::atomic<bool> audible{true};
@@ -139,6 +141,8 @@ Status validate(const SourceSettings& s) {
   Directivity d;
   d.alpha = s.directivityAlpha;
   d.sharpness = s.directivitySharpness;
+  d.perBand = s.directivityPerBand;
+  d.bandAlpha = s.directivityBandAlpha;
   EARSHOT_RETURN_IF_ERROR(validate(d));
   const int occ = int(s.occlusion);
   if (occ < 0 || occ > int(OcclusionMode::kVolumetric)) return invalidArgument("unknown occlusion mode");
@@ -172,9 +176,16 @@ void storeControls(Engine::Slot& slot, const SourceSettings& s) {
   Directivity d;
   d.alpha = s.directivityAlpha;
   d.sharpness = s.directivitySharpness;
-  slot.directivityMeanSquare.store(d.meanSquare());  // once here, not per audio block
+  d.perBand = s.directivityPerBand;
+  d.bandAlpha = s.directivityBandAlpha;
+  const BandArrayD ms = d.meanSquares();  // once here, not per audio block
+  for (int b = 0; b < kNumBands; ++b) {
+    slot.directivityMeanSquare[b].store(ms[size_t(b)]);
+    slot.directivityBandAlpha[b].store(d.alphaOf(b));
+  }
   slot.directivityAlpha.store(s.directivityAlpha);
   slot.directivitySharpness.store(s.directivitySharpness);
+  slot.directivityPerBand.store(s.directivityPerBand);
 }
 
 }  // namespace
@@ -211,6 +222,8 @@ Result<SourceSettings> Engine::sourceControls(uint32_t s) const {
   out.priority = slot.priority.load();
   out.directivityAlpha = slot.directivityAlpha.load();
   out.directivitySharpness = slot.directivitySharpness.load();
+  out.directivityPerBand = slot.directivityPerBand.load();
+  for (int b = 0; b < kNumBands; ++b) out.directivityBandAlpha[size_t(b)] = slot.directivityBandAlpha[b].load();
   return out;
 }
 
@@ -445,6 +458,8 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& order) {
     j.settings.includeDirect = DirectMode(slot.direct.load()) == DirectMode::kInImpulseResponse;
     j.settings.directivity.alpha = slot.directivityAlpha.load();
     j.settings.directivity.sharpness = slot.directivitySharpness.load();
+    j.settings.directivity.perBand = slot.directivityPerBand.load();
+    for (int b = 0; b < kNumBands; ++b) j.settings.directivity.bandAlpha[size_t(b)] = slot.directivityBandAlpha[b].load();
     j.settings.directivity.forward = {slot.forward[0].load(), slot.forward[1].load(), slot.forward[2].load()};
     jobs.push_back(std::move(j));
   }
@@ -614,18 +629,6 @@ void Engine::process(const float* const* inputs, float* left, float* right, size
         }
         shape = g * std::max(r, DirectVoiceSettings{}.minDistanceMeters);
       }
-      // Directivity toward the listener: sqrt(D) = g / sqrt(<g^2>).
-      const double alpha = slot.directivityAlpha.load(std::memory_order_relaxed);
-      if (alpha > 0.0) {
-        const Vec3d toListener = target.listener - target.source;
-        const double r = length(toListener);
-        const Vec3d f{slot.forward[0].load(std::memory_order_relaxed), slot.forward[1].load(std::memory_order_relaxed),
-                      slot.forward[2].load(std::memory_order_relaxed)};
-        const double c = r > 1e-9 ? std::clamp(dot(f, toListener) / r, -1.0, 1.0) : 1.0;
-        const double g =
-            std::pow(std::fabs((1.0 - alpha) + alpha * c), slot.directivitySharpness.load(std::memory_order_relaxed));
-        shape *= g / std::sqrt(slot.directivityMeanSquare.load(std::memory_order_relaxed));
-      }
       target.gain = slot.appliedGain * slot.directGain.load(std::memory_order_relaxed) * shape;
       if (OcclusionMode(slot.occlusion.load(std::memory_order_relaxed)) == OcclusionMode::kOff) {
         target.transmission = filledBands(1.0);
@@ -634,6 +637,34 @@ void Engine::process(const float* const* inputs, float* left, float* right, size
         for (int b = 0; b < kNumBands; ++b)
           target.transmission[b] = slot.transmission[b].load(std::memory_order_relaxed);
         target.audible = slot.audible.load(std::memory_order_relaxed);
+      }
+      // Directivity toward the listener, per band: sqrt(D_b) = g_b / sqrt(<g_b^2>),
+      // through the voice's band shelves (as occlusion).
+      const bool perBand = slot.directivityPerBand.load(std::memory_order_relaxed);
+      if (perBand || slot.directivityAlpha.load(std::memory_order_relaxed) > 0.0) {
+        const Vec3d toListener = target.listener - target.source;
+        const double r = length(toListener);
+        const Vec3d f{slot.forward[0].load(std::memory_order_relaxed), slot.forward[1].load(std::memory_order_relaxed),
+                      slot.forward[2].load(std::memory_order_relaxed)};
+        const double c = r > 1e-9 ? std::clamp(dot(f, toListener) / r, -1.0, 1.0) : 1.0;
+        const double k = slot.directivitySharpness.load(std::memory_order_relaxed);
+        double broadband = 1.0;
+        for (int b = 0; b < kNumBands; ++b) {
+          if (!perBand && b > 0) {
+            target.transmission[b] *= broadband;
+            continue;
+          }
+          const double a = slot.directivityBandAlpha[b].load(std::memory_order_relaxed);
+          const double g = a == 0.0 ? 1.0 : std::pow(std::fabs((1.0 - a) + a * c), k) /
+                                                std::sqrt(slot.directivityMeanSquare[b].load(std::memory_order_relaxed));
+          broadband = g;
+          target.transmission[b] *= g;
+        }
+        target.audible = target.audible && [&] {
+          for (double t : target.transmission)
+            if (t > 0) return true;
+          return false;
+        }();
       }
       // A muted chunk feeds the voice the zeros the mixer got.
       slot.voice->process(slot.mutedChunk ? slot.scaled.data() : inputs[i] + off, left + off, right + off, m, target);

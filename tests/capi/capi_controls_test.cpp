@@ -293,8 +293,15 @@ TEST(CapiControls, BadValuesAreRefused) {
   earshot::SourceSettings ss = source.settings();
   ss.priority = 3;
   ss.occlusion = EARSHOT_OCCLUSION_VOLUMETRIC;
+  ss.directivity_per_band = 1;
+  for (int b = 0; b < EARSHOT_BAND_COUNT; ++b) ss.directivity_band_alpha[b] = 0.1f * float(b);
   source.setSettings(ss);
   EXPECT_EQ(source.settings().priority, 3);
+  EXPECT_EQ(source.settings().directivity_per_band, 1);
+  EXPECT_FLOAT_EQ(source.settings().directivity_band_alpha[6], 0.6f);
+  ss.directivity_band_alpha[2] = 2.0f;
+  EXPECT_THROW(source.setSettings(ss), earshot::Error);
+  ss.directivity_band_alpha[2] = 0.2f;
   ss.rolloff = -2;
   EXPECT_THROW(source.setSettings(ss), earshot::Error);
 }

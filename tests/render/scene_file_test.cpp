@@ -192,7 +192,7 @@ TEST_F(SceneFileTest, WrongTypesSayWhatWasExpected) {
              "hypercardioid, figure8 or a number in [0, 1], got \"shotgun\"");
   EXPECT_HAS(error(scene(R"("directivity": 1.5)")), "scene.json: sources[0].directivity:");
   EXPECT_HAS(error(scene(R"("distance_model": "cubic")")),
-             "scene.json: sources[0].distance_model: expected physical, inverse, linear or exponential");
+             "scene.json: sources[0].distance_model: expected physical, inverse, linear, exponential or table");
   EXPECT_HAS(error(scene(R"("occlusion": "maybe")")), "scene.json: sources[0].occlusion: expected ray, off or volumetric");
   EXPECT_HAS(error(scene(R"("transmission": 1)")), "scene.json: sources[0].transmission: expected true or false");
   EXPECT_HAS(error(scene(R"("priority": -1)")), "scene.json: sources[0].priority:");
@@ -693,6 +693,15 @@ TEST_F(SceneControlsTest, EveryControlIsRead) {
   EXPECT_FALSE(a.transmission);
   EXPECT_EQ(a.priority, 7);
   EXPECT_EQ(r->sources[1].directivityAlpha, 0.3);
+  auto bands = parseSceneText(R"({"listener": {"position": [0, 0, 0]}, "sources": [{"name": "a", "audio": "dry.wav",
+      "position": [0, 0, -2], "directivity_bands": [0, 0, 0.1, 0.3, 0.5, 0.6, 0.7]}]})",
+                              mDir.path.string(), "scene.json", o);
+  ASSERT_TRUE(bands.isOk()) << bands.status().message();
+  EXPECT_EQ(bands->sources[0].directivityBands, (std::vector<double>{0, 0, 0.1, 0.3, 0.5, 0.6, 0.7}));
+  auto sixBands = parseSceneText(R"({"listener": {"position": [0, 0, 0]}, "sources": [{"name": "a", "audio": "dry.wav",
+      "position": [0, 0, -2], "directivity_bands": [0, 0, 0.1, 0.3, 0.5, 0.6]}]})",
+                                 mDir.path.string(), "scene.json", o);
+  EXPECT_FALSE(sixBands.isOk());
   auto t = parseSceneText(R"({"listener": {"position": [0, 0, 0]}, "sources": [{"name": "a", "audio": "dry.wav",
       "position": [0, 0, -2], "distance_model": "table", "distance_table": [[1, 1], [5, 0.2]]}]})",
                           mDir.path.string(), "scene.json", o);

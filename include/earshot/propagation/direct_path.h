@@ -22,18 +22,24 @@ class RayTracer;
  *  source by sqrt(D(its first segment)), each traced ray's energy by D(its
  *  emission direction). */
 struct Directivity {
-  double alpha = 0.0;      ///< [0, 1]
+  double alpha = 0.0;      ///< [0, 1], every band (unless perBand)
   double sharpness = 1.0;  ///< [1, 16]
   Vec3d forward{0.0, 0.0, -1.0};  ///< the axis, world frame (normalised on use)
-  bool isOmni() const { return alpha == 0.0; }
-  /** D(u): energy factor in the unit direction u (1 for omni). */
-  double energyFactor(const Vec3d& u) const { return energyFactor(u, meanSquare()); }
-  /** The same with meanSquare() computed once by the caller (hot loops). */
-  double energyFactor(const Vec3d& u, double meanSquare) const;
-  /** <g^2> over the sphere (4096-point quadrature in cos(theta)). */
-  double meanSquare() const;
+  /** A per-band table instead of `alpha`: e.g. a loudspeaker omni at 125 Hz
+   *  and cardioid at 4 kHz. */
+  bool perBand = false;
+  BandArrayD bandAlpha{};  ///< [0, 1] per band (perBand)
+  double alphaOf(int band) const { return perBand ? bandAlpha[size_t(band)] : alpha; }
+  bool isOmni() const;
+  /** <g^2> over the sphere per band (4096-point quadrature in cos(theta)). */
+  BandArrayD meanSquares() const;
+  /** D(u) per band: energy factors in the unit direction u (1 for omni),
+   *  with meanSquares() computed once by the caller. */
+  BandArrayD energyFactors(const Vec3d& u, const BandArrayD& meanSquares) const;
+  BandArrayD energyFactors(const Vec3d& u) const { return energyFactors(u, meanSquares()); }
 };
-/** Error unless alpha in [0, 1], sharpness in [1, 16] and forward finite, non-zero. */
+/** Error unless every band's alpha is in [0, 1], sharpness in [1, 16] and
+ *  forward finite and non-zero. */
 Status validate(const Directivity& d);
 
 struct DirectPathSettings {
@@ -55,7 +61,7 @@ struct DirectPath {
   /** Pressure factor of the source's directivity toward the listener,
    *  sqrt(D) (DirectPathSettings::directivity); not in bandGain, which stays
    *  the path's own (air, transmission). */
-  double directivityGain = 1.0;
+  BandArrayD directivityGain = filledBands(1.0);
 };
 
 /** Computes the direct path. `tracer` may be null (free field). Each surface

@@ -46,6 +46,7 @@ struct SceneSource {
   // Per-source controls (the runtime's SourceSettings; docs/scene-format.md).
   double directivityAlpha = 0.0;       ///< pattern (1 - a) + a cos: "directivity" as a name or a number
   double directivitySharpness = 1.0;   ///< [1, 16]
+  std::vector<double> directivityBands;  ///< "directivity_bands": 7 alphas (125 Hz .. 8 kHz), or empty
   double directGainDb = 0.0;           ///< [-120, 60]
   double reflectionsGainDb = 0.0;      ///< [-120, 60]
   std::string distanceModel = "physical";  ///< physical | inverse | linear | exponential

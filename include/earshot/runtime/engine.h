@@ -112,6 +112,11 @@ struct SourceSettings {
    *  every block, the reflections at the next simulation. */
   double directivityAlpha = 0.0;
   double directivitySharpness = 1.0;
+  /** A per-band table instead of directivityAlpha (e.g. omni at 125 Hz,
+   *  cardioid at 4 kHz); the per-block direct sound applies it through its
+   *  band shelves, as it does occlusion. */
+  bool directivityPerBand = false;
+  BandArrayD directivityBandAlpha{};
 };
 /** Error (naming the field) unless every value is in range. */
 Status validate(const SourceSettings& settings);
