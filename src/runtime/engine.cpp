@@ -71,6 +71,16 @@ namespace {
 
 double dbToGain(double db) { return std::pow(10.0, db / 20.0); }
 
+/** The pattern of a source's settings (its axis is set apart: orientation). */
+Directivity directivityOf(const SourceSettings& s) {
+  Directivity d;
+  d.alpha = s.directivityAlpha;
+  d.sharpness = s.directivitySharpness;
+  d.perBand = s.directivityPerBand;
+  d.bandAlpha = s.directivityBandAlpha;
+  return d;
+}
+
 void storeControls(Engine::Slot& slot, const SourceSettings& s);
 
 }  // namespace
@@ -138,12 +148,7 @@ Status validate(const SourceSettings& s) {
                            " m is not in [min distance, 1e6]");
   if (!(s.distance.rolloff >= 0 && s.distance.rolloff <= 100))
     return invalidArgument("distance curve rolloff " + std::to_string(s.distance.rolloff) + " is outside [0, 100]");
-  Directivity d;
-  d.alpha = s.directivityAlpha;
-  d.sharpness = s.directivitySharpness;
-  d.perBand = s.directivityPerBand;
-  d.bandAlpha = s.directivityBandAlpha;
-  EARSHOT_RETURN_IF_ERROR(validate(d));
+  EARSHOT_RETURN_IF_ERROR(validate(directivityOf(s)));
   const int occ = int(s.occlusion);
   if (occ < 0 || occ > int(OcclusionMode::kVolumetric)) return invalidArgument("unknown occlusion mode");
   if (!(s.radiusMeters > 0 && s.radiusMeters <= 100))
@@ -173,11 +178,7 @@ void storeControls(Engine::Slot& slot, const SourceSettings& s) {
   slot.radius.store(s.radiusMeters);
   slot.transmissionOn.store(s.transmission);
   slot.priority.store(s.priority);
-  Directivity d;
-  d.alpha = s.directivityAlpha;
-  d.sharpness = s.directivitySharpness;
-  d.perBand = s.directivityPerBand;
-  d.bandAlpha = s.directivityBandAlpha;
+  const Directivity d = directivityOf(s);
   const BandArrayD ms = d.meanSquares();  // once here, not per audio block
   for (int b = 0; b < kNumBands; ++b) {
     slot.directivityMeanSquare[b].store(ms[size_t(b)]);
