@@ -375,7 +375,7 @@ def _shard_manifest(path, spec):
     if spec["format"] == "hdf5":
         import h5py
         with h5py.File(path, "r") as f:
-            if f.attrs.get("complete") is not True and f.attrs.get("complete") != 1:
+            if not bool(f.attrs.get("complete", False)):
                 raise ValueError("incomplete")
             return json.loads(f["manifest"][()])
     with open(os.path.join(path, "manifest.jsonl"), "rb") as f:

@@ -397,11 +397,12 @@ Status SceneReader::readSource(const json& v, const std::string& path, SceneSour
   }
   if (out.distanceModel == "table" && out.distanceTable.empty())
     return fail(jsonKeyPath(path, "distance_table"), "missing (distance_model is \"table\")");
-  for (auto [key, field, lo] : {std::tuple{"min_distance", &out.minDistance, 0.0}, {"max_distance", &out.maxDistance, 0.0},
-                                {"rolloff", &out.rolloff, -1.0}, {"radius", &out.radius, 0.0}})
+  for (auto [key, field, range] : {std::tuple{"min_distance", &out.minDistance, Range{0.0, 1e6, true, " m"}},
+                                   {"max_distance", &out.maxDistance, Range{0.0, 1e6, true, " m"}},
+                                   {"rolloff", &out.rolloff, Range{0.0, 100.0, false, ""}},
+                                   {"radius", &out.radius, Range{0.0, 100.0, true, " m"}}})
     if (v.contains(key)) {
-      const double hi = std::string(key) == "rolloff" ? 100.0 : std::string(key) == "radius" ? 100.0 : 1e6;
-      auto x = number(v[key], jsonKeyPath(path, key), {lo < 0 ? 0.0 : lo, hi, lo >= 0, std::string(key) == "rolloff" ? "" : " m"});
+      auto x = number(v[key], jsonKeyPath(path, key), range);
       if (!x) return x.status();
       *field = *x;
     }

@@ -649,18 +649,15 @@ void Engine::process(const float* const* inputs, float* left, float* right, size
                       slot.forward[2].load(std::memory_order_relaxed)};
         const double c = r > 1e-9 ? std::clamp(dot(f, toListener) / r, -1.0, 1.0) : 1.0;
         const double k = slot.directivitySharpness.load(std::memory_order_relaxed);
-        double broadband = 1.0;
-        for (int b = 0; b < kNumBands; ++b) {
-          if (!perBand && b > 0) {
-            target.transmission[b] *= broadband;
-            continue;
-          }
+        // One pattern for every band unless the table differs per band.
+        const int patterns = perBand ? kNumBands : 1;
+        double g[kNumBands];
+        for (int b = 0; b < patterns; ++b) {
           const double a = slot.directivityBandAlpha[b].load(std::memory_order_relaxed);
-          const double g = a == 0.0 ? 1.0 : std::pow(std::fabs((1.0 - a) + a * c), k) /
-                                                std::sqrt(slot.directivityMeanSquare[b].load(std::memory_order_relaxed));
-          broadband = g;
-          target.transmission[b] *= g;
+          g[b] = a == 0.0 ? 1.0 : std::pow(std::fabs((1.0 - a) + a * c), k) /
+                                      std::sqrt(slot.directivityMeanSquare[b].load(std::memory_order_relaxed));
         }
+        for (int b = 0; b < kNumBands; ++b) target.transmission[b] *= g[perBand ? b : 0];
         target.audible = target.audible && [&] {
           for (double t : target.transmission)
             if (t > 0) return true;
