@@ -183,11 +183,17 @@ typedef struct earshot_context_settings {
 /** Fills `settings` with the defaults above (and struct_size). Any thread. */
 EARSHOT_API earshot_status earshot_context_settings_init(earshot_context_settings* settings);
 
-/** Creates a context: loads the HRTF (20-200 ms), allocates every source
- *  slot and the audio thread's buffers, starts the worker threads.
+/** Creates a context in a few milliseconds and about a megabyte: the shared
+ *  buffers and worker threads only. The HRTF loads on a background thread
+ *  (~0.5-0.7 s for the default set); a slot's state (~1.5 MB at 3 s IRs)
+ *  is allocated when a source first uses it (earshot_source_create) and kept
+ *  for the slot's later sources. `earshot bench context` measures all three.
+ *  A missing or unreadable HRTF file is refused here; a file that fails to
+ *  load as SOFA makes every later use of the HRTF (earshot_source_create, a
+ *  binaural earshot_context_compute_ir) return the load's error.
  *  `settings` is only read (strings copied). On success *out holds one
  *  reference; on failure *out is set to NULL. Errors: INVALID_ARGUMENT,
- *  NOT_FOUND / PARSE (HRTF file), OUT_OF_MEMORY. Game thread. */
+ *  NOT_FOUND (HRTF file), OUT_OF_MEMORY. Game thread. */
 EARSHOT_API earshot_status earshot_context_create(const earshot_context_settings* settings, earshot_context** out);
 /** Adds a reference. Any thread but the audio thread. */
 EARSHOT_API earshot_status earshot_context_retain(earshot_context* context);
@@ -534,7 +540,10 @@ EARSHOT_API earshot_status earshot_source_settings_init(earshot_source_settings*
  *  a source with EARSHOT_DIRECT_IN_IMPULSE_RESPONSE is heard once simulated
  *  (its direct sound is part of its IR). The source holds a
  *  reference to the context. *out holds one reference (NULL on failure).
- *  Errors: INVALID_ARGUMENT, OUT_OF_RANGE (all max_sources slots in use). Game thread. */
+ *  The first source waits for the context's HRTF to finish loading; a slot's
+ *  first source allocates its state (~0.2 ms). Errors: INVALID_ARGUMENT,
+ *  OUT_OF_RANGE (all max_sources slots in use), PARSE / NOT_FOUND (the HRTF
+ *  failed to load), OUT_OF_MEMORY. Game thread. */
 EARSHOT_API earshot_status earshot_source_create(earshot_context* context, const earshot_source_settings* settings,
                                                  earshot_source** out);
 /** Adds a reference. Game thread. */

@@ -1,11 +1,16 @@
 // The C API's context (engine, listener, simulation, audio) and sources.
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <future>
 #include <string>
 
 #include "capi_internal.h"
+#include "earshot/hrtf/hrtf_set.h"
 #include "earshot/ir/binaural_synthesis.h"
 #include "earshot/propagation/image_sources.h"
 
@@ -196,8 +201,32 @@ earshot_status earshot_context_create(const earshot_context_settings* settings, 
       if (!bad.empty()) return argError(&env, kFn, bad);
       const std::string hrtfPath = settings->hrtf_path ? settings->hrtf_path : "";
 
-      auto model = loadBinauralModel(hrtfPath, settings->sample_rate_hz);
-      if (!model.isOk()) return fromStatus(&env, kFn, model.status());
+      // The HRTF loads in the background (~0.5 s for the default set): the
+      // context is ready at once and the first earshot_source_create or
+      // binaural IR waits for the load and reports its error. A file that is
+      // missing or unreadable is refused here.
+      std::string resolved = hrtfPath;
+      if (resolved.empty()) {
+        auto def = hrtf::defaultHrtfPath();
+        if (!def.isOk()) return fromStatus(&env, kFn, def.status());
+        resolved = *def;
+      }
+      {
+        struct stat st {};
+        if (::stat(resolved.c_str(), &st) != 0 || !S_ISREG(st.st_mode) || ::access(resolved.c_str(), R_OK) != 0)
+          return fromStatus(&env, kFn, notFound("HRTF " + resolved + " is not a readable file"));
+      }
+      const double rate = settings->sample_rate_hz;
+      runtime::BinauralModelFuture model =
+          std::async(std::launch::async, [resolved, rate]() -> Result<std::shared_ptr<const BinauralModel>> {
+            try {
+              return loadBinauralModel(resolved, rate);
+            } catch (const std::bad_alloc&) {
+              return outOfRange("HRTF " + resolved + ": out of memory while loading it");
+            } catch (const std::exception& e) {
+              return Status(StatusCode::kInternal, "HRTF " + resolved + ": " + e.what());
+            }
+          }).share();
 
       runtime::EngineSettings es;
       es.sampleRateHz = settings->sample_rate_hz;
@@ -210,7 +239,7 @@ earshot_status earshot_context_create(const earshot_context_settings* settings, 
       es.simulation.seed = settings->seed;
       es.threads = settings->threads;
       es.maxDistanceMeters = settings->max_distance_meters;
-      auto engine = runtime::Engine::create(es, *model);
+      auto engine = runtime::Engine::create(es, model);
       if (!engine.isOk()) return fromStatus(&env, kFn, engine.status());
 
       earshot_context* c = create<earshot_context>(env);

@@ -94,7 +94,9 @@ earshot_status earshot_context_compute_ir(earshot_context* c, const earshot_ir_r
     if (request->seed != 0) settings.seed = request->seed;
     BinauralReceiver binaural;
     if (receiver == EARSHOT_RECEIVER_BINAURAL) {
-      binaural.model = c->engine->model();
+      auto model = c->engine->model();  // waits while the HRTF is still loading
+      if (!model.isOk()) return fromStatus(&c->env, kFn, model.status());
+      binaural.model = *model;
       binaural.orientation.forward = vec(request->forward);
       binaural.orientation.up = vec(request->up);
       Status v = validate(binaural.orientation);

@@ -100,7 +100,14 @@ struct ConvolutionMixer::Impl {
   PartitionLayout layout;
   size_t n = 0, channels = 0, fade = 0, histMask = 0;
   std::vector<LevelState> levels;
-  std::vector<std::unique_ptr<Source>> sources;
+  // Per-source state is allocated on the control side the first time a
+  // source is reserved or given an IR (reserveSource), then published to the
+  // audio thread, which adopts it at its next step; a source without state
+  // is silent and costs the audio thread nothing.
+  size_t historyFrames = 0;
+  std::vector<std::unique_ptr<Source>> owned;        // control side (controlMutex)
+  std::unique_ptr<std::atomic<Source*>[]> published;  // control -> audio
+  std::vector<Source*> sources;                       // audio thread: adopted state (null: none yet)
   AlignedFloats ramp;       // sin^2 fade-in gain, `fade` values
   AlignedFloats outBlock;   // [channel][n]: output for the current N frames
   AlignedFloats timeBuf;    // 2 * maxP
@@ -114,19 +121,20 @@ struct ConvolutionMixer::Impl {
   size_t retiredMask = 0;
   std::atomic<size_t> retiredHead{0}, retiredTail{0};
   size_t heldCount = 0;  // holders with refs > 0 (audio thread)
-  std::mutex controlMutex;
+  mutable std::mutex controlMutex;
 
   ~Impl() {
-    std::set<Holder*> owned;
-    for (auto& s : sources) {
-      if (s->latest) owned.insert(s->latest);
+    std::set<Holder*> held;
+    for (auto& s : owned) {
+      if (!s) continue;
+      if (s->latest) held.insert(s->latest);
       for (auto& sl : s->levels) {
-        if (sl.cur) owned.insert(sl.cur);
-        if (sl.prev) owned.insert(sl.prev);
+        if (sl.cur) held.insert(sl.cur);
+        if (sl.prev) held.insert(sl.prev);
       }
       delete s->pending.exchange(nullptr);
     }
-    for (Holder* h : owned) delete h;
+    for (Holder* h : held) delete h;
     collect();
     for (auto& lv : levels) {
       kiss_fftr_free(lv.fwd);
@@ -144,7 +152,30 @@ struct ConvolutionMixer::Impl {
     retiredTail.store(tail, std::memory_order_release);
   }
 
+  // Control side, controlMutex held: the source's state, allocated once.
+  void reserve(size_t si) {
+    if (owned[si]) return;
+    auto src = std::make_unique<Source>();
+    src->history.resize(historyFrames);
+    for (const LevelState& lv : levels) {
+      SourceLevel sl;
+      sl.fdl.resize(lv.k * 2 * lv.stride);
+      sl.head = lv.k - 1;
+      src->levels.push_back(std::move(sl));
+    }
+    published[si].store(src.get(), std::memory_order_release);
+    owned[si] = std::move(src);
+  }
+
   // --- audio thread ---
+  // Takes up state the control side has published since the last process()
+  // call. The new state is all zeros and has no IR: it joins a level block in
+  // progress as silence (its IR is adopted at the level's next block start).
+  void adoptSources() {
+    for (size_t si = 0; si < sources.size(); ++si)
+      if (!sources[si]) sources[si] = published[si].load(std::memory_order_acquire);
+  }
+
   void acquire(Holder* h) {
     if (h) ++h->refs;
   }
@@ -160,7 +191,8 @@ struct ConvolutionMixer::Impl {
   }
 
   void takePending() {
-    for (auto& sp : sources) {
+    for (Source* sp : sources) {
+      if (!sp) continue;
       Source& s = *sp;
       if (s.pending.load(std::memory_order_relaxed) == nullptr) continue;
       // Every holder we hold may retire; keep room for all of them so that
@@ -180,7 +212,8 @@ struct ConvolutionMixer::Impl {
       lv.fadePos += lv.p;
       if (lv.fadePos >= fade) {
         lv.fading = false;
-        for (auto& sp : sources) {
+        for (Source* sp : sources) {
+          if (!sp) continue;
           SourceLevel& sl = sp->levels[&lv - levels.data()];
           if (sl.fading) {
             release(sl.prev);
@@ -193,7 +226,8 @@ struct ConvolutionMixer::Impl {
     const size_t li = &lv - levels.data();
     if (!lv.fading) {
       bool any = false;
-      for (auto& sp : sources) {
+      for (Source* sp : sources) {
+        if (!sp) continue;
         SourceLevel& sl = sp->levels[li];
         if (sl.cur == sp->latest) continue;
         if (sl.cur == nullptr && step < lv.m) {
@@ -230,6 +264,7 @@ struct ConvolutionMixer::Impl {
     const size_t nfft = 2 * lv.p;
     const int64_t end = static_cast<int64_t>(written) - static_cast<int64_t>(lv.desc.inputDelayFrames);
     const int64_t start = end - static_cast<int64_t>(nfft);
+    if (!sources[si]) return;
     Source& s = *sources[si];
     SourceLevel& sl = s.levels[li];
     size_t first = static_cast<size_t>(start) & histMask;
@@ -249,6 +284,7 @@ struct ConvolutionMixer::Impl {
   void accumulate(LevelState& lv, size_t si, size_t c0, size_t c1, size_t k0, size_t k1) {
     const size_t li = &lv - levels.data();
     const size_t st = lv.stride;
+    if (!sources[si]) return;
     {
       SourceLevel& sl = sources[si]->levels[li];
       const PreparedIr* cur = sl.cur ? sl.cur->ir.get() : nullptr;
@@ -382,11 +418,13 @@ struct ConvolutionMixer::Impl {
 
   void process(const float* const* inputs, float* const* outputs, size_t frames) {
     ScopedFlushDenormals ftz;
+    adoptSources();
     size_t done = 0;
     while (done < frames) {
       const size_t chunk = std::min(frames - done, n - fill);
       const size_t pos = static_cast<size_t>(written + fill) & histMask;
       for (size_t s = 0; s < sources.size(); ++s) {
+        if (!sources[s]) continue;  // no state yet: its input is not heard
         float* h = sources[s]->history.data();
         const float* in = inputs ? inputs[s] : nullptr;
         size_t n1 = std::min(chunk, histMask + 1 - pos);
@@ -524,17 +562,11 @@ Result<std::unique_ptr<ConvolutionMixer>> ConvolutionMixer::create(const Convolv
     }
     impl->timeBuf.resize(2 * maxP);
     impl->cpxBuf.resize(maxP + 1);
-    for (size_t s = 0; s < sourceCount; ++s) {
-      auto src = std::make_unique<Source>();
-      src->history.resize(layout->historyFrames());
-      for (const LevelState& lv : impl->levels) {
-        SourceLevel sl;
-        sl.fdl.resize(lv.k * 2 * lv.stride);
-        sl.head = lv.k - 1;
-        src->levels.push_back(std::move(sl));
-      }
-      impl->sources.push_back(std::move(src));
-    }
+    impl->historyFrames = layout->historyFrames();
+    impl->owned.resize(sourceCount);
+    impl->published.reset(new std::atomic<Source*>[sourceCount]);
+    for (size_t s = 0; s < sourceCount; ++s) impl->published[s].store(nullptr);
+    impl->sources.assign(sourceCount, nullptr);
     size_t cap = 1;
     while (cap < sourceCount * (2 * impl->levels.size() + 2) + 8) cap <<= 1;
     impl->retired.assign(cap, nullptr);
@@ -548,23 +580,44 @@ Result<std::unique_ptr<ConvolutionMixer>> ConvolutionMixer::create(const Convolv
 
 const PartitionLayout& ConvolutionMixer::layout() const { return mImpl->layout; }
 const ConvolverSettings& ConvolutionMixer::settings() const { return mImpl->settings; }
-size_t ConvolutionMixer::sourceCount() const { return mImpl->sources.size(); }
+size_t ConvolutionMixer::sourceCount() const { return mImpl->owned.size(); }
 size_t ConvolutionMixer::latencyFrames() const { return mImpl->n; }
 
 Status ConvolutionMixer::setIr(size_t source, std::shared_ptr<const PreparedIr> ir) {
-  if (source >= mImpl->sources.size())
+  if (source >= mImpl->owned.size())
     return invalidArgument("convolver setIr: source " + std::to_string(source) + " out of range (have " +
-                           std::to_string(mImpl->sources.size()) + ")");
+                           std::to_string(mImpl->owned.size()) + ")");
   if (ir && ir->layout() != mImpl->layout)
     return invalidArgument("convolver setIr: the IR was prepared for a different partition layout");
   if (ir && ir->channelCount() != mImpl->channels)
     return invalidArgument("convolver setIr: IR has " + std::to_string(ir->channelCount()) +
                            " channels, the convolver " + std::to_string(mImpl->channels));
+  EARSHOT_RETURN_IF_ERROR(reserveSource(source));
   auto* h = new Holder{std::move(ir), 0};
-  Holder* old = mImpl->sources[source]->pending.exchange(h, std::memory_order_acq_rel);
+  Holder* old = mImpl->owned[source]->pending.exchange(h, std::memory_order_acq_rel);
   delete old;  // never seen by the audio thread
   collectGarbage();
   return Status::ok();
+}
+
+Status ConvolutionMixer::reserveSource(size_t source) {
+  if (source >= mImpl->owned.size())
+    return invalidArgument("convolver reserveSource: source " + std::to_string(source) + " out of range (have " +
+                           std::to_string(mImpl->owned.size()) + ")");
+  std::lock_guard<std::mutex> lock(mImpl->controlMutex);
+  try {
+    mImpl->reserve(source);
+  } catch (const std::bad_alloc&) {
+    return outOfRange("convolver: out of memory for source " + std::to_string(source) + "'s state");
+  }
+  return Status::ok();
+}
+
+size_t ConvolutionMixer::reservedSources() const {
+  std::lock_guard<std::mutex> lock(mImpl->controlMutex);
+  size_t n = 0;
+  for (const auto& s : mImpl->owned) n += s != nullptr;
+  return n;
 }
 
 void ConvolutionMixer::collectGarbage() {
@@ -586,7 +639,8 @@ void ConvolutionMixer::clearState() {
     zero(lv.accDiff);
     zero(lv.out);
   }
-  for (auto& s : m.sources) {
+  for (Source* s : m.sources) {
+    if (!s) continue;
     zero(s->history);
     for (auto& sl : s->levels) zero(sl.fdl);
   }
@@ -605,7 +659,8 @@ size_t ConvolutionMixer::countSubnormalsInState() const {
     scan(lv.accDiff);
     scan(lv.out);
   }
-  for (const auto& s : m.sources) {
+  for (const Source* s : m.sources) {
+    if (!s) continue;
     scan(s->history);
     for (const auto& sl : s->levels) scan(sl.fdl);
   }

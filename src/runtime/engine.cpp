@@ -50,7 +50,8 @@ struct Engine::Slot {
   std::atomic<double> forward[3] = {{0.0}, {0.0}, {-1.0}};
   std::atomic<double> transmission[kNumBands];
   std::atomic<bool> audible{true};
-  std::unique_ptr<DirectVoice> voice;  // audio thread
+  std::unique_ptr<DirectVoice> voiceOwner;   // allocated by the slot's first addSource()
+  std::atomic<DirectVoice*> voice{nullptr};  // the audio thread's view of voiceOwner
   uint32_t voiceGeneration = ~0u;      // audio thread
   bool live = false;                   // audio thread: playing in this process() call
   bool reflectionsLive = false;        // audio thread: its IR is this source's (simulated since added)
@@ -271,9 +272,34 @@ size_t Engine::latencyFrames() const { return mMixer->latencyFrames(); }
 
 Result<std::unique_ptr<Engine>> Engine::create(const EngineSettings& s, std::shared_ptr<const BinauralModel> model) {
   if (!model) return invalidArgument("engine: no HRTF model");
-  if (std::fabs(model->sampleRateHz() - s.sampleRateHz) > 1e-6)
-    return invalidArgument("engine: sample rate " + std::to_string(s.sampleRateHz) + " Hz differs from the HRTF set's " +
-                           std::to_string(model->sampleRateHz()) + " Hz");
+  std::promise<Result<std::shared_ptr<const BinauralModel>>> ready;
+  ready.set_value(std::move(model));
+  return create(s, ready.get_future().share());
+}
+
+Result<std::shared_ptr<const BinauralModel>> Engine::model() const {
+  if (!mModel.valid()) return invalidArgument("engine: no HRTF model");
+  Result<std::shared_ptr<const BinauralModel>> m = mModel.get();
+  if (!m.isOk()) return m.status();
+  if (!*m) return invalidArgument("engine: no HRTF model");
+  if (std::fabs((*m)->sampleRateHz() - mSettings.sampleRateHz) > 1e-6)
+    return invalidArgument("engine: sample rate " + std::to_string(mSettings.sampleRateHz) +
+                           " Hz differs from the HRTF set's " + std::to_string((*m)->sampleRateHz()) + " Hz");
+  return m;
+}
+
+Result<std::unique_ptr<Engine>> Engine::create(const EngineSettings& s, BinauralModelFuture model) {
+  if (!model.valid()) return invalidArgument("engine: no HRTF model");
+  // A model already loaded is checked now (the sample rate), a loading one
+  // when it is first needed.
+  if (model.wait_for(std::chrono::seconds(0)) == std::future_status::ready) {
+    const auto& m = model.get();
+    if (!m.isOk()) return m.status();
+    if (!*m) return invalidArgument("engine: no HRTF model");
+    if (std::fabs((*m)->sampleRateHz() - s.sampleRateHz) > 1e-6)
+      return invalidArgument("engine: sample rate " + std::to_string(s.sampleRateHz) +
+                             " Hz differs from the HRTF set's " + std::to_string((*m)->sampleRateHz()) + " Hz");
+  }
   if (s.maxSources < 1 || s.maxSources > 4096)
     return invalidArgument("engine: maxSources " + std::to_string(s.maxSources) + " is outside [1, 4096]");
   if (!(s.maxIrSeconds > 0 && s.maxIrSeconds <= 60))
@@ -295,20 +321,7 @@ Result<std::unique_ptr<Engine>> Engine::create(const EngineSettings& s, std::sha
   if (!mixer.isOk()) return Status(mixer.status().code(), "engine: " + mixer.status().message());
   e->mMixer = std::move(mixer.value());
 
-  DirectVoiceSettings ds;
-  ds.sampleRateHz = s.sampleRateHz;
-  ds.speedOfSound = s.simulation.speedOfSound;
-  ds.air = s.simulation.air;
-  ds.maxDelaySeconds = s.maxDistanceMeters / s.simulation.speedOfSound;
-  ds.extraDelayFrames = e->mMixer->latencyFrames();
-  for (size_t i = 0; i < s.maxSources; ++i) {
-    auto slot = std::make_unique<Slot>();
-    auto voice = DirectVoice::create(ds, e->mModel->hrtfPtr());
-    if (!voice.isOk()) return Status(voice.status().code(), "engine: " + voice.status().message());
-    slot->voice = std::move(voice.value());
-    slot->scaled.assign(kProcessChunk, 0.0f);
-    e->mSlots.push_back(std::move(slot));
-  }
+  for (size_t i = 0; i < s.maxSources; ++i) e->mSlots.push_back(std::make_unique<Slot>());
   const ListenerOrientation o;
   const double listener[9] = {0, 0, 0, o.forward.x, o.forward.y, o.forward.z, o.up.x, o.up.y, o.up.z};
   for (int i = 0; i < 9; ++i) e->mListener[i].store(listener[i]);
@@ -333,9 +346,32 @@ bool Engine::validSource(uint32_t s) const { return s < mSlots.size() && mSlots[
 
 Result<uint32_t> Engine::addSource(const SourceSettings& settings) {
   EARSHOT_RETURN_IF_ERROR(validate(settings));
+  std::lock_guard<std::mutex> lock(mAddMutex);
   for (uint32_t i = 0; i < mSlots.size(); ++i) {
     Slot& slot = *mSlots[i];
     if (slot.active.load()) continue;
+    if (!slot.voiceOwner) {
+      // The slot's first source: its state, published to the audio thread
+      // before the slot turns active.
+      auto model = this->model();
+      if (!model.isOk()) return model.status();
+      DirectVoiceSettings ds;
+      ds.sampleRateHz = mSettings.sampleRateHz;
+      ds.speedOfSound = mSettings.simulation.speedOfSound;
+      ds.air = mSettings.simulation.air;
+      ds.maxDelaySeconds = mSettings.maxDistanceMeters / mSettings.simulation.speedOfSound;
+      ds.extraDelayFrames = mMixer->latencyFrames();
+      auto voice = DirectVoice::create(ds, (*model)->hrtfPtr());
+      if (!voice.isOk()) return Status(voice.status().code(), "engine: " + voice.status().message());
+      EARSHOT_RETURN_IF_ERROR(mMixer->reserveSource(i));
+      try {
+        slot.scaled.assign(kProcessChunk, 0.0f);
+      } catch (const std::bad_alloc&) {
+        return outOfRange("engine: out of memory for a source slot");
+      }
+      slot.voiceOwner = std::move(voice.value());
+      slot.voice.store(slot.voiceOwner.get(), std::memory_order_release);
+    }
     slot.gain.store(std::pow(10.0, settings.gainDb / 20.0));
     slot.direct.store(int(settings.direct));
     storeControls(slot, settings);
@@ -438,8 +474,10 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& order) {
     materials = mMaterials;
   }
   const Vec3d listener{mListener[0].load(), mListener[1].load(), mListener[2].load()};
+  auto model = this->model();
+  if (!model.isOk()) return model.status();
   BinauralReceiver receiver;
-  receiver.model = mModel;
+  receiver.model = *model;
   receiver.orientation.forward = {mListener[3].load(), mListener[4].load(), mListener[5].load()};
   receiver.orientation.up = {mListener[6].load(), mListener[7].load(), mListener[8].load()};
 
@@ -561,7 +599,7 @@ void Engine::process(const float* const* inputs, float* left, float* right, size
     slot.live = live;
     slot.reflectionsLive = active && simulated;
     if (live && slot.voiceGeneration != generation) {
-      slot.voice->reset();
+      slot.voice.load(std::memory_order_relaxed)->reset();
       slot.voiceGeneration = generation;
       slot.appliedGain = slot.gain.load(std::memory_order_relaxed);
       slot.appliedReflectionsGain = slot.reflectionsGain.load(std::memory_order_relaxed);
@@ -665,7 +703,7 @@ void Engine::process(const float* const* inputs, float* left, float* right, size
         }();
       }
       // A muted chunk feeds the voice the zeros the mixer got.
-      slot.voice->process(slot.mutedChunk ? slot.scaled.data() : inputs[i] + off, left + off, right + off, m, target);
+      slot.voice.load(std::memory_order_relaxed)->process(slot.mutedChunk ? slot.scaled.data() : inputs[i] + off, left + off, right + off, m, target);
     }
     // Containment of an overflow anywhere in the state: never a non-finite
     // sample out, and no state that stays poisoned.
@@ -675,7 +713,8 @@ void Engine::process(const float* const* inputs, float* left, float* right, size
       std::fill(left + off, left + off + m, 0.0f);
       std::fill(right + off, right + off + m, 0.0f);
       mMixer->clearState();
-      for (auto& slot : mSlots) slot->voice->reset();
+      for (auto& slot : mSlots)
+        if (DirectVoice* v = slot->voice.load(std::memory_order_acquire)) v->reset();
       mClearedOutputChunks.fetch_add(1, std::memory_order_relaxed);
     }
   }

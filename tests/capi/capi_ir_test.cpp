@@ -3,6 +3,9 @@
 // handles' errors.
 #include <gtest/gtest.h>
 
+#include <malloc.h>
+#include <unistd.h>
+
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -442,6 +445,100 @@ TEST(CapiDirectivity, BadPatternsAndOrientationsAreRefused) {
   EXPECT_EQ(earshot_source_set_orientation(src, {0, 0, 1}), EARSHOT_OK);
   earshot_source_release(src);
   earshot_context_release(c);
+}
+
+}  // namespace
+
+namespace {
+
+// Lazy context creation (issue 19): the slots of a context cost their state
+// only once sources use them, and the HRTF loads in the background.
+
+#if defined(__GLIBC__)
+double heapBytes() { return double(mallinfo2().uordblks); }
+#endif
+
+TEST(CapiLazyContext, SlotsCostNothingUntilSourcesUseThem) {
+#if !defined(__GLIBC__)
+  GTEST_SKIP() << "heap measured with glibc's mallinfo2";
+#else
+  // With sanitizers, malloc is not glibc's and mallinfo2 sees nothing.
+  const double start = heapBytes();
+  earshot_context_settings cs;
+  earshot_context_settings_init(&cs);
+  cs.max_sources = 256;
+  earshot_context* c = nullptr;
+  ASSERT_EQ(earshot_context_create(&cs, &c), EARSHOT_OK) << earshot_last_error_message();
+  earshot_source* first = nullptr;
+  ASSERT_EQ(earshot_source_create(c, nullptr, &first), EARSHOT_OK) << earshot_last_error_message();
+  // One source in use: the HRTF (loaded by now) and one slot's state. Each
+  // slot's state is ~1.5 MB at 3 s IRs, so 256 slots allocated up front
+  // would be ~390 MB.
+  const double oneSource = heapBytes() - start;
+  EXPECT_LT(oneSource, 50e6);
+  earshot_source* more[8] = {};
+  for (auto& s : more) ASSERT_EQ(earshot_source_create(c, nullptr, &s), EARSHOT_OK);
+  const double nine = heapBytes() - start;
+  if (nine > 0) EXPECT_GT(nine - oneSource, 8 * 0.5e6) << "each new slot allocates its state";
+  // A released slot's state is kept for its next source.
+  for (auto& s : more) earshot_source_release(s);
+  for (auto& s : more) ASSERT_EQ(earshot_source_create(c, nullptr, &s), EARSHOT_OK);
+  EXPECT_LT(heapBytes() - start, nine + 1e6);
+  for (auto& s : more) earshot_source_release(s);
+  earshot_source_release(first);
+  earshot_context_release(c);
+#endif
+}
+
+TEST(CapiLazyContext, ABrokenHrtfFailsItsFirstUseNotTheContext) {
+  const auto dir = std::filesystem::temp_directory_path() / ("earshot_capi_lazy_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  const std::string sofa = (dir / "broken.sofa").string();
+  {
+    std::FILE* f = std::fopen(sofa.c_str(), "wb");
+    ASSERT_NE(f, nullptr);
+    const char junk[] = "\x89HDF\r\n\x1a\nnot really a SOFA file, secret-bytes-here";
+    std::fwrite(junk, 1, sizeof junk, f);
+    std::fclose(f);
+  }
+  earshot_context_settings cs;
+  earshot_context_settings_init(&cs);
+  cs.max_sources = 4;
+  // A folder or a missing file is refused at once.
+  cs.hrtf_path = dir.c_str();
+  earshot_context* c = nullptr;
+  EXPECT_NE(earshot_context_create(&cs, &c), EARSHOT_OK);
+  EXPECT_EQ(c, nullptr);
+  // A file that is there but not a SOFA set: the context is made, and every
+  // use of the HRTF reports the load's error (the path, never the bytes).
+  cs.hrtf_path = sofa.c_str();
+  ASSERT_EQ(earshot_context_create(&cs, &c), EARSHOT_OK) << earshot_last_error_message();
+  earshot_source* s = nullptr;
+  for (int attempt = 0; attempt < 2; ++attempt) {
+    EXPECT_NE(earshot_source_create(c, nullptr, &s), EARSHOT_OK);
+    EXPECT_EQ(s, nullptr);
+    const std::string message = earshot_last_error_message();
+    EXPECT_NE(message.find("broken.sofa"), std::string::npos) << message;
+    EXPECT_EQ(message.find("secret-bytes"), std::string::npos) << message;
+  }
+  earshot_ir_request req;
+  earshot_ir_request_init(&req);
+  req.source = {0, 0, -2};
+  req.receiver = EARSHOT_RECEIVER_BINAURAL;
+  earshot_ir* ir = nullptr;
+  EXPECT_NE(earshot_context_compute_ir(c, &req, &ir), EARSHOT_OK);
+  EXPECT_EQ(ir, nullptr);
+  // The omni receiver needs no HRTF; the audio path renders silence.
+  req.receiver = EARSHOT_RECEIVER_OMNI;
+  EXPECT_EQ(earshot_context_compute_ir(c, &req, &ir), EARSHOT_OK) << earshot_last_error_message();
+  earshot_ir_release(ir);
+  std::vector<float> left(256, 1.0f), right(256, 1.0f);
+  std::vector<float> dry(256, 0.5f);
+  const float* inputs[4] = {dry.data(), dry.data(), dry.data(), dry.data()};
+  EXPECT_EQ(earshot_process(c, inputs, 4, left.data(), right.data(), 256), EARSHOT_OK) << earshot_last_error_message();
+  for (float v : left) EXPECT_EQ(v, 0.0f);
+  earshot_context_release(c);
+  std::filesystem::remove_all(dir);
 }
 
 }  // namespace

@@ -26,8 +26,10 @@ class ConvolutionMixer {
  public:
   /** Builds a mixer of `sourceCount` sources (in [1, 4096]) with the layout
    *  PartitionLayout::create(settings). Every source starts with no IR
-   *  (silence). Thread: any but the audio thread; allocates everything
-   *  process() will ever use. */
+   *  (silence) and no state: a source's input history and spectra (about
+   *  4 x maxIrFrames floats) are allocated by reserveSource() or its first
+   *  setIr(), so that creating a mixer of many slots costs only the shared
+   *  buffers. Thread: any but the audio thread. */
   static Result<std::unique_ptr<ConvolutionMixer>> create(const ConvolverSettings& settings, size_t sourceCount);
   ~ConvolutionMixer();
 
@@ -49,6 +51,14 @@ class ConvolutionMixer {
    *  thread but the audio thread; may allocate and free). */
   Status setIr(size_t source, std::shared_ptr<const PreparedIr> ir);
 
+  /** Allocates `source`'s state if it has none yet (a no-op after the first
+   *  call); the audio thread takes it up at its next latency block. Until
+   *  then the source's input is not heard (it has no IR either). Call it
+   *  before feeding a source input that must reach its first IR's output.
+   *  Thread: control side. Error: out of range, or out of memory. */
+  Status reserveSource(size_t source);
+  /** Sources whose state has been allocated. Thread: control side. */
+  size_t reservedSources() const;
   /** Releases IRs the audio thread has finished with. Thread: control side.
    *  Call it now and then if setIr() is called rarely; otherwise optional. */
   void collectGarbage();

@@ -24,6 +24,7 @@
 #include <atomic>
 #include <cstddef>
 #include <cstdint>
+#include <future>
 #include <memory>
 #include <mutex>
 #include <vector>
@@ -148,17 +149,31 @@ struct SourceIr {
   uint64_t simulations = 0;               ///< IRs posted for this source so far
 };
 
+/** An HRTF model that may still be loading (e.g. std::async of
+ *  loadBinauralModel): the engine waits for it only when a source is added or
+ *  an IR is computed, never on the audio thread. */
+using BinauralModelFuture = std::shared_future<Result<std::shared_ptr<const BinauralModel>>>;
+
 class Engine {
  public:
-  /** Allocates everything the audio thread will use. Thread: any but audio. */
+  /** The shared state only: every source slot's state (its direct voice and
+   *  convolution history, ~2 MB for 3 s IRs) is allocated by addSource() the
+   *  first time the slot is used, and kept for the slot's next source.
+   *  Thread: any but audio. */
   static Result<std::unique_ptr<Engine>> create(const EngineSettings& settings,
                                                 std::shared_ptr<const BinauralModel> model);
+  /** As above with the model still loading: create() returns at once;
+   *  addSource() and model() wait for the load and return its error if it
+   *  failed. */
+  static Result<std::unique_ptr<Engine>> create(const EngineSettings& settings, BinauralModelFuture model);
   ~Engine();
   Engine(const Engine&) = delete;
   Engine& operator=(const Engine&) = delete;
 
   const EngineSettings& settings() const { return mSettings; }
-  const std::shared_ptr<const BinauralModel>& model() const { return mModel; }
+  /** The HRTF model, waiting for it if it is still loading (game or
+   *  simulation thread, never the audio thread). */
+  Result<std::shared_ptr<const BinauralModel>> model() const;
   /** Counts of NaN/Inf containment on the audio path since creation. Any thread. */
   ContainmentStats containment() const;
   size_t latencyFrames() const;
@@ -169,7 +184,9 @@ class Engine {
   void setScene(std::shared_ptr<const RayTracer> tracer, std::shared_ptr<const MaterialTable> materials);
   /** A source slot: its direct sound (DirectMode::kPerBlock) plays from the
    *  next process() call, its reflections once simulated. Error when all
-   *  maxSources slots are in use or the settings are out of range. */
+   *  maxSources slots are in use, the settings are out of range, the HRTF
+   *  model failed to load, or memory for the slot's state ran out. The first
+   *  use of a slot allocates its state (and waits for a loading model). */
   Result<uint32_t> addSource(const SourceSettings& settings);
   Status removeSource(uint32_t source);
   Status setSourcePosition(uint32_t source, const Vec3d& position);
@@ -212,7 +229,8 @@ class Engine {
   Status simulateLocked(const std::vector<uint32_t>& sources);
 
   EngineSettings mSettings;
-  std::shared_ptr<const BinauralModel> mModel;
+  BinauralModelFuture mModel;
+  std::mutex mAddMutex;  // serialises addSource() (slot state allocation)
   std::unique_ptr<ThreadPool> mPool;
   std::vector<std::unique_ptr<ThreadPool>> mWorkerPools;  // one single-thread pool per worker of mPool
   std::unique_ptr<ConvolutionMixer> mMixer;
