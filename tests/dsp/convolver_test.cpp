@@ -370,3 +370,49 @@ TEST(Convolver, RejectsBadSettingsAndMismatchedIrs) {
 
 }  // namespace
 }  // namespace earshot
+
+namespace earshot {
+namespace {
+
+// A mixer's per-source state is allocated only for sources reserved or given
+// an IR (issue 19: lazy context creation); a source without state is not
+// heard, and one reserved mid-stream starts from silence.
+TEST(ConvolutionMixer, SourceStateIsAllocatedOnFirstUse) {
+  ConvolverSettings s;
+  s.latencyFrames = 128;
+  s.maxIrFrames = 4000;
+  s.channels = 2;
+  auto mixer = ConvolutionMixer::create(s, 64);
+  ASSERT_TRUE(mixer.isOk());
+  ConvolutionMixer& m = **mixer;
+  EXPECT_EQ(m.reservedSources(), 0u);
+  std::vector<std::vector<float>> ir = {std::vector<float>(4000, 0.0f), std::vector<float>(4000, 0.0f)};
+  ir[0][0] = ir[1][10] = 1.0f;  // left: identity, right: 10 frames late
+  ASSERT_TRUE(m.setIr(5, prepare(ir, m.layout())).isOk());
+  EXPECT_EQ(m.reservedSources(), 1u);
+  ASSERT_TRUE(m.reserveSource(5).isOk());  // idempotent
+  EXPECT_EQ(m.reservedSources(), 1u);
+  EXPECT_FALSE(m.reserveSource(64).isOk());
+  EXPECT_FALSE(m.setIr(64, nullptr).isOk());
+
+  std::vector<float> x = decayingNoise(2048, 11, 0.0);
+  std::vector<const float*> ins(64, x.data());  // every source fed the same input
+  std::vector<std::vector<float>> out(2, std::vector<float>(2048));
+  float* outs[2] = {out[0].data(), out[1].data()};
+  m.process(ins.data(), outs, 2048);
+  // Only source 5 has state: the output is x through its IR, not 64 x.
+  for (size_t t = 0; t + 128 < 2048; ++t) {
+    ASSERT_NEAR(out[0][t + 128], x[t], 1e-5) << t;
+    if (t >= 10) ASSERT_NEAR(out[1][t + 128], x[t - 10], 1e-5) << t;
+  }
+  // Reserved while streaming: source 9 joins from silence, then is heard
+  // once it has an IR.
+  ASSERT_TRUE(m.reserveSource(9).isOk());
+  EXPECT_EQ(m.reservedSources(), 2u);
+  ASSERT_TRUE(m.setIr(9, prepare(ir, m.layout())).isOk());
+  for (int rep = 0; rep < 4; ++rep) m.process(ins.data(), outs, 2048);
+  for (size_t t = 0; t + 128 < 2048; ++t) ASSERT_NEAR(out[0][t + 128], 2 * x[t], 1e-5) << t;
+}
+
+}  // namespace
+}  // namespace earshot
