@@ -4,10 +4,12 @@
 #include <embree3/rtcore.h>
 
 #include <cmath>
+#include <mutex>
 #include <string>
 
 #include "earshot/core/math.h"
 
+#include "earshot/scene/embree_limit.h"
 #include "embree_bvh.h"
 
 namespace earshot {
@@ -47,7 +49,14 @@ bool traceable(const Ray& ray) {
 }
 }  // namespace
 
+static void recordQuery(QueryLog* log, const Ray& ray, bool shadow) {
+  std::lock_guard<std::mutex> lock(log->mutex);
+  log->rays.push_back(ray);
+  log->shadow.push_back(shadow ? 1 : 0);
+}
+
 bool RayTracer::intersect(const Ray& ray, Hit& hit) const {
+  if (QueryLog* log = mRecorder.load(std::memory_order_relaxed)) recordQuery(log, ray, false);
   if (!traceable(ray)) {
     hit.t = -1.0f;
     return false;
@@ -93,6 +102,7 @@ bool RayTracer::intersect(const Ray& ray, Hit& hit) const {
 }
 
 bool RayTracer::occluded(const Ray& ray) const {
+  if (QueryLog* log = mRecorder.load(std::memory_order_relaxed)) recordQuery(log, ray, true);
   if (!traceable(ray)) return false;
   RTCIntersectContext ctx;
   rtcInitIntersectContext(&ctx);

@@ -1,5 +1,7 @@
 // `earshot bench trace`: ray tracing speed (16k rays x 12 bounces by default)
-// on a scene, reported as the median of repeated runs.
+// on a scene, reported as the median of repeated runs, beside the Embree
+// limit: the same queries replayed through plain Embree calls in the same
+// run (issue 16).
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -13,6 +15,7 @@
 #include "earshot/ir/ir_synthesis.h"
 #include "earshot/materials/material.h"
 #include "earshot/propagation/reflection_tracer.h"
+#include "earshot/scene/embree_limit.h"
 #include "earshot/scene/gltf_loader.h"
 #include "earshot/scene/ray_tracer.h"
 
@@ -26,6 +29,7 @@ struct BenchTraceOptions {
   uint32_t rays = 16384, bounces = 12;
   unsigned threads = 2;
   int runs = 15;
+  bool embree = true;
 };
 
 int run(const BenchTraceOptions& o) {
@@ -73,6 +77,44 @@ int run(const BenchTraceOptions& o) {
               o.geometry.c_str(), g->mesh.triangleCount(), o.rays, o.bounces, pool.threadCount(), o.runs, t,
               *std::min_element(traceMs.begin(), traceMs.end()), (unsigned long long)queries, double(queries) / t / 1e3,
               median(buildMs), median(synthMs));
+  if (!o.embree) return 0;
+
+  // The Embree limit: the queries of one trace (seed 1, recorded on one
+  // thread so that they keep the tracer's order), replayed through plain
+  // Embree calls on the same threads, in each mode; per query, against the
+  // tracer's time per query above.
+  QueryLog log;
+  {
+    ThreadPool one(1);
+    s.seed = 1;
+    QueryRecording recording(*tracer, log);
+    auto r = traceReflections(*tracer, materials, src, lis, s, one);
+    if (!check(r.status())) return 2;
+  }
+  const EmbreeReplay replay(*tracer, log);
+  const double perQuery = t / double(queries);
+  double best = 0;
+  const char* bestName = "";
+  for (EmbreeMode mode : {EmbreeMode::kSingle, EmbreeMode::kStream, EmbreeMode::kPacket8}) {
+    std::vector<double> ms;
+    size_t hits = 0;
+    for (int i = 0; i < o.runs + 1; ++i) {
+      const auto t0 = std::chrono::steady_clock::now();
+      hits = replay.run(mode, pool);
+      if (i > 0) ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+    }
+    const double m = median(ms);
+    const double q = double(replay.intersectCount() + replay.shadowCount());
+    if (best == 0 || m / q < best) {
+      best = m / q;
+      bestName = embreeModeName(mode);
+    }
+    std::printf("embree mode=%s queries=%.0f (nearest=%zu shadow=%zu) hits=%zu ms=%.2f mrays_per_s=%.1f\n",
+                embreeModeName(mode), q, replay.intersectCount(), replay.shadowCount(), hits, m, q / m / 1e3);
+  }
+  std::printf("ratio earshot_per_query/embree_per_query=%.2f (best plain mode: %s; earshot %.1f ns, embree %.1f ns "
+              "per query)\n",
+              perQuery / best, bestName, perQuery * 1e6, best * 1e6);
   return 0;
 }
 
@@ -88,6 +130,8 @@ const Registrar registrar([](CLI::App& root) {
   cmd->add_option("--bounces", o->bounces, "Bounces")->check(CLI::Range(0u, 100000u))->capture_default_str();
   cmd->add_option("--threads", o->threads, "Threads")->check(CLI::Range(1u, 256u))->capture_default_str();
   cmd->add_option("--runs", o->runs, "Timed runs (median reported)")->check(CLI::Range(1, 10000))->capture_default_str();
+  cmd->add_flag("!--no-embree-limit", o->embree,
+                "Skip the Embree limit (the same queries replayed through plain Embree calls, every mode)");
   cmd->callback([o] { setExitCode(run(*o)); });
 });
 

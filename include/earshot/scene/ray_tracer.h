@@ -2,6 +2,7 @@
 /** @file Ray queries against scene geometry. Embree 3 is hidden behind this
  *  interface: no Embree type appears in earshot's headers (STYLE.md), and
  *  src/scene is the only module that includes Embree. */
+#include <atomic>
 #include <cstdint>
 #include <memory>
 #include <vector>
@@ -12,6 +13,8 @@
 #include "earshot/scene/triangle_mesh.h"
 
 namespace earshot {
+
+struct QueryLog;  // embree_limit.h
 
 /** A ray: points origin + t * direction for t in [tNear, tFar]. direction
  *  need not be unit length, but earshot always passes unit vectors so t is in
@@ -112,6 +115,10 @@ class RayTracer {
   Vec3d mFrameOrigin;  // Embree's vertices and ray origins are relative to it
   std::vector<int8_t> mConvexSides;  // convexSides(mMesh, mPlanes, mEpsilon)
   float mEpsilon = 1e-4f;
+  // Set only while a QueryRecording (embree_limit.h) measures this tracer.
+  mutable std::atomic<QueryLog*> mRecorder{nullptr};
+  friend class QueryRecording;
+  friend class EmbreeReplay;
 };
 
 }  // namespace earshot
