@@ -9,6 +9,7 @@
 #include "earshot/core/math.h"
 #include "earshot/core/thread_pool.h"
 #include "earshot/propagation/reflection_tracer.h"
+#include "earshot/scene/embree_limit.h"
 #include "earshot/scene/ray_tracer.h"
 #include "shoebox_fixture.h"
 
@@ -480,4 +481,61 @@ TEST(ReflectionTracer, FlutterConesOnlyWhereParallelWallsReflectSpecularly) {
   EXPECT_EQ(axesOf(*flutter.tracer, flutter.materials, off), std::pair(0u, 0u));
 }
 
+}  // namespace earshot
+
+namespace earshot {
+namespace {
+
+// The Embree limit's replay (issue 16, `earshot bench trace`): a trace's
+// queries are all recorded, nearest-hit and shadow apart, and every plain
+// Embree mode finds the same hits for them. Box with an inner wall so that
+// next-event estimation needs shadow rays.
+TEST(EmbreeLimit, RecordedQueriesReplayAlikeInEveryMode) {
+  MaterialTable materials;
+  Material m;
+  m.name = "wall";
+  m.absorption = filledBands(0.2f);
+  m.scattering = filledBands(0.5f);
+  m.transmission = filledBands(0.0f);
+  const uint32_t id = materials.add(m);
+  TriangleMesh mesh = makeBox({0, 0, 0}, {10, 7, 3}, id);
+  // A free-standing panel between source and listener.
+  const uint32_t base = uint32_t(mesh.positions.size());
+  for (Vec3f p : {Vec3f{5, 1, 0.5f}, Vec3f{5, 6, 0.5f}, Vec3f{5, 6, 2.5f}, Vec3f{5, 1, 2.5f}}) mesh.positions.push_back(p);
+  mesh.triangles.push_back({base, base + 1, base + 2});
+  mesh.triangles.push_back({base, base + 2, base + 3});
+  mesh.materialIds.push_back(id);
+  mesh.materialIds.push_back(id);
+  auto rt = RayTracer::create(mesh);
+  ASSERT_TRUE(rt.isOk()) << rt.status().message();
+  ReflectionSettings s;
+  s.rays = 2000;
+  s.bounces = 8;
+  ThreadPool pool(2);
+  QueryLog log;
+  ReflectionResult r;
+  {
+    QueryRecording recording(**rt, log);
+    auto traced = traceReflections(**rt, materials, {2, 3.5, 1.5}, {8, 3.5, 1.5}, s, pool);
+    ASSERT_TRUE(traced.isOk());
+    r = std::move(traced.value());
+  }
+  // Recording stopped with the recording's scope.
+  Hit h;
+  (*rt)->intersect(Ray{{2, 3.5, 1.5}, 0.0f, {1, 0, 0}, 1e30f}, h);
+  ASSERT_EQ(log.rays.size(), log.shadow.size());
+  EXPECT_EQ(log.shadowCount(), r.stats.shadowRays);
+  ASSERT_GT(r.stats.shadowRays, 0u);
+  // Besides the segments: the receiver sizing's 64 probes and near-edge offset checks.
+  EXPECT_GE(log.rays.size() - log.shadowCount(), r.stats.segmentsTraced);
+  EXPECT_LE(log.rays.size() - log.shadowCount(), r.stats.segmentsTraced + 64 + r.stats.segmentsTraced / 50);
+  const EmbreeReplay replay(**rt, log);
+  EXPECT_EQ(replay.intersectCount() + replay.shadowCount(), log.rays.size());
+  const size_t single = replay.run(EmbreeMode::kSingle, pool);
+  EXPECT_GT(single, replay.intersectCount() / 2);
+  EXPECT_EQ(replay.run(EmbreeMode::kStream, pool), single);
+  EXPECT_EQ(replay.run(EmbreeMode::kPacket8, pool), single);
+}
+
+}  // namespace
 }  // namespace earshot
