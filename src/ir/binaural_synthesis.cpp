@@ -2,6 +2,7 @@
 #include "earshot/ir/binaural_synthesis.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <new>
 #include <string>
@@ -111,6 +112,8 @@ Vec3d toHeadFrame(const Vec3d& d, const ListenerOrientation& o) {
 Result<std::shared_ptr<const BinauralModel>> BinauralModel::create(std::shared_ptr<const hrtf::HrtfSet> set) {
   if (!set) return invalidArgument("no HRTF set");
   std::shared_ptr<BinauralModel> m(new BinauralModel());
+  static std::atomic<uint64_t> nextId{1};
+  m->mId = nextId.fetch_add(1);
   m->mHrtf = set;
   const size_t taps = set->hrirLength();
   const size_t count = set->measurementCount();
@@ -228,7 +231,7 @@ Result<AudioBuffer> synthesizeBinauralIr(const std::vector<Arrival>& arrivals, c
   detail::SpectralSynth& plan = synth.value();
   const double fs = settings.sampleRateHz;
   const size_t grid = model.gridSize(), gridBins = grid / 2 + 1;
-  std::vector<std::complex<double>> spectrum[2] = {plan.emptySpectrum(), plan.emptySpectrum()};
+  detail::Spectrum spectrum[2] = {plan.emptySpectrum(), plan.emptySpectrum()};
 
   // Discrete arrivals through the HRTF of their own direction.
   if (!arrivals.empty()) {
@@ -240,10 +243,14 @@ Result<AudioBuffer> synthesizeBinauralIr(const std::vector<Arrival>& arrivals, c
       const Vec3f head(toHeadFrame(a.direction, orientation));
       for (int ear = 0; ear < 2; ++ear) {
         const double delay = model.spectrumInto(head, ear, &ws, h.data());
-        plan.addArrival(a, std::max(0.0, a.delaySeconds + delay), {h.data(), grid}, spectrum[ear].data());
+        plan.addArrival(a, std::max(0.0, a.delaySeconds + delay), {h.data(), grid}, spectrum[ear]);
       }
     }
   }
+
+  AudioBuffer out(2, 0, fs);
+  plan.inverse(spectrum[0], out.channels[0]);
+  plan.inverse(spectrum[1], out.channels[1]);
 
   // Late reflections: diffuse-field mixing of two noises, weighted per ear by
   // the first-order direction of arrival.
@@ -271,29 +278,28 @@ Result<AudioBuffer> synthesizeBinauralIr(const std::vector<Arrival>& arrivals, c
     }
     bool independent = false;
     for (const auto& c : model.rightIndependent()) independent = independent || c != std::complex<float>(0.0f);
-    // Levelled band noises (SpectralSynth::levelledBandNoise), added through
-    // the second sqrt(W_band).
-    const auto u = plan.levelledBandNoise(settings.seed, detail::kLateNoiseStream);
-    const auto v = independent ? plan.levelledBandNoise(settings.seed, detail::kLateNoiseStreamIndependent) : nullptr;
-    const size_t offset = detail::noiseOffset(settings.seed, settings.noiseKey, (*u)[0].size());
+    // Finished band noises (levelled, through the second sqrt(W_band) and
+    // the ear's diffuse-field filter), cached per model.
     const detail::GridFilter left{model.left().data(), grid}, rightU{model.rightCoherent().data(), grid},
         rightV{model.rightIndependent().data(), grid};
-    std::vector<float> shaped = plan.shapedBuffer();
+    const uint64_t key = model.id() * 4;
+    const auto l = plan.finishedBandNoise(settings.seed, detail::kLateNoiseStream, left, key + 1);
+    const auto ru = plan.finishedBandNoise(settings.seed, detail::kLateNoiseStream, rightU, key + 2);
+    const auto rv = independent
+                        ? plan.finishedBandNoise(settings.seed, detail::kLateNoiseStreamIndependent, rightV, key + 3)
+                        : nullptr;
+    const size_t offset = detail::noiseOffset(settings.seed, settings.noiseKey, (*l)[0].size());
+    std::vector<float> env;
     for (int b = 0; b < kNumBands; ++b) {
       const float* gl = directional ? gain[0][b].data() : nullptr;
       const float* gr = directional ? gain[1][b].data() : nullptr;
-      if (!plan.shapeBand((*u)[size_t(b)], offset, *reflections, b, gl, shaped)) continue;
-      plan.addBand(b, shaped, left, spectrum[0].data());
-      if (directional) plan.shapeBand((*u)[size_t(b)], offset, *reflections, b, gr, shaped);
-      plan.addBand(b, shaped, rightU, spectrum[1].data());
-      if (independent && plan.shapeBand((*v)[size_t(b)], offset, *reflections, b, gr, shaped))
-        plan.addBand(b, shaped, rightV, spectrum[1].data());
+      if (!plan.bandEnvelope(*reflections, b, gl, env)) continue;
+      plan.addEnvelopedNoise((*l)[size_t(b)], offset, env, out.channels[0].data());
+      if (directional) plan.bandEnvelope(*reflections, b, gr, env);
+      plan.addEnvelopedNoise((*ru)[size_t(b)], offset, env, out.channels[1].data());
+      if (independent) plan.addEnvelopedNoise((*rv)[size_t(b)], offset, env, out.channels[1].data());
     }
   }
-
-  AudioBuffer out(2, 0, fs);
-  plan.inverse(spectrum[0], out.channels[0]);
-  plan.inverse(spectrum[1], out.channels[1]);
   return out;
 }
 

@@ -72,18 +72,18 @@ Result<AudioBuffer> synthesizeOmniIr(const std::vector<Arrival>& arrivals, const
   const double fs = settings.sampleRateHz;
   detail::SpectralSynth& plan = synth.value();
   auto spectrum = plan.emptySpectrum();
-  for (const Arrival& a : arrivals) plan.addArrival(a, a.delaySeconds, {}, spectrum.data());
-  // Reflections: per band, levelled band noise x sqrt(energy density).
-  if (reflections && reflections->lastNonEmptyBin() >= 0) {
-    const auto noise = plan.levelledBandNoise(settings.seed, detail::kLateNoiseStream);
-    const size_t offset = detail::noiseOffset(settings.seed, settings.noiseKey, (*noise)[0].size());
-    std::vector<float> shaped = plan.shapedBuffer();
-    for (int b = 0; b < kNumBands; ++b)
-      if (plan.shapeBand((*noise)[size_t(b)], offset, *reflections, b, nullptr, shaped))
-        plan.addBand(b, shaped, {}, spectrum.data());
-  }
+  for (const Arrival& a : arrivals) plan.addArrival(a, a.delaySeconds, {}, spectrum);
   AudioBuffer out(1, 0, fs);
   plan.inverse(spectrum, out.channels[0]);
+  // Reflections: per band, the band's finished noise x sqrt(energy density).
+  if (reflections && reflections->lastNonEmptyBin() >= 0) {
+    const auto noise = plan.finishedBandNoise(settings.seed, detail::kLateNoiseStream, {}, 0);
+    const size_t offset = detail::noiseOffset(settings.seed, settings.noiseKey, (*noise)[0].size());
+    std::vector<float> env;
+    for (int b = 0; b < kNumBands; ++b)
+      if (plan.bandEnvelope(*reflections, b, nullptr, env))
+        plan.addEnvelopedNoise((*noise)[size_t(b)], offset, env, out.channels[0].data());
+  }
   return out;
 }
 

@@ -30,21 +30,42 @@ size_t fastFftSize(size_t minimum) {
   return best;
 }
 
-Result<SpectralSynth> SpectralSynth::create(size_t length, double fs) {
+namespace {
+// Inverse real FFT plans by size, per thread (a KissFFT plan holds scratch:
+// one thread at a time), the last few kept: making one costs a sincos per
+// bin, a large part of a short IR's synthesis.
+std::shared_ptr<std::remove_pointer_t<kiss_fftr_cfg>> inversePlan(size_t n) {
+  using Plan = std::shared_ptr<std::remove_pointer_t<kiss_fftr_cfg>>;
+  thread_local std::vector<std::pair<size_t, Plan>> plans;  // most recent first
+  for (size_t i = 0; i < plans.size(); ++i)
+    if (plans[i].first == n) {
+      std::rotate(plans.begin(), plans.begin() + std::ptrdiff_t(i), plans.begin() + std::ptrdiff_t(i) + 1);
+      return plans[0].second;
+    }
+  Plan plan(kiss_fftr_alloc(int(n), 1, nullptr, nullptr), FftrDeleter());
+  if (!plan) return plan;
+  plans.insert(plans.begin(), {n, plan});
+  if (plans.size() > 4) plans.pop_back();
+  return plan;
+}
+}  // namespace
+
+Result<SpectralSynth> SpectralSynth::create(size_t length, double fs, size_t arrivalsEnd) {
   SpectralSynth s;
   s.mFs = fs;
   s.mLength = length;
-  s.mN = fastFftSize(length + size_t(kMarginSeconds * fs));
+  // The arrivals' frame: up to the last arrival, half the margin after it
+  // for its band filters' ringing and sinc tail (kept), and the whole margin
+  // beyond (where what rings before time 0 wraps to, dropped).
+  const size_t margin = size_t(kMarginSeconds * fs);
+  s.mKeep = std::min(length, arrivalsEnd + margin / 2);
+  s.mN = fastFftSize(s.mKeep + margin);
   s.mBins = s.mN / 2 + 1;
-  s.mForward.reset(kiss_fftr_alloc(int(s.mN), 0, nullptr, nullptr));
-  s.mInverse.reset(kiss_fftr_alloc(int(s.mN), 1, nullptr, nullptr));
-  if (!s.mForward || !s.mInverse) return Status(StatusCode::kInternal, "FFT allocation failed");
-  s.mSqrtWeights.assign(kNumBands, std::vector<float>(s.mBins));
+  s.mInverse = inversePlan(s.mN);
+  if (!s.mInverse) return Status(StatusCode::kInternal, "FFT allocation failed");
   s.mLowerBand.resize(s.mBins);
   s.mLowerWeight.resize(s.mBins);
   for (size_t k = 0; k < s.mBins; ++k) {
-    const BandArrayD noiseW = noiseBandWeights(double(k) * fs / double(s.mN));
-    for (int b = 0; b < kNumBands; ++b) s.mSqrtWeights[b][k] = float(std::sqrt(std::max(0.0, noiseW[b])));
     const BandArrayD w = bandWeights(double(k) * fs / double(s.mN));
     // At most two band weights are non-zero at any frequency: keep the lower one.
     int lb = kNumBands - 1;
@@ -54,7 +75,7 @@ Result<SpectralSynth> SpectralSynth::create(size_t length, double fs) {
         break;
       }
     s.mLowerBand[k] = uint8_t(lb);
-    s.mLowerWeight[k] = float(w[lb]);
+    s.mLowerWeight[k] = float(w[lb]);  // lb = kNumBands - 1: the weight of the top band, 1
   }
   s.mScratch.resize(s.mBins);
   return s;
@@ -68,7 +89,12 @@ Result<SpectralSynth> SpectralSynth::plan(const std::vector<Arrival>& arrivals, 
       return invalidArgument("arrival with delay " + std::to_string(a.delaySeconds) + " s, gain " + std::to_string(a.gain));
   const size_t length = irLengthSamples(arrivals, reflections, settings);
   if (length > kMaxIrSamples) return outOfRange("IR of " + std::to_string(length) + " samples is over the limit");
-  return create(length, settings.sampleRateHz);
+  double end = -1.0;
+  for (const Arrival& a : arrivals)
+    if (a.gain != 0) end = std::max(end, a.delaySeconds);
+  const size_t arrivalsEnd =
+      end < 0 ? 0 : size_t(std::min(double(kMaxIrSamples), std::ceil((end + kArrivalSlackSeconds) * settings.sampleRateHz)));
+  return create(length, settings.sampleRateHz, arrivalsEnd);
 }
 
 void SpectralSynth::prepareGrid(size_t gridSize) {
@@ -81,71 +107,68 @@ void SpectralSynth::prepareGrid(size_t gridSize) {
     const double pos = double(k) * double(gridSize) / double(mN);
     const size_t i = std::min(size_t(pos), last);
     mGridIndex[k] = uint32_t(i == last ? last - 1 : i);
-    mGridFrac[k] = i == last ? 1.0 : pos - double(i);
+    mGridFrac[k] = i == last ? 1.0f : float(pos - double(i));
   }
 }
 
-std::complex<double> SpectralSynth::filterAt(const GridFilter& h, size_t k) const {
-  const size_t i = mGridIndex[k];
-  const double f = mGridFrac[k];
-  return std::complex<double>(h.values[i]) * (1.0 - f) + std::complex<double>(h.values[i + 1]) * f;
-}
-
-void SpectralSynth::addArrival(const Arrival& a, double delaySeconds, const GridFilter& h,
-                               std::complex<double>* spectrum) {
+void SpectralSynth::addArrival(const Arrival& a, double delaySeconds, const GridFilter& h, Spectrum& spectrum) {
   if (a.gain == 0) return;
   if (h.values) prepareGrid(h.gridSize);
   const double tau = delaySeconds * mFs;  // samples
-  // exp(-j 2 pi k tau / n) by recurrence: one complex multiply per bin, in
-  // plain real arithmetic (std::complex multiplies check for NaN and are
-  // several times slower here).
-  // Four interleaved recurrences (bins k, k+1, k+2, k+3 advance by step^4)
-  // so the multiplies of neighbouring bins do not wait on each other.
-  constexpr int kLanes = 4;
+  // exp(-j 2 pi k tau / n) per block of kBlock bins: the block's first phase
+  // exact (double sincos), the others from it by a table of the steps
+  // exp(-j 2 pi m tau / n), m < kBlock, so that nothing drifts and the
+  // inner loops are plain float arithmetic the compiler vectorises.
+  constexpr size_t kBlock = 64;
   const double angle = -2.0 * kPi * tau / double(mN);
-  double pr[kLanes], pi[kLanes];
-  for (int l = 0; l < kLanes; ++l) {
-    pr[l] = std::cos(angle * l);
-    pi[l] = std::sin(angle * l);
+  float stepRe[kBlock], stepIm[kBlock];
+  for (size_t m = 0; m < kBlock; ++m) {
+    stepRe[m] = float(std::cos(angle * double(m)));
+    stepIm[m] = float(std::sin(angle * double(m)));
   }
-  const double sr = std::cos(angle * kLanes), si = std::sin(angle * kLanes);
-  double* out = reinterpret_cast<double*>(spectrum);  // std::complex<double> is two doubles
+  // The arrival's band gains through the complementary band weights: bin k
+  // takes g[lb] w + g[lb + 1] (1 - w) of its (at most two) bands.
+  float gains[kNumBands + 1];
+  for (int b = 0; b < kNumBands; ++b) gains[b] = float(a.gain * a.bandGain[size_t(b)]);
+  gains[kNumBands] = 0.0f;
   const float* hv = h.values ? reinterpret_cast<const float*>(h.values) : nullptr;
-  for (size_t k0 = 0; k0 < mBins; k0 += kLanes) {
-    const int lanes = int(std::min<size_t>(kLanes, mBins - k0));
-    for (int l = 0; l < lanes; ++l) {
-      const size_t k = k0 + size_t(l);
-      const int lb = mLowerBand[k];
-      const double w = mLowerWeight[k];
-      const double g = a.gain * (a.bandGain[lb] * w + (lb + 1 < kNumBands ? a.bandGain[lb + 1] * (1.0 - w) : 0.0));
-      double vr = g * pr[l], vi = g * pi[l];
-      if (hv) {
-        const size_t i = mGridIndex[k];
-        const double f = mGridFrac[k];
-        const double fr = double(hv[2 * i]) * (1.0 - f) + double(hv[2 * i + 2]) * f;
-        const double fi = double(hv[2 * i + 1]) * (1.0 - f) + double(hv[2 * i + 3]) * f;
-        const double t = vr * fr - vi * fi;
-        vi = vr * fi + vi * fr;
-        vr = t;
+  float* re = spectrum.re.data();
+  float* im = spectrum.im.data();
+  float pr[kBlock], pi[kBlock], g[kBlock];
+  for (size_t k0 = 0; k0 < mBins; k0 += kBlock) {
+    const size_t count = std::min(kBlock, mBins - k0);
+    const double phase = angle * double(k0);
+    const float br = float(std::cos(phase)), bi = float(std::sin(phase));
+    for (size_t m = 0; m < count; ++m) {
+      pr[m] = br * stepRe[m] - bi * stepIm[m];
+      pi[m] = br * stepIm[m] + bi * stepRe[m];
+    }
+    for (size_t m = 0; m < count; ++m) {
+      const size_t k = k0 + m;
+      const uint8_t lb = mLowerBand[k];
+      const float w = mLowerWeight[k];
+      g[m] = gains[lb] * w + gains[lb + 1] * (1.0f - w);
+    }
+    if (hv) {
+      for (size_t m = 0; m < count; ++m) {
+        const size_t k = k0 + m;
+        const uint32_t i = mGridIndex[k];
+        const float f = mGridFrac[k];
+        const float fr = hv[2 * i] * (1.0f - f) + hv[2 * i + 2] * f;
+        const float fi = hv[2 * i + 1] * (1.0f - f) + hv[2 * i + 3] * f;
+        const float vr = g[m] * pr[m], vi = g[m] * pi[m];
+        re[k] += vr * fr - vi * fi;
+        im[k] += vr * fi + vi * fr;
       }
-      out[2 * k] += vr;
-      out[2 * k + 1] += vi;
-    }
-    for (int l = 0; l < kLanes; ++l) {
-      const double npr = pr[l] * sr - pi[l] * si;
-      pi[l] = pr[l] * si + pi[l] * sr;
-      pr[l] = npr;
-    }
-    if ((k0 & 1023) == 1020) {  // keep |phase| = 1 over long recurrences
-      for (int l = 0; l < kLanes; ++l) {
-        const double m = std::sqrt(pr[l] * pr[l] + pi[l] * pi[l]);
-        pr[l] /= m;
-        pi[l] /= m;
+    } else {
+      for (size_t m = 0; m < count; ++m) {
+        re[k0 + m] += g[m] * pr[m];
+        im[k0 + m] += g[m] * pi[m];
       }
     }
   }
   // The Nyquist bin of a real signal must be real.
-  if (mN % 2 == 0) spectrum[mBins - 1] = spectrum[mBins - 1].real();
+  if (mN % 2 == 0) im[mBins - 1] = 0.0f;
 }
 
 std::vector<float> whiteNoise(uint64_t seed, uint64_t stream, size_t count) {
@@ -238,65 +261,198 @@ size_t noiseOffset(uint64_t seed, uint64_t noiseKey, size_t period) {
   return size_t(mix64(mix64(seed) ^ mix64(noiseKey + 0x9E3779B97F4A7C15ULL)) % uint64_t(period));
 }
 
-bool SpectralSynth::shapeBand(const std::vector<float>& noise, size_t offset, const EnergyHistogram& h, int band,
-                              const float* gain, std::vector<float>& shaped) const {
-  const size_t period = noise.size();
-  if (period == 0) return false;
-  offset %= period;
+const std::vector<double>& SpectralSynth::energyResponse(int band, size_t q) const {
+  struct Cached {
+    int band;
+    size_t q;
+    double fs;
+    std::vector<double> kernel;
+  };
+  static std::mutex mutex;
+  static std::vector<std::unique_ptr<Cached>> cache;  // never shrinks: bands x grid steps x rates in use
+  std::lock_guard<std::mutex> lock(mutex);
+  for (const auto& c : cache)
+    if (c->band == band && c->q == q && c->fs == mFs) return c->kernel;
+  // |f_b(t)|^2 from sqrt(W_b) on a 2^16-point grid (1.4 s at 48 kHz: far
+  // longer than any band filter's response), summed into cells of q
+  // samples centred on t = 0, cut where below 1e-7 of the whole, normalised.
+  constexpr size_t n = size_t(1) << 16;
+  FftrPtr inverse(kiss_fftr_alloc(int(n), 1, nullptr, nullptr));
+  auto c = std::make_unique<Cached>(Cached{band, q, mFs, {1.0}});
+  if (inverse) {
+    std::vector<kiss_fft_cpx> spectrum(n / 2 + 1);
+    for (size_t k = 0; k <= n / 2; ++k)
+      spectrum[k] = {float(std::sqrt(std::max(0.0, noiseBandWeights(double(k) * mFs / double(n))[size_t(band)]))), 0.0f};
+    std::vector<float> f(n);
+    kiss_fftri(inverse.get(), spectrum.data(), f.data());
+    const long cells = long(n / q / 2) - 1;
+    std::vector<double> e(size_t(2 * cells + 1), 0.0);
+    double total = 0;
+    for (size_t i = 0; i < n; ++i) {
+      const long t = i < n / 2 ? long(i) : long(i) - long(n);  // zero-phase: centred on 0, wrapped
+      const long cell = long(std::floor((double(t) + 0.5 * double(q)) / double(q)));
+      if (cell < -cells || cell > cells) continue;
+      const double v = double(f[i]) * double(f[i]);
+      e[size_t(cell + cells)] += v;
+      total += v;
+    }
+    long keep = 0;
+    for (long k = 0; k <= cells; ++k)
+      if (e[size_t(cells + k)] > 1e-5 * total || e[size_t(cells - k)] > 1e-5 * total) keep = k;
+    c->kernel.assign(e.begin() + (cells - keep), e.begin() + (cells + keep + 1));
+    double sum = 0;
+    for (double v : c->kernel) sum += v;
+    for (double& v : c->kernel) v /= sum;
+  }
+  cache.push_back(std::move(c));
+  return cache.back()->kernel;
+}
+
+bool SpectralSynth::bandEnvelope(const EnergyHistogram& h, int band, const float* gain, std::vector<float>& env) const {
   const double binSamples = h.binSeconds() * mFs;
   const size_t histBins = h.binCount();
-  bool any = false;
-  std::fill(shaped.begin(), shaped.end(), 0.0f);
+  env.assign(mLength, 0.0f);
+  if (mLength == 0) return false;
   auto densityAt = [&](long bin) {
     if (bin < 0 || size_t(bin) >= histBins) return 0.0;
     const double d = h.energy(size_t(bin), band) / binSamples;
     return gain ? d * double(gain[bin]) : d;
   };
-  // Energy density per sample, linear between bin centres: one segment per
-  // pair of neighbouring centres, samples i with (i + 0.5) / binSamples - 0.5
-  // in [j, j + 1).
-  for (long j = -1; j < long(histBins); ++j) {
-    const double d0 = densityAt(j), d1 = densityAt(j + 1);
-    if (d0 <= 0 && d1 <= 0) continue;
-    const double first = (double(j) + 0.5) * binSamples - 0.5, next = (double(j) + 1.5) * binSamples - 0.5;
-    const size_t begin = size_t(std::max(0.0, std::ceil(first)));
-    const size_t end = std::min(mLength, size_t(std::max(0.0, std::ceil(next))));
-    for (size_t i = begin; i < end; ++i) {
-      const double frac = (double(i) + 0.5) / binSamples - 0.5 - double(j);
-      const double density = (1.0 - frac) * d0 + frac * d1;
-      if (density > 0) {
-        size_t at = i + offset;
-        if (at >= period) at -= period;  // offset < period, i < length <= period
-        shaped[i] = float(noise[at] * std::sqrt(density));
-        any = true;
-      }
+  bool any = false;
+  for (size_t b = 0; b < histBins && !any; ++b) any = densityAt(long(b)) > 0;
+  if (!any) return false;
+  // The noise is shaped after its band filters (finishedBandNoise), not
+  // filtered after the shaping, so the envelope's steps (the late field's
+  // onset, the histogram's end) would widen the band (a step spreads a band
+  // by ~1 / (pi f) into its neighbours), and the band's onset would be
+  // sharper than a band-limited signal's can be. The energy envelope is
+  // therefore the density convolved with the band filter's own energy
+  // response |f_b(t)|^2 (f_b: the zero-phase response of sqrt(W_b)), which
+  // is what filtering after the shaping gave on average (E|f * (n e)|^2 =
+  // |f|^2 * e^2 for white n): the onset spreads as the band filter spreads
+  // it, and the envelope's spectrum stays within the filter's bandwidth. The
+  // convolution runs on a grid of half a period of the band's centre (at
+  // most a histogram bin), the amplitude linear between grid points.
+  const size_t width = std::max<size_t>(1, size_t(std::lround(mFs / kBandCentersHz[size_t(band)])));
+  const size_t q = std::max<size_t>(1, std::min(width / 2, size_t(binSamples)));
+  const size_t points = mLength / q + 2;  // grid point m at sample m q
+  std::vector<double> grid(points);
+  for (size_t m = 0; m < points; ++m) {
+    // The density between bin centres: sample i sits at (i + 0.5) / binSamples - 0.5 bins.
+    const double x = (double(m * q) + 0.5) / binSamples - 0.5;
+    const double j = std::floor(x);
+    const double frac = x - j;
+    grid[m] = std::max(0.0, (1.0 - frac) * densityAt(long(j)) + frac * densityAt(long(j) + 1));
+  }
+  const std::vector<double>& kernel = energyResponse(band, q);  // odd length, centred, sum 1
+  if (kernel.size() > 1) {
+    const size_t taps = kernel.size(), half = taps / 2;
+    std::vector<double> padded(points + 2 * half, 0.0);
+    std::copy(grid.begin(), grid.end(), padded.begin() + std::ptrdiff_t(half));
+    for (size_t m = 0; m < points; ++m) {
+      const double* x = padded.data() + m;  // the kernel is symmetric
+      double acc = 0.0;
+      for (size_t k = 0; k < taps; ++k) acc += x[k] * kernel[k];
+      grid[m] = acc;
     }
   }
-  return any;
-}
-
-void SpectralSynth::addBand(int band, const std::vector<float>& shaped, const GridFilter& h,
-                            std::complex<double>* spectrum) {
-  if (h.values) prepareGrid(h.gridSize);
-  kiss_fftr(mForward.get(), shaped.data(), mScratch.data());
-  const std::vector<float>& w = mSqrtWeights[band];  // the second sqrt(W_band)
-  for (size_t k = 0; k < mBins; ++k) {
-    if (w[k] == 0.0f) continue;
-    const std::complex<double> x(mScratch[k].r, mScratch[k].i);
-    if (h.values)
-      spectrum[k] += double(w[k]) * filterAt(h, k) * x;
-    else
-      spectrum[k] += double(w[k]) * x;
+  std::vector<float> amp(points);
+  for (size_t m = 0; m < points; ++m) amp[m] = float(std::sqrt(std::max(0.0, grid[m])));
+  const float invQ = 1.0f / float(q);
+  for (size_t m = 0; m * q < mLength; ++m) {
+    const float a0 = amp[m], step = (amp[m + 1] - a0) * invQ;
+    const size_t end = std::min(mLength, (m + 1) * q);
+    for (size_t i = m * q, k = 0; i < end; ++i, ++k) env[i] = a0 + step * float(k);
   }
+  return true;
 }
 
-void SpectralSynth::inverse(std::vector<std::complex<double>>& spectrum, std::vector<float>& out) {
-  for (size_t k = 0; k < mBins; ++k) mScratch[k] = {float(spectrum[k].real()), float(spectrum[k].imag())};
+void SpectralSynth::addEnvelopedNoise(const std::vector<float>& noise, size_t offset, const std::vector<float>& env,
+                                      float* out) const {
+  const size_t period = noise.size();
+  if (period == 0) return;
+  offset %= period;
+  // Two runs: up to the noise's wrap, then from its start (length <= period).
+  const size_t first = std::min(mLength, period - offset);
+  const float* n = noise.data() + offset;
+  for (size_t i = 0; i < first; ++i) out[i] += n[i] * env[i];
+  for (size_t i = first; i < mLength; ++i) out[i] += noise[i - first] * env[i];
+}
+
+std::shared_ptr<const std::vector<std::vector<float>>> SpectralSynth::finishedBandNoise(uint64_t seed,
+                                                                                     uint64_t stream,
+                                                                                     const GridFilter& h,
+                                                                                     uint64_t filterKey) const {
+  using Bands = std::vector<std::vector<float>>;
+  const auto levelled = levelledBandNoise(seed, stream);
+  const size_t n = (*levelled)[0].size();
+  struct Cached {
+    uint64_t seed = 0, stream = 0, filterKey = 0;
+    size_t n = 0;
+    double fs = 0;
+    std::shared_ptr<const Bands> bands;
+  };
+  static std::mutex mutex;
+  static std::vector<Cached> cache;
+  {
+    std::lock_guard<std::mutex> lock(mutex);
+    for (const Cached& c : cache)
+      if (c.seed == seed && c.stream == stream && c.filterKey == filterKey && c.n == n && c.fs == mFs) return c.bands;
+  }
+  FftrPtr forward(kiss_fftr_alloc(int(n), 0, nullptr, nullptr)), inverse(kiss_fftr_alloc(int(n), 1, nullptr, nullptr));
+  auto bands = std::make_shared<Bands>(kNumBands, std::vector<float>(n, 0.0f));
+  if (!forward || !inverse) return bands;  // allocation failed: silence rather than a crash
+  const size_t bins = n / 2 + 1;
+  // The second sqrt(W_band) and h on this period's bins (h linear between
+  // its grid points, as filterAt).
+  std::vector<BandArrayD> weights(bins);
+  std::vector<std::complex<double>> filter(h.values ? bins : 0);
+  for (size_t k = 0; k < bins; ++k) {
+    weights[k] = noiseBandWeights(double(k) * mFs / double(n));
+    if (h.values) {
+      const size_t last = h.gridSize / 2;
+      const double pos = double(k) * double(h.gridSize) / double(n);
+      const size_t i0 = std::min(size_t(pos), last);
+      const size_t i = i0 == last ? last - 1 : i0;
+      const double f = i0 == last ? 1.0 : pos - double(i0);
+      filter[k] = std::complex<double>(h.values[i]) * (1.0 - f) + std::complex<double>(h.values[i + 1]) * f;
+    }
+  }
+  std::vector<kiss_fft_cpx> spectrum(bins);
+  std::vector<float> time(n);
+  const double scale = 1.0 / double(n);  // KissFFT's inverse is unnormalised
+  for (int b = 0; b < kNumBands; ++b) {
+    kiss_fftr(forward.get(), (*levelled)[size_t(b)].data(), spectrum.data());
+    for (size_t k = 0; k < bins; ++k) {
+      std::complex<double> g(std::sqrt(std::max(0.0, weights[k][b])) * scale, 0.0);
+      if (h.values) g *= filter[k];
+      const std::complex<double> x = std::complex<double>(spectrum[k].r, spectrum[k].i) * g;
+      spectrum[k] = {float(x.real()), float(x.imag())};
+    }
+    if (n % 2 == 0) spectrum[bins - 1].i = 0.0f;
+    kiss_fftri(inverse.get(), spectrum.data(), (*bands)[size_t(b)].data());
+  }
+  std::lock_guard<std::mutex> lock(mutex);
+  cache.insert(cache.begin(), Cached{seed, stream, filterKey, n, mFs, bands});
+  constexpr size_t kMaxCachedBytes = size_t(96) << 20;
+  size_t bytes = 0;
+  for (size_t i = 0; i < cache.size(); ++i) {
+    bytes += cache[i].n * kNumBands * sizeof(float);
+    if (i > 0 && (bytes > kMaxCachedBytes || i >= 12)) {
+      cache.resize(i);
+      break;
+    }
+  }
+  return bands;
+}
+
+void SpectralSynth::inverse(const Spectrum& spectrum, std::vector<float>& out) {
+  for (size_t k = 0; k < mBins; ++k) mScratch[k] = {spectrum.re[k], spectrum.im[k]};
   std::vector<float> time(mN);
   kiss_fftri(mInverse.get(), mScratch.data(), time.data());
-  out.resize(mLength);
+  out.assign(mLength, 0.0f);
   const float scale = 1.0f / float(mN);  // KissFFT's inverse is unnormalised
-  for (size_t i = 0; i < mLength; ++i) out[i] = time[i] * scale;
+  for (size_t i = 0; i < mKeep; ++i) out[i] = time[i] * scale;
 }
 
 }  // namespace earshot::detail

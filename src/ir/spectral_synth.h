@@ -1,12 +1,15 @@
 #pragma once
-// Internal: the frequency-domain synthesis shared by the omnidirectional and
-// the binaural IR (ir_synthesis.cpp, binaural_synthesis.cpp). One FFT frame
-// of n samples holds the IR plus a margin; discrete arrivals are added as
-// exact fractional delays, late reflections as band-shaped noise, each
-// optionally through a filter given on a coarse frequency grid (an HRTF or a
-// diffuse-field filter) and interpolated to the frame's bins. With no filter
-// the arithmetic is exactly the omnidirectional synthesis, so an identity
-// HRTF gives the omni IR in both ears.
+// Internal: the synthesis shared by the omnidirectional and the binaural IR
+// (ir_synthesis.cpp, binaural_synthesis.cpp). Discrete arrivals are added as
+// exact fractional delays in one FFT frame that covers them (not the whole
+// IR: the early part plus margins), optionally through a filter given on a
+// coarse frequency grid (an HRTF) interpolated to the frame's bins. Late
+// reflections are made in the time domain: per band, a periodic noise that
+// has been through its band filters and the channel's filter once per
+// (seed, filter) and cached (finishedBandNoise), times the square root of the
+// histogram's energy density (bandEnvelope, addEnvelopedNoise). With no filter the arithmetic
+// is exactly the omnidirectional synthesis, so an identity HRTF gives the
+// omni IR in both ears.
 #include <kiss_fftr.h>
 
 #include <complex>
@@ -31,10 +34,17 @@ struct GridFilter {
   size_t gridSize = 0;
 };
 
+/** A real signal's spectrum (bins 0 .. n / 2), real and imaginary parts apart. */
+struct Spectrum {
+  std::vector<float> re, im;
+};
+
 class SpectralSynth {
  public:
-  /** Plans an IR of `length` samples at `fs`; fails on FFT allocation. */
-  static Result<SpectralSynth> create(size_t length, double fs);
+  /** Plans an IR of `length` samples at `fs` whose arrivals all lie before
+   *  sample `arrivalsEnd` (their filters' onset and length included); fails
+   *  on FFT allocation. */
+  static Result<SpectralSynth> create(size_t length, double fs, size_t arrivalsEnd);
   /** Validates the settings and arrivals (finite, delay >= 0) and plans the
    *  IR of irLengthSamples() samples (at most kMaxIrSamples). */
   static Result<SpectralSynth> plan(const std::vector<Arrival>& arrivals, const EnergyHistogram* reflections,
@@ -42,10 +52,12 @@ class SpectralSynth {
 
   size_t length() const { return mLength; }
   size_t bins() const { return mBins; }
+  /** Samples of the arrivals' frame that reach the IR (from 0). */
+  size_t arrivalSamples() const { return mKeep; }
 
   /** spectrum += gain * G_a(f) * H(f) * exp(-j 2 pi f delay), where G_a is the
    *  arrival's band gains through the complementary band weights. */
-  void addArrival(const Arrival& a, double delaySeconds, const GridFilter& h, std::complex<double>* spectrum);
+  void addArrival(const Arrival& a, double delaySeconds, const GridFilter& h, Spectrum& spectrum);
 
   /** Per band, white noise of (seed, stream) through sqrt(W_band), with its
    *  slow fluctuations of level taken out: divided by its RMS over a moving
@@ -54,49 +66,59 @@ class SpectralSynth {
    *  first 10 dB of a 1 s decay an octave band holds only B x 0.17 s degrees
    *  of freedom: EDT scattered by 2 JND at 250 Hz between seeds); levelled,
    *  the band carries the histogram's envelope much more closely, while its
-   *  fine structure stays noise. Pass a band's noise to shapeBand and the
-   *  result to addBand (whose second sqrt(W_band) completes
-   *  W_band). At least length() samples per band; made for the
+   *  fine structure stays noise. finishedBandNoise applies the second
+   *  sqrt(W_band) (completing W_band). At least length() samples per band; made for the
    *  power of two at or above length() and shared by every IR of that size
    *  class (the last few (seed, stream, size class) are cached: at most 6, 32 MB). */
   std::shared_ptr<const std::vector<std::vector<float>>> levelledBandNoise(uint64_t seed, uint64_t stream) const;
 
-  /** shaped[i] = noise[(i + offset) mod noise.size()] * sqrt(density_band(i)
-   *  * gain(bin of i)), the density the histogram's energy per sample,
-   *  linear between bin centres; gainPerHistogramBin may be null (1). The
-   *  noise is periodic (levelledBandNoise), so any offset reads a stationary
-   *  stretch of it. Returns false if all zero. */
-  bool shapeBand(const std::vector<float>& noise, size_t offset, const EnergyHistogram& h, int band,
-                 const float* gainPerHistogramBin, std::vector<float>& shaped) const;
+  /** The band's amplitude envelope over the IR's length() samples: the
+   *  square root of the histogram's energy per sample (times
+   *  gainPerHistogramBin, which may be null), linear between bin centres and
+   *  smoothed as energy over ~3 periods of the band's centre (the .cpp says
+   *  why). Returns false if all zero. */
+  bool bandEnvelope(const EnergyHistogram& h, int band, const float* gainPerHistogramBin, std::vector<float>& env) const;
 
-  /** spectrum += sqrt(W_band(f)) * H(f) * FFT(shaped): shaped is a band's
-   *  levelledBandNoise (through sqrt(W_band) already) after shapeBand, n
-   *  samples (the tail beyond length() zero). */
-  void addBand(int band, const std::vector<float>& shaped, const GridFilter& h, std::complex<double>* spectrum);
+  /** Per band, levelledBandNoise(seed, stream) through the second
+   *  sqrt(W_band) and the filter h, circularly (still periodic and
+   *  stationary). `filterKey` names h for the cache (0: the identity; a
+   *  model's filters: BinauralModel::id() with the filter's index), so each
+   *  (seed, stream, size class, filter) is filtered once per process; at most
+   *  12 kept, 96 MB. */
+  std::shared_ptr<const std::vector<std::vector<float>>> finishedBandNoise(uint64_t seed, uint64_t stream,
+                                                                           const GridFilter& h,
+                                                                           uint64_t filterKey) const;
+
+  /** out[i] += noise[(i + offset) mod noise.size()] * env[i] for i < length():
+   *  a finishedBandNoise band under its bandEnvelope, added into the IR. The
+   *  noise is periodic, so any offset reads a stationary stretch of it. */
+  void addEnvelopedNoise(const std::vector<float>& noise, size_t offset, const std::vector<float>& env,
+                         float* out) const;
 
   /** A zeroed spectrum of bins() values. */
-  std::vector<std::complex<double>> emptySpectrum() const { return std::vector<std::complex<double>>(mBins, 0.0); }
+  Spectrum emptySpectrum() const { return Spectrum{std::vector<float>(mBins, 0.0f), std::vector<float>(mBins, 0.0f)}; }
 
-  /** The first length() samples of the inverse transform of `spectrum`. */
-  void inverse(std::vector<std::complex<double>>& spectrum, std::vector<float>& out);
+  /** The IR's length() samples: the inverse transform of `spectrum` over
+   *  arrivalSamples(), zero after. */
+  void inverse(const Spectrum& spectrum, std::vector<float>& out);
 
-  /** Buffer for shapeBand (n samples). */
-  std::vector<float> shapedBuffer() const { return std::vector<float>(mN, 0.0f); }
 
  private:
-  std::complex<double> filterAt(const GridFilter& h, size_t k) const;
   void prepareGrid(size_t gridSize);  // bin -> grid position table for one grid size
 
+  // |f_b(t)|^2 of band b's noise filter sqrt(W_b) in cells of q samples,
+  // centred, normalised (cached per band, q and rate).
+  const std::vector<double>& energyResponse(int band, size_t q) const;
+
   double mFs = 48000.0;
-  size_t mLength = 0, mN = 0, mBins = 0;
-  FftrPtr mForward, mInverse;
-  std::vector<std::vector<float>> mSqrtWeights;  // [band][bin]: sqrt of the complementary band weights
+  size_t mLength = 0, mN = 0, mBins = 0, mKeep = 0;
+  std::shared_ptr<std::remove_pointer_t<kiss_fftr_cfg>> mInverse;  // this thread's plan for mN (inversePlan)
   std::vector<uint8_t> mLowerBand;           // per bin: the lower of the (at most two) non-zero bands
-  std::vector<double> mLowerWeight;
+  std::vector<float> mLowerWeight;
   std::vector<kiss_fft_cpx> mScratch;
   size_t mGridSize = 0;
   std::vector<uint32_t> mGridIndex;  // per bin: the grid point below
-  std::vector<double> mGridFrac;     // per bin: position between it and the next
+  std::vector<float> mGridFrac;      // per bin: position between it and the next
 };
 
 /** The offset into a noise of `period` samples that IrSynthesisSettings'
@@ -115,6 +137,10 @@ constexpr uint64_t kLateNoiseStreamIndependent = 0x5A6B7C8DULL;
 /** Window of levelledBandNoise: periods of the band's width (an octave band
  *  at f is 0.71 f wide): 45 ms at 125 Hz, 5.6 ms at 1 kHz. */
 constexpr double kLevelWindowCycles = 4.0;
+
+/** What an arrival's filter may add to its delay in the arrivals' frame: an
+ *  HRIR's onset and length (20 ms: 960 taps at 48 kHz). */
+constexpr double kArrivalSlackSeconds = 0.02;
 
 /** IRs longer than this are refused (10 minutes at 48 kHz). */
 constexpr size_t kMaxIrSamples = size_t(48000) * 600;

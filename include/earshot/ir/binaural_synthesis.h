@@ -69,6 +69,9 @@ class BinauralModel {
    *  measurements). Any thread but the audio thread. */
   static Result<std::shared_ptr<const BinauralModel>> create(std::shared_ptr<const hrtf::HrtfSet> hrtf);
 
+  /** Unique per model made in this process (never reused): a key for
+   *  caches of what is derived from the model's filters. */
+  uint64_t id() const { return mId; }
   const hrtf::HrtfSet& hrtf() const { return *mHrtf; }
   const std::shared_ptr<const hrtf::HrtfSet>& hrtfPtr() const { return mHrtf; }
   double sampleRateHz() const { return mHrtf->sampleRateHz(); }
@@ -108,6 +111,7 @@ class BinauralModel {
   // hrtfSpectrum with caller-owned scratch (an internal workspace type).
   double spectrumInto(const Vec3f& headDirection, int ear, void* workspace, std::complex<float>* out) const;
   std::shared_ptr<const hrtf::HrtfSet> mHrtf;
+  uint64_t mId = 0;
   size_t mGridSize = 0;
   std::vector<std::complex<float>> mLeft, mRightU, mRightV;
   std::array<std::vector<double>, 2> mPower;
