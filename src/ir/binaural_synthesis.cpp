@@ -291,8 +291,9 @@ Result<AudioBuffer> synthesizeBinauralIr(const std::vector<Arrival>& arrivals, c
     const detail::GridFilter left{model.left().data(), grid}, rightU{model.rightCoherent().data(), grid},
         rightV{model.rightIndependent().data(), grid};
     const uint64_t key = model.id() * 4;
-    const auto l = plan.finishedBandNoise(settings.seed, detail::kLateNoiseStream, left, key + 1);
-    const auto ru = plan.finishedBandNoise(settings.seed, detail::kLateNoiseStream, rightU, key + 2);
+    const auto lr = plan.finishedBandNoises(settings.seed, detail::kLateNoiseStream, {{left, key + 1}, {rightU, key + 2}});
+    const auto& l = lr[0];
+    const auto& ru = lr[1];
     const auto rv = independent
                         ? plan.finishedBandNoise(settings.seed, detail::kLateNoiseStreamIndependent, rightV, key + 3)
                         : nullptr;

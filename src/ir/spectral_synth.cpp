@@ -3,9 +3,11 @@
 #include "spectral_synth.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <mutex>
 #include <string>
+#include <tuple>
 
 #include "earshot/core/math.h"
 #include "earshot/core/random.h"
@@ -34,19 +36,41 @@ namespace {
 // Inverse real FFT plans by size, per thread (a KissFFT plan holds scratch:
 // one thread at a time), the last few kept: making one costs a sincos per
 // bin, a large part of a short IR's synthesis.
-std::shared_ptr<std::remove_pointer_t<kiss_fftr_cfg>> inversePlan(size_t n) {
-  using Plan = std::shared_ptr<std::remove_pointer_t<kiss_fftr_cfg>>;
-  thread_local std::vector<std::pair<size_t, Plan>> plans;  // most recent first
+using Plan = std::shared_ptr<std::remove_pointer_t<kiss_fftr_cfg>>;
+Plan realPlan(size_t n, bool inverse) {
+  thread_local std::vector<std::pair<size_t, Plan>> plans;  // most recent first; key 2n + inverse
+  const size_t key = 2 * n + (inverse ? 1 : 0);
   for (size_t i = 0; i < plans.size(); ++i)
-    if (plans[i].first == n) {
+    if (plans[i].first == key) {
       std::rotate(plans.begin(), plans.begin() + std::ptrdiff_t(i), plans.begin() + std::ptrdiff_t(i) + 1);
       return plans[0].second;
     }
-  Plan plan(kiss_fftr_alloc(int(n), 1, nullptr, nullptr), FftrDeleter());
+  Plan plan(kiss_fftr_alloc(int(n), inverse ? 1 : 0, nullptr, nullptr), FftrDeleter());
   if (!plan) return plan;
-  plans.insert(plans.begin(), {n, plan});
-  if (plans.size() > 4) plans.pop_back();
+  plans.insert(plans.begin(), {key, plan});
+  if (plans.size() > 6) plans.pop_back();
   return plan;
+}
+Plan inversePlan(size_t n) { return realPlan(n, true); }
+
+// sqrt(W_b) of the noise band weights on the bins of an n-point real FFT
+// (n / 2 + 1 rows), made once per (n, rate): noiseBandWeights costs a few
+// logs and sines per bin.
+std::shared_ptr<const std::vector<std::array<float, kNumBands>>> sqrtNoiseWeights(size_t n, double fs) {
+  using Table = std::vector<std::array<float, kNumBands>>;
+  static std::mutex mutex;
+  static std::vector<std::tuple<size_t, double, std::shared_ptr<const Table>>> tables;
+  std::lock_guard<std::mutex> lock(mutex);
+  for (const auto& [tn, tfs, t] : tables)
+    if (tn == n && tfs == fs) return t;
+  auto t = std::make_shared<Table>(n / 2 + 1);
+  for (size_t k = 0; k <= n / 2; ++k) {
+    const BandArrayD w = noiseBandWeights(double(k) * fs / double(n));
+    for (int b = 0; b < kNumBands; ++b) (*t)[k][size_t(b)] = float(std::sqrt(std::max(0.0, w[size_t(b)])));
+  }
+  tables.emplace_back(n, fs, t);
+  if (tables.size() > 8) tables.erase(tables.begin());
+  return t;
 }
 }  // namespace
 
@@ -206,22 +230,21 @@ std::shared_ptr<const std::vector<std::vector<float>>> SpectralSynth::levelledBa
     for (const Cached& c : cache)
       if (c.seed == seed && c.stream == stream && c.n == n && c.fs == mFs) return c.bands;
   }
-  FftrPtr forward(kiss_fftr_alloc(int(n), 0, nullptr, nullptr)), inverse(kiss_fftr_alloc(int(n), 1, nullptr, nullptr));
+  const Plan forward = realPlan(n, false), inverse = realPlan(n, true);
   auto bands = std::make_shared<Bands>(kNumBands, std::vector<float>(n, 0.0f));
   if (!forward || !inverse) return bands;  // allocation failed: silence rather than a crash
   const size_t bins = n / 2 + 1;
   std::vector<float> white = whiteNoise(seed, stream, n), time(n);
   std::vector<kiss_fft_cpx> spectrum(bins), filtered(bins);
   kiss_fftr(forward.get(), white.data(), spectrum.data());
-  std::vector<BandArrayD> weights(bins);
-  for (size_t k = 0; k < bins; ++k) weights[k] = noiseBandWeights(double(k) * mFs / double(n));
+  const auto weights = sqrtNoiseWeights(n, mFs);
   std::vector<double> prefix(n + 1);
   for (int b = 0; b < kNumBands; ++b) {
     // Through sqrt(W); white noise keeps the mean of W over the circle.
     double power = 0;
     for (size_t k = 0; k < bins; ++k) {
-      const double w = std::max(0.0, weights[k][b]);
-      const float g = float(std::sqrt(w));
+      const float g = (*weights)[k][size_t(b)];
+      const double w = double(g) * double(g);
       filtered[k] = {spectrum[k].r * g, spectrum[k].i * g};
       power += (k == 0 || k == bins - 1) ? w : 2.0 * w;
     }
@@ -275,14 +298,15 @@ const std::vector<double>& SpectralSynth::energyResponse(int band, size_t q) con
     if (c->band == band && c->q == q && c->fs == mFs) return c->kernel;
   // |f_b(t)|^2 from sqrt(W_b) on a 2^16-point grid (1.4 s at 48 kHz: far
   // longer than any band filter's response), summed into cells of q
-  // samples centred on t = 0, cut where below 1e-7 of the whole, normalised.
+  // samples centred on t = 0, cut where a cell holds under 1e-5 of the
+  // whole (-50 dB), normalised.
   constexpr size_t n = size_t(1) << 16;
   FftrPtr inverse(kiss_fftr_alloc(int(n), 1, nullptr, nullptr));
   auto c = std::make_unique<Cached>(Cached{band, q, mFs, {1.0}});
   if (inverse) {
     std::vector<kiss_fft_cpx> spectrum(n / 2 + 1);
-    for (size_t k = 0; k <= n / 2; ++k)
-      spectrum[k] = {float(std::sqrt(std::max(0.0, noiseBandWeights(double(k) * mFs / double(n))[size_t(band)]))), 0.0f};
+    const auto weights = sqrtNoiseWeights(n, mFs);
+    for (size_t k = 0; k <= n / 2; ++k) spectrum[k] = {(*weights)[k][size_t(band)], 0.0f};
     std::vector<float> f(n);
     kiss_fftri(inverse.get(), spectrum.data(), f.data());
     const long cells = long(n / q / 2) - 1;
@@ -399,9 +423,12 @@ std::shared_ptr<const std::vector<std::vector<float>>> SpectralSynth::finishedBa
                                                                                      uint64_t stream,
                                                                                      const GridFilter& h,
                                                                                      uint64_t filterKey) const {
+  return finishedBandNoises(seed, stream, {{h, filterKey}})[0];
+}
+
+std::vector<std::shared_ptr<const std::vector<std::vector<float>>>> SpectralSynth::finishedBandNoises(
+    uint64_t seed, uint64_t stream, const std::vector<std::pair<GridFilter, uint64_t>>& filters) const {
   using Bands = std::vector<std::vector<float>>;
-  const auto levelled = levelledBandNoise(seed, stream);
-  const size_t n = (*levelled)[0].size();
   struct Cached {
     uint64_t seed = 0, stream = 0, filterKey = 0;
     size_t n = 0;
@@ -410,46 +437,66 @@ std::shared_ptr<const std::vector<std::vector<float>>> SpectralSynth::finishedBa
   };
   static std::mutex mutex;
   static std::vector<Cached> cache;
+  size_t n = 1024;  // levelledBandNoise's period
+  while (n < mLength) n *= 2;
+  std::vector<std::shared_ptr<const Bands>> out(filters.size());
+  std::vector<size_t> missing;
   {
     std::lock_guard<std::mutex> lock(mutex);
-    for (const Cached& c : cache)
-      if (c.seed == seed && c.stream == stream && c.filterKey == filterKey && c.n == n && c.fs == mFs) return c.bands;
+    for (size_t f = 0; f < filters.size(); ++f) {
+      for (const Cached& c : cache)
+        if (c.seed == seed && c.stream == stream && c.filterKey == filters[f].second && c.n == n && c.fs == mFs) {
+          out[f] = c.bands;
+          break;
+        }
+      if (!out[f]) missing.push_back(f);
+    }
   }
-  FftrPtr forward(kiss_fftr_alloc(int(n), 0, nullptr, nullptr)), inverse(kiss_fftr_alloc(int(n), 1, nullptr, nullptr));
-  auto bands = std::make_shared<Bands>(kNumBands, std::vector<float>(n, 0.0f));
-  if (!forward || !inverse) return bands;  // allocation failed: silence rather than a crash
-  const size_t bins = n / 2 + 1;
-  // The second sqrt(W_band) and h on this period's bins (h linear between
-  // its grid points, as filterAt).
-  std::vector<BandArrayD> weights(bins);
-  std::vector<std::complex<double>> filter(h.values ? bins : 0);
-  for (size_t k = 0; k < bins; ++k) {
-    weights[k] = noiseBandWeights(double(k) * mFs / double(n));
-    if (h.values) {
+  if (missing.empty()) return out;
+  const auto levelled = levelledBandNoise(seed, stream);
+  const Plan forward = realPlan(n, false), inverse = realPlan(n, true);
+  std::vector<std::shared_ptr<Bands>> made;
+  for (size_t k = 0; k < missing.size(); ++k) made.push_back(std::make_shared<Bands>(kNumBands, std::vector<float>(n, 0.0f)));
+  if (forward && inverse) {  // else (allocation failed): silence rather than a crash
+    const size_t bins = n / 2 + 1;
+    // The second sqrt(W_band) and each h on this period's bins (h linear
+    // between its grid points); one forward FFT per band serves every filter.
+    const auto weights = sqrtNoiseWeights(n, mFs);
+    std::vector<std::vector<std::complex<float>>> response(missing.size());
+    for (size_t f = 0; f < missing.size(); ++f) {
+      const GridFilter& h = filters[missing[f]].first;
+      if (!h.values) continue;
+      response[f].resize(bins);
       const size_t last = h.gridSize / 2;
-      const double pos = double(k) * double(h.gridSize) / double(n);
-      const size_t i0 = std::min(size_t(pos), last);
-      const size_t i = i0 == last ? last - 1 : i0;
-      const double f = i0 == last ? 1.0 : pos - double(i0);
-      filter[k] = std::complex<double>(h.values[i]) * (1.0 - f) + std::complex<double>(h.values[i + 1]) * f;
+      for (size_t k = 0; k < bins; ++k) {
+        const double pos = double(k) * double(h.gridSize) / double(n);
+        const size_t i0 = std::min(size_t(pos), last);
+        const size_t i = i0 == last ? last - 1 : i0;
+        const float fr = i0 == last ? 1.0f : float(pos - double(i0));
+        response[f][k] = h.values[i] * (1.0f - fr) + h.values[i + 1] * fr;
+      }
     }
-  }
-  std::vector<kiss_fft_cpx> spectrum(bins);
-  std::vector<float> time(n);
-  const double scale = 1.0 / double(n);  // KissFFT's inverse is unnormalised
-  for (int b = 0; b < kNumBands; ++b) {
-    kiss_fftr(forward.get(), (*levelled)[size_t(b)].data(), spectrum.data());
-    for (size_t k = 0; k < bins; ++k) {
-      std::complex<double> g(std::sqrt(std::max(0.0, weights[k][b])) * scale, 0.0);
-      if (h.values) g *= filter[k];
-      const std::complex<double> x = std::complex<double>(spectrum[k].r, spectrum[k].i) * g;
-      spectrum[k] = {float(x.real()), float(x.imag())};
+    std::vector<kiss_fft_cpx> spectrum(bins), filtered(bins);
+    const float scale = 1.0f / float(n);  // KissFFT's inverse is unnormalised
+    for (int b = 0; b < kNumBands; ++b) {
+      kiss_fftr(forward.get(), (*levelled)[size_t(b)].data(), spectrum.data());
+      for (size_t f = 0; f < missing.size(); ++f) {
+        for (size_t k = 0; k < bins; ++k) {
+          const float g = (*weights)[k][size_t(b)] * scale;
+          std::complex<float> x(spectrum[k].r * g, spectrum[k].i * g);
+          if (!response[f].empty()) x *= response[f][k];
+          filtered[k] = {x.real(), x.imag()};
+        }
+        if (n % 2 == 0) filtered[bins - 1].i = 0.0f;
+        kiss_fftri(inverse.get(), filtered.data(), (*made[f])[size_t(b)].data());
+      }
     }
-    if (n % 2 == 0) spectrum[bins - 1].i = 0.0f;
-    kiss_fftri(inverse.get(), spectrum.data(), (*bands)[size_t(b)].data());
   }
   std::lock_guard<std::mutex> lock(mutex);
-  cache.insert(cache.begin(), Cached{seed, stream, filterKey, n, mFs, bands});
+  for (size_t f = 0; f < missing.size(); ++f) {
+    out[missing[f]] = made[f];
+    cache.insert(cache.begin(), Cached{seed, stream, filters[missing[f]].second, n, mFs, made[f]});
+  }
   constexpr size_t kMaxCachedBytes = size_t(96) << 20;
   size_t bytes = 0;
   for (size_t i = 0; i < cache.size(); ++i) {
@@ -459,7 +506,7 @@ std::shared_ptr<const std::vector<std::vector<float>>> SpectralSynth::finishedBa
       break;
     }
   }
-  return bands;
+  return out;
 }
 
 void SpectralSynth::inverse(const Spectrum& spectrum, std::vector<float>& out) {

@@ -89,6 +89,11 @@ class SpectralSynth {
                                                                            const GridFilter& h,
                                                                            uint64_t filterKey) const;
 
+  /** finishedBandNoise for several (filter, key) at once: the levelled
+   *  noise's band spectra are computed once for all of them. */
+  std::vector<std::shared_ptr<const std::vector<std::vector<float>>>> finishedBandNoises(
+      uint64_t seed, uint64_t stream, const std::vector<std::pair<GridFilter, uint64_t>>& filters) const;
+
   /** out[i] += noise[(i + offset) mod noise.size()] * env[i] for i < length():
    *  a finishedBandNoise band under its bandEnvelope, added into the IR. The
    *  noise is periodic, so any offset reads a stationary stretch of it. */
