@@ -162,7 +162,7 @@ typedef struct earshot_context_settings {
   uint32_t rays;               /**< rays traced per source and simulation, [1, 100000000]; default 16384 */
   uint32_t bounces;            /**< reflections per ray, [0, 100000]; default 12 */
   uint32_t image_source_order; /**< order of exact early reflections, [0, 4]; default 3 */
-  uint32_t threads;            /**< simulation worker threads, [0, 256], 0 = all cores; default 0 */
+  uint32_t threads;            /**< simulation threads, [0, 256], 0 = the cores less one (the audio thread's); default 0. They run at a lower priority (nice + 5 on Linux), the built-in simulation thread too */
   uint64_t seed;               /**< random seed of the ray tracer; default 1 */
   double max_distance_meters;  /**< farthest source heard directly (delay line size), (0, 20000]; default 343 */
   /** SOFA HRTF file (UTF-8 path, copied), resampled to sample_rate_hz; NULL or
@@ -599,6 +599,10 @@ typedef struct earshot_ir_info {
   double sample_rate_hz;    /**< the context's rate */
   uint32_t includes_direct; /**< 1 if the direct sound is in the IR */
   uint64_t simulation;      /**< a source's IR: its number (1 = the source's first); 0 for a computed IR */
+  /** A source's IR: seconds from when the simulation read the poses it
+   *  was computed from to this call (how far behind the scene its
+   *  reflections are); 0 for a computed IR. */
+  double age_seconds;
 } earshot_ir_info;
 
 /** The IR the source's last simulation made and its reflections are being

@@ -3,6 +3,7 @@
 // the user's allocator, error reporting (last error, log callback) and the
 // exception barrier. Private to src/capi.
 #include <atomic>
+#include <chrono>
 #include <condition_variable>
 #include <cstdint>
 #include <cstring>
@@ -222,6 +223,7 @@ struct earshot_ir : earshot::capi::Object {
   std::shared_ptr<const earshot::AudioBuffer> ir;  // never modified
   bool includesDirect = false;
   uint64_t simulation = 0;
+  std::chrono::steady_clock::time_point posed{};  // a source's IR: when its poses were read
 };
 
 namespace earshot::capi {

@@ -10,6 +10,7 @@
 #include <string>
 
 #include "capi_internal.h"
+#include "earshot/core/thread_pool.h"
 #include "earshot/hrtf/hrtf_set.h"
 #include "earshot/ir/binaural_synthesis.h"
 #include "earshot/propagation/image_sources.h"
@@ -106,6 +107,7 @@ Status step(earshot_context* c, uint32_t count) {
 }
 
 void simulationLoop(earshot_context* c, double rateHz, uint32_t count) {
+  lowerThisThreadsPriority(runtime::EngineSettings{}.workerNice);  // below the audio thread, as the workers
   using Clock = std::chrono::steady_clock;
   const auto period = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(1.0 / rateHz));
   auto next = Clock::now();

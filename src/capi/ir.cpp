@@ -35,6 +35,7 @@ earshot_status earshot_source_get_ir(earshot_source* s, earshot_ir** out) {
     ir->ir = std::move(latest.ir);
     ir->includesDirect = latest.includesDirect;
     ir->simulation = latest.simulations;
+    ir->posed = latest.posed;
     *out = ir;
     return EARSHOT_OK;
   });
@@ -126,6 +127,10 @@ earshot_status earshot_ir_get_info(const earshot_ir* ir, earshot_ir_info* info) 
     info->sample_rate_hz = ir->ir->sampleRateHz;
     info->includes_direct = ir->includesDirect ? 1u : 0u;
     info->simulation = ir->simulation;
+    info->age_seconds =
+        ir->simulation > 0
+            ? std::chrono::duration<double>(std::chrono::steady_clock::now() - ir->posed).count()
+            : 0.0;
     return EARSHOT_OK;
   });
 }

@@ -1,14 +1,34 @@
 #include "earshot/core/thread_pool.h"
 
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
 
 #include "earshot/core/denormals.h"
 
 namespace earshot {
 
-ThreadPool::ThreadPool(unsigned threads) {
+void lowerThisThreadsPriority(int niceIncrement) {
+  if (niceIncrement <= 0) return;
+#if defined(__linux__)
+  // Linux keeps a nice value per thread (PRIO_PROCESS with a thread id).
+  const id_t tid = id_t(::syscall(SYS_gettid));
+  errno = 0;
+  const int now = ::getpriority(PRIO_PROCESS, tid);
+  if (errno == 0) (void)::setpriority(PRIO_PROCESS, tid, std::min(19, now + niceIncrement));
+#endif
+}
+
+ThreadPool::ThreadPool(unsigned threads, int niceIncrement) {
   if (threads == 0) threads = std::max(1u, std::thread::hardware_concurrency());
-  for (unsigned i = 1; i < threads; ++i) mWorkers.emplace_back([this, i] { workerLoop(i); });
+  for (unsigned i = 1; i < threads; ++i)
+    mWorkers.emplace_back([this, i, niceIncrement] {
+      lowerThisThreadsPriority(niceIncrement);
+      workerLoop(i);
+    });
 }
 
 ThreadPool::~ThreadPool() {

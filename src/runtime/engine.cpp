@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <thread>
 #include <cmath>
 #include <optional>
 #include <string>
@@ -59,7 +60,11 @@ struct Engine::Slot {
   double appliedGain = 1.0;            // audio thread: gain at the end of the last chunk
   double appliedReflectionsGain = 1.0; // audio thread: the reflections' gain at the end of the last chunk
   std::vector<float> scaled;           // audio thread: gained input for the mixer
+  // Poses of the last simulation (simulation thread only): how far the
+  // source and the listener moved since orders the next simulations.
+  Vec3d simulatedSource, simulatedListener;
   // The last IR posted (guarded by Engine::mIrMutex; never the audio thread).
+  std::chrono::steady_clock::time_point lastIrPosed{};
   std::shared_ptr<const AudioBuffer> lastIr;
   bool lastIrIncludesDirect = false;
   uint64_t irCount = 0;
@@ -330,7 +335,9 @@ Result<std::unique_ptr<Engine>> Engine::create(const EngineSettings& s, Binaural
   e->mEmptyTracer = std::move(empty.value());
   e->mTracer = e->mEmptyTracer;
   e->mMaterials = std::make_shared<const MaterialTable>();
-  e->mPool = std::make_unique<ThreadPool>(s.threads);
+  const unsigned threads = s.threads > 0 ? s.threads : std::max(2u, std::thread::hardware_concurrency()) - 1;
+  e->mSettings.threads = threads;
+  e->mPool = std::make_unique<ThreadPool>(threads, s.workerNice);
   for (unsigned w = 0; w < e->mPool->threadCount(); ++w) e->mWorkerPools.push_back(std::make_unique<ThreadPool>(1));
   e->mInputs.assign(s.maxSources, nullptr);
   return e;
@@ -430,6 +437,7 @@ SourceIr Engine::sourceIr(uint32_t source) const {
   out.ir = slot.lastIr;
   out.includesDirect = slot.lastIrIncludesDirect;
   out.simulations = slot.irCount;
+  out.posed = slot.lastIrPosed;
   return out;
 }
 
@@ -441,9 +449,22 @@ Status Engine::simulate(uint32_t count) {
     const uint32_t i = (mNextRoundRobin + k) % n;
     if (mSlots[i]->active.load()) order.push_back(i);
   }
-  // Higher priority first; round-robin order among equals.
+  // Higher priority first; then never simulated; then most changed since
+  // the last IR; round-robin order among equals (stable sort).
+  const Vec3d listenerNow{mListener[0].load(), mListener[1].load(), mListener[2].load()};
+  std::vector<double> changed(n, 0.0);
+  std::vector<char> fresh(n, 0);
+  for (uint32_t i : order) {
+    const Slot& slot = *mSlots[i];
+    fresh[i] = slot.simulatedGeneration.load() != slot.generation.load();
+    const Vec3d p{slot.position[0].load(), slot.position[1].load(), slot.position[2].load()};
+    changed[i] = length(p - slot.simulatedSource) + length(listenerNow - slot.simulatedListener);
+  }
   std::stable_sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) {
-    return mSlots[a]->priority.load() > mSlots[b]->priority.load();
+    const int pa = mSlots[a]->priority.load(), pb = mSlots[b]->priority.load();
+    if (pa != pb) return pa > pb;
+    if (fresh[a] != fresh[b]) return fresh[a] > fresh[b];
+    return changed[a] > changed[b];
   });
   if (count > 0 && count < order.size()) order.resize(count);
   if (!order.empty()) {
@@ -494,6 +515,8 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& order) {
     Slot& slot = *mSlots[i];
     Job j{i, slot.generation.load(), mSettings.simulation,
           {slot.position[0].load(), slot.position[1].load(), slot.position[2].load()}, std::nullopt};
+    slot.simulatedSource = j.source;
+    slot.simulatedListener = listener;
     j.settings.includeDirect = DirectMode(slot.direct.load()) == DirectMode::kInImpulseResponse;
     j.settings.directivity.alpha = slot.directivityAlpha.load();
     j.settings.directivity.sharpness = slot.directivitySharpness.load();
@@ -537,6 +560,7 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& order) {
       auto kept = std::make_shared<const AudioBuffer>(std::move(ir));
       std::lock_guard<std::mutex> lock(mIrMutex);
       if (slot.generation.load() == j.generation) {
+        slot.lastIrPosed = t0;  // the poses were read just after t0
         slot.lastIr = std::move(kept);
         slot.lastIrIncludesDirect = j.settings.includeDirect;
         ++slot.irCount;

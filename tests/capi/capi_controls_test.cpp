@@ -2,6 +2,8 @@
 // their formulas, gains scale what they name, occlusion modes differ as
 // documented, priority orders simulation; bad values are refused.
 #include <gtest/gtest.h>
+#include <chrono>
+#include <thread>
 
 #include <cmath>
 #include <vector>
@@ -229,6 +231,13 @@ TEST(CapiControls, PriorityOrdersSimulation) {
   info.struct_size = sizeof(info);
   ASSERT_EQ(earshot_ir_get_info(ir, &info), EARSHOT_OK);
   EXPECT_EQ(info.simulation, 3u);
+  // Its age: from the poses of its simulation to now, growing (issue 16).
+  EXPECT_GE(info.age_seconds, 0.0);
+  EXPECT_LT(info.age_seconds, 60.0);
+  const double first = info.age_seconds;
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  ASSERT_EQ(earshot_ir_get_info(ir, &info), EARSHOT_OK);
+  EXPECT_GE(info.age_seconds, first + 0.015);
   earshot_ir_release(ir);
   // Equal priorities: round robin.
   s.priority = 0;

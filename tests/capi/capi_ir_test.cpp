@@ -155,6 +155,10 @@ TEST(CapiIr, FreeFieldWithoutAScene) {
   req.receiver = EARSHOT_RECEIVER_OMNI;
   earshot_ir* ir = nullptr;
   ASSERT_EQ(earshot_context_compute_ir(c, &req, &ir), EARSHOT_OK) << earshot_last_error_message();
+  earshot_ir_info info;
+  info.struct_size = sizeof(info);
+  ASSERT_EQ(earshot_ir_get_info(ir, &info), EARSHOT_OK);
+  EXPECT_EQ(info.age_seconds, 0.0) << "a computed IR has no age";
   const earshot::AudioBuffer b = copyOut(ir);
   ASSERT_EQ(b.channelCount(), 1u);
   // The direct sound arrives at r/c (481.05 frames), and the whole IR is the CLI's.

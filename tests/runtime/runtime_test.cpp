@@ -1,6 +1,11 @@
 // The runtime (issue 6, 7): the direct voice (delay, Doppler, head rotation),
 // and the engine (exact static convolution, round-robin simulation, errors).
 #include <gtest/gtest.h>
+#include <chrono>
+#include <thread>
+#include <sstream>
+#include <fstream>
+#include <filesystem>
 
 #include <algorithm>
 #include <cmath>
@@ -334,5 +339,85 @@ TEST(Engine, BadArgumentsAreErrors) {
   EXPECT_FALSE(e.removeSource(*a).isOk()) << "removed twice";
   EXPECT_TRUE(e.addSource({}).isOk()) << "the slot is free again";
 }
+
+// Issue 16: sources whose geometry changed most since their IR are
+// simulated first (after priority and never-simulated ones), equal ones in
+// round robin; each IR carries when its poses were read.
+TEST(Engine, SourcesThatMovedMostAreSimulatedFirst) {
+  auto model = test::ku100();
+  ASSERT_TRUE(model);
+  test::Room room;
+  auto engine = Engine::create(test::fastSettings(), model);
+  ASSERT_TRUE(engine.isOk());
+  Engine& e = **engine;
+  e.setScene(room.tracer, room.materials);
+  std::vector<uint32_t> ids;
+  for (int i = 0; i < 3; ++i) {
+    auto id = e.addSource({});
+    ASSERT_TRUE(id.isOk());
+    ids.push_back(*id);
+    ASSERT_TRUE(e.setSourcePosition(*id, {2.0 + i, 3, 1.5}).isOk());
+  }
+  ASSERT_TRUE(e.simulate().isOk());
+  auto count = [&](int i) { return e.sourceIr(ids[size_t(i)]).simulations; };
+  for (int i = 0; i < 3; ++i) EXPECT_EQ(count(i), 1u);
+  const auto before = std::chrono::steady_clock::now();
+  ASSERT_TRUE(e.setSourcePosition(ids[2], {4.0, 5, 1.5}).isOk());   // moved 2 m
+  ASSERT_TRUE(e.setSourcePosition(ids[0], {2.0, 3.5, 1.5}).isOk());  // moved 0.5 m
+  ASSERT_TRUE(e.simulate(1).isOk());
+  EXPECT_EQ(count(2), 2u) << "the one that moved most first";
+  EXPECT_GE(e.sourceIr(ids[2]).posed, before);
+  EXPECT_LT(e.sourceIr(ids[1]).posed, before);
+  ASSERT_TRUE(e.simulate(1).isOk());
+  EXPECT_EQ(count(0), 2u) << "then the one that moved less";
+  // Nothing moved since: round robin, the one not yet taken this time first.
+  ASSERT_TRUE(e.simulate(1).isOk());
+  EXPECT_EQ(count(1), 2u);
+  // A listener move changes every source alike: still round robin.
+  ASSERT_TRUE(e.setListener({6, 3.5, 1.5}, {}).isOk());
+  for (int k = 0; k < 3; ++k) ASSERT_TRUE(e.simulate(1).isOk());
+  for (int i = 0; i < 3; ++i) EXPECT_EQ(count(i), 3u) << i;
+}
+
+#if defined(__linux__)
+// The simulation's worker threads run at a lower priority than the caller
+// (nice + workerNice), and threads = 0 leaves the audio thread a core.
+TEST(Engine, WorkersRunBelowTheAudioThread) {
+  auto model = test::ku100();
+  ASSERT_TRUE(model);
+  auto niceOf = [](const std::string& statPath) {
+    std::ifstream f(statPath);
+    std::string line;
+    std::getline(f, line);
+    // Fields after the command (which may hold spaces) start at the last ')'.
+    std::istringstream rest(line.substr(line.rfind(')') + 2));
+    std::string field;
+    for (int i = 3; i <= 19 && rest >> field; ++i)
+      if (i == 19) return std::stoi(field);
+    return 0;
+  };
+  const int mine = niceOf("/proc/thread-self/stat");
+  auto count = [&](int nice) {
+    int n = 0;
+    for (const auto& task : std::filesystem::directory_iterator("/proc/self/task"))
+      n += niceOf(task.path().string() + "/stat") == nice;
+    return n;
+  };
+  const int before = count(std::min(19, mine + 5));
+  EngineSettings s = test::fastSettings();
+  s.threads = 3;  // the caller and two workers
+  auto engine = Engine::create(s, model);
+  ASSERT_TRUE(engine.isOk());
+  // The workers lower themselves as they start.
+  for (int tries = 0; tries < 200 && count(std::min(19, mine + 5)) < before + 2; ++tries)
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  EXPECT_EQ(count(std::min(19, mine + 5)), before + 2);
+  EXPECT_EQ(niceOf("/proc/thread-self/stat"), mine) << "the caller's thread is not changed";
+  s.threads = 0;
+  auto automatic = Engine::create(s, model);
+  ASSERT_TRUE(automatic.isOk());
+  EXPECT_EQ((*automatic)->settings().threads, std::max(2u, std::thread::hardware_concurrency()) - 1);
+}
+#endif
 
 }  // namespace earshot::runtime

@@ -12,11 +12,18 @@
 
 namespace earshot {
 
+/** Raises the calling thread's nice value by `niceIncrement` (Linux; no-op
+ *  elsewhere, for <= 0, or where refused). */
+void lowerThisThreadsPriority(int niceIncrement);
+
 class ThreadPool {
  public:
   /** @param threads total threads that work in parallelFor, including the
-   *  caller; 0 = hardware concurrency. */
-  explicit ThreadPool(unsigned threads = 0);
+   *  caller; 0 = hardware concurrency.
+   *  @param niceIncrement added to the pool's own threads' nice value (Linux:
+   *  per thread; > 0 runs them below other work, e.g. an audio thread; not
+   *  the caller's thread). Where the system refuses, they run as they are. */
+  explicit ThreadPool(unsigned threads = 0, int niceIncrement = 0);
   ~ThreadPool();
   ThreadPool(const ThreadPool&) = delete;
   ThreadPool& operator=(const ThreadPool&) = delete;

@@ -22,6 +22,7 @@
  *  through atomics; IRs through the mixer's lock-free mailbox. process()
  *  never allocates, locks, logs or throws. */
 #include <atomic>
+#include <chrono>
 #include <cstddef>
 #include <cstdint>
 #include <future>
@@ -59,7 +60,13 @@ struct EngineSettings {
    *  worst block (see `earshot bench runtime --max-partition`). */
   size_t maxPartitionFrames = 0;
   OmniIrSettings simulation;      ///< rays, bounces, ISM order, air, seed... (rate taken from sampleRateHz)
-  unsigned threads = 0;           ///< simulation worker threads (0: all cores)
+  /** Threads that simulate, the simulate() caller's included (0: the
+   *  cores less one, at least one: the audio thread keeps a core). */
+  unsigned threads = 0;
+  /** Added to the worker threads' nice value (Linux): they run below the
+   *  audio thread and the game. The simulate() caller's thread is the
+   *  caller's to set (the C API's built-in thread gets the same). */
+  int workerNice = 5;
   double maxDistanceMeters = 343.0;  ///< direct-path delay line capacity
 };
 
@@ -147,6 +154,9 @@ struct SourceIr {
   std::shared_ptr<const AudioBuffer> ir;  ///< null: not simulated since the source was added
   bool includesDirect = false;            ///< DirectMode::kInImpulseResponse: the IR holds the direct sound
   uint64_t simulations = 0;               ///< IRs posted for this source so far
+  /** When the poses this IR was computed from were read (its age is now
+   *  minus this). */
+  std::chrono::steady_clock::time_point posed{};
 };
 
 /** An HRTF model that may still be loading (e.g. std::async of
@@ -203,10 +213,13 @@ class Engine {
   Status setListener(const Vec3d& position, const ListenerOrientation& orientation);
 
   // ---- one simulation thread at a time (never the audio thread) ----
-  /** Simulates `count` active sources in round-robin order starting after
-   *  the last one simulated (count 0 or >= active: all), from the poses set
-   *  so far: traces, synthesises and posts their IRs, and updates their
-   *  direct paths' occlusion. */
+  /** Simulates `count` active sources (count 0 or >= active: all), from
+   *  the poses set so far: traces, synthesises and posts their IRs, and
+   *  updates their direct paths' occlusion. The order: higher priority
+   *  first; then sources never simulated; then those whose geometry changed
+   *  most since their IR (the distance the source moved plus the distance
+   *  the listener moved); equal ones in round-robin order from after the
+   *  last simulated. */
   Status simulate(uint32_t count = 0);
   /** Simulates exactly these sources (in this order). */
   Status simulate(const std::vector<uint32_t>& sources);
