@@ -1,0 +1,35 @@
+#!/usr/bin/env bash
+# The IR-update figures of issue 16, measured side by side in one run on the
+# machine at hand (docs/performance.md): per scene, the tracer beside the
+# Embree limit of the same queries, the synthesis of a 2 s IR (binaural and
+# omni), and `earshot ir`'s stage times for a binaural IR; then the runtime
+# with 32 moving sources in the furnished room. Usage (from the repository
+# root, after the build): bash tools/bench_update.sh [build-dir]
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bin="${1:-build}/tools/earshot"
+[ -x "$bin" ] || { echo "bench_update: no $bin (build first)" >&2; exit 2; }
+tmp="$(mktemp -d)"
+trap 'rm -rf "$tmp"' EXIT
+echo "# $(date -u +%FT%TZ) $(nproc) cores, load $(cut -d' ' -f1-3 /proc/loadavg)"
+for scene in shoebox/shoebox.gltf furnished_room/furnished_room.glb; do
+  dir="samples/$(dirname "$scene")"
+  map="$dir/materials_map.json"
+  echo "## $scene"
+  "$bin" bench trace "samples/$scene" --material-map "$map" --runs 9
+  "$bin" bench synth "samples/$scene" --material-map "$map" --runs 9
+  for i in 1 2 3; do
+    "$bin" ir "samples/$scene" --material-map "$map" --source 2,3.5,1.5 --listener 5,3,1.6 \
+      --receiver binaural -o "$tmp/ir$i.wav" --json "$tmp/ir$i.json" >/dev/null 2>&1
+  done
+  /usr/bin/python3 - "$tmp" <<'PY'
+import json, statistics, sys
+runs = [json.load(open(f"{sys.argv[1]}/ir{i}.json"))["time_ms"] for i in (1, 2, 3)]
+keys = ["trace", "early_reflections", "tail", "synthesis", "pipeline"]
+print("earshot ir (binaural, one-shot process, median of 3): " +
+      " ".join(f"{k}_ms={statistics.median(r[k] for r in runs):.1f}" for k in keys))
+PY
+done
+echo "## runtime"
+"$bin" bench runtime samples/furnished_room/furnished_room.glb \
+  --material-map samples/furnished_room/materials_map.json --sources 32 --seconds 10
