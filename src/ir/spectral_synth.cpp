@@ -33,9 +33,9 @@ size_t fastFftSize(size_t minimum) {
 }
 
 namespace {
-// Inverse real FFT plans by size, per thread (a KissFFT plan holds scratch:
-// one thread at a time), the last few kept: making one costs a sincos per
-// bin, a large part of a short IR's synthesis.
+// Real FFT plans (forward or inverse) by size, per thread (a KissFFT plan
+// holds scratch: one thread at a time), the last few kept: making one costs
+// a sincos per bin, a large part of a short IR's synthesis.
 using Plan = std::shared_ptr<std::remove_pointer_t<kiss_fftr_cfg>>;
 Plan realPlan(size_t n, bool inverse) {
   thread_local std::vector<std::pair<size_t, Plan>> plans;  // most recent first; key 2n + inverse
