@@ -2,6 +2,7 @@
 #include "earshot/offline/render_scene.h"
 
 #include <algorithm>
+#include <thread>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -88,7 +89,10 @@ Result<RenderResult> renderScene(const SceneDescription& scene, const RenderOpti
   es.sampleRateHz = fs;
   es.maxSources = scene.sources.size();
   es.maxIrSeconds = kMaxIrSeconds;
-  es.threads = options.threads;
+  // Offline nothing plays in real time: every core simulates (the engine's
+  // own default keeps one for an audio thread), at normal priority.
+  es.threads = options.threads > 0 ? options.threads : std::max(1u, std::thread::hardware_concurrency());
+  es.workerNice = 0;
   es.fadeFrames = kRenderFadeFrames;
   auto preset = qualityPreset(options.quality.value_or(ss.quality));
   if (!preset.isOk()) return preset.status();
