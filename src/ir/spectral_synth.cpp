@@ -53,6 +53,28 @@ Plan realPlan(size_t n, bool inverse) {
 }
 Plan inversePlan(size_t n) { return realPlan(n, true); }
 
+// The period of the band noises for an IR of `length` samples: the power of
+// two at or above it (at least 1024), so IRs of similar lengths share them.
+size_t noisePeriod(size_t length) {
+  size_t n = 1024;
+  while (n < length) n *= 2;
+  return n;
+}
+
+// A noise cache (most recent first; entries of n samples per band) cut to
+// at most `entries` and `maxBytes`, the newest always kept.
+template <typename Entry>
+void trimNoiseCache(std::vector<Entry>& cache, size_t maxBytes, size_t entries) {
+  size_t bytes = 0;
+  for (size_t i = 0; i < cache.size(); ++i) {
+    bytes += cache[i].n * kNumBands * sizeof(float);
+    if (i > 0 && (bytes > maxBytes || i >= entries)) {
+      cache.resize(i);
+      return;
+    }
+  }
+}
+
 // sqrt(W_b) of the noise band weights on the bins of an n-point real FFT
 // (n / 2 + 1 rows), made once per (n, rate): noiseBandWeights costs a few
 // logs and sines per bin.
@@ -212,8 +234,7 @@ std::shared_ptr<const std::vector<std::vector<float>>> SpectralSynth::levelledBa
   // Made for a power-of-two period n >= length(), circularly filtered (so
   // exactly stationary), and cached: IRs of similar lengths share it, and an
   // IR's length and seed alone decide its noise.
-  size_t n = 1024;
-  while (n < mLength) n *= 2;
+  const size_t n = noisePeriod(mLength);
   using Bands = std::vector<std::vector<float>>;
   struct Cached {
     uint64_t seed = 0, stream = 0;
@@ -267,15 +288,7 @@ std::shared_ptr<const std::vector<std::vector<float>>> SpectralSynth::levelledBa
   }
   std::lock_guard<std::mutex> lock(mutex);
   cache.insert(cache.begin(), Cached{seed, stream, n, mFs, bands});
-  constexpr size_t kMaxCachedBytes = size_t(32) << 20;
-  size_t bytes = 0;
-  for (size_t i = 0; i < cache.size(); ++i) {
-    bytes += cache[i].n * kNumBands * sizeof(float);
-    if (i > 0 && (bytes > kMaxCachedBytes || i >= 6)) {
-      cache.resize(i);
-      break;
-    }
-  }
+  trimNoiseCache(cache, size_t(32) << 20, 6);
   return bands;
 }
 
@@ -437,8 +450,7 @@ std::vector<std::shared_ptr<const std::vector<std::vector<float>>>> SpectralSynt
   };
   static std::mutex mutex;
   static std::vector<Cached> cache;
-  size_t n = 1024;  // levelledBandNoise's period
-  while (n < mLength) n *= 2;
+  const size_t n = noisePeriod(mLength);
   std::vector<std::shared_ptr<const Bands>> out(filters.size());
   std::vector<size_t> missing;
   {
@@ -497,15 +509,7 @@ std::vector<std::shared_ptr<const std::vector<std::vector<float>>>> SpectralSynt
     out[missing[f]] = made[f];
     cache.insert(cache.begin(), Cached{seed, stream, filters[missing[f]].second, n, mFs, made[f]});
   }
-  constexpr size_t kMaxCachedBytes = size_t(96) << 20;
-  size_t bytes = 0;
-  for (size_t i = 0; i < cache.size(); ++i) {
-    bytes += cache[i].n * kNumBands * sizeof(float);
-    if (i > 0 && (bytes > kMaxCachedBytes || i >= 12)) {
-      cache.resize(i);
-      break;
-    }
-  }
+  trimNoiseCache(cache, size_t(96) << 20, 12);
   return out;
 }
 

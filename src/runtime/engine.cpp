@@ -282,29 +282,31 @@ Result<std::unique_ptr<Engine>> Engine::create(const EngineSettings& s, std::sha
   return create(s, ready.get_future().share());
 }
 
-Result<std::shared_ptr<const BinauralModel>> Engine::model() const {
-  if (!mModel.valid()) return invalidArgument("engine: no HRTF model");
-  Result<std::shared_ptr<const BinauralModel>> m = mModel.get();
+namespace {
+// A loaded model (or its load's error) for an engine at `rateHz`.
+Status checkModel(const Result<std::shared_ptr<const BinauralModel>>& m, double rateHz) {
   if (!m.isOk()) return m.status();
   if (!*m) return invalidArgument("engine: no HRTF model");
-  if (std::fabs((*m)->sampleRateHz() - mSettings.sampleRateHz) > 1e-6)
-    return invalidArgument("engine: sample rate " + std::to_string(mSettings.sampleRateHz) +
-                           " Hz differs from the HRTF set's " + std::to_string((*m)->sampleRateHz()) + " Hz");
-  return m;
+  if (std::fabs((*m)->sampleRateHz() - rateHz) > 1e-6)
+    return invalidArgument("engine: sample rate " + std::to_string(rateHz) + " Hz differs from the HRTF set's " +
+                           std::to_string((*m)->sampleRateHz()) + " Hz");
+  return Status::ok();
+}
+}  // namespace
+
+Result<std::shared_ptr<const BinauralModel>> Engine::model() const {
+  if (!mModel.valid()) return invalidArgument("engine: no HRTF model");
+  const Result<std::shared_ptr<const BinauralModel>>& m = mModel.get();
+  EARSHOT_RETURN_IF_ERROR(checkModel(m, mSettings.sampleRateHz));
+  return *m;
 }
 
 Result<std::unique_ptr<Engine>> Engine::create(const EngineSettings& s, BinauralModelFuture model) {
   if (!model.valid()) return invalidArgument("engine: no HRTF model");
   // A model already loaded is checked now (the sample rate), a loading one
   // when it is first needed.
-  if (model.wait_for(std::chrono::seconds(0)) == std::future_status::ready) {
-    const auto& m = model.get();
-    if (!m.isOk()) return m.status();
-    if (!*m) return invalidArgument("engine: no HRTF model");
-    if (std::fabs((*m)->sampleRateHz() - s.sampleRateHz) > 1e-6)
-      return invalidArgument("engine: sample rate " + std::to_string(s.sampleRateHz) +
-                             " Hz differs from the HRTF set's " + std::to_string((*m)->sampleRateHz()) + " Hz");
-  }
+  if (model.wait_for(std::chrono::seconds(0)) == std::future_status::ready)
+    EARSHOT_RETURN_IF_ERROR(checkModel(model.get(), s.sampleRateHz));
   if (s.maxSources < 1 || s.maxSources > 4096)
     return invalidArgument("engine: maxSources " + std::to_string(s.maxSources) + " is outside [1, 4096]");
   if (!(s.maxIrSeconds > 0 && s.maxIrSeconds <= 60))
