@@ -94,7 +94,7 @@ Result<OmniIrResult> computeOmniIr(const RayTracer& tracer, const MaterialTable&
 
 Result<OmniIrResult> computeIr(const RayTracer& tracer, const MaterialTable& materials, const Vec3d& source,
                                const Vec3d& listener, const OmniIrSettings& s, ThreadPool& pool,
-                               const BinauralReceiver* binaural) {
+                               const BinauralReceiver* binaural, const AmbisonicReceiver* ambisonic) {
   const auto t0 = std::chrono::steady_clock::now();
   if (!isFinite(source) || !isFinite(listener)) return invalidArgument("source or listener position is not finite");
   if (!withinCoordinateRange(source) || !withinCoordinateRange(listener))
@@ -106,6 +106,10 @@ Result<OmniIrResult> computeIr(const RayTracer& tracer, const MaterialTable& mat
   synth.seed = s.seed;
   synth.noiseKey = noiseKeyOf(source, listener);
   EARSHOT_RETURN_IF_ERROR(validate(synth));
+  if (binaural && ambisonic) return invalidArgument("a receiver is binaural or ambisonic, not both");
+  if (ambisonic && (ambisonic->order < 1 || ambisonic->order > kMaxAmbisonicOrder))
+    return invalidArgument("ambisonic order " + std::to_string(ambisonic->order) + " is outside [1, " +
+                           std::to_string(kMaxAmbisonicOrder) + "]");
   if (binaural) {
     if (!binaural->model) return invalidArgument("binaural receiver without an HRTF model");
     EARSHOT_RETURN_IF_ERROR(validate(binaural->orientation));
@@ -218,8 +222,9 @@ Result<OmniIrResult> computeIr(const RayTracer& tracer, const MaterialTable& mat
 
   t = std::chrono::steady_clock::now();
   const std::vector<Arrival> arrivals = arrivalsOf(out, s.includeDirect);
-  auto ir = binaural ? synthesizeBinauralIr(arrivals, late, synth, *binaural->model, binaural->orientation)
-                     : synthesizeOmniIr(arrivals, late, synth);
+  auto ir = binaural    ? synthesizeBinauralIr(arrivals, late, synth, *binaural->model, binaural->orientation)
+            : ambisonic ? synthesizeAmbisonicIr(arrivals, late, synth, ambisonic->order, ambisonic->frame)
+                        : synthesizeOmniIr(arrivals, late, synth);
   if (!ir.isOk()) return ir.status();
   out.ir = std::move(ir.value());
   out.timings.synthesisMs = msSince(t);

@@ -32,6 +32,7 @@ struct IrOptions {
   std::string materialMap;
   std::string receiver = "binaural";
   std::string hrtf;
+  int order = 1;
   std::array<double, 3> forward{0.0, 0.0, -1.0}, up{0.0, 1.0, 0.0};
   double rate = 48000;
   uint32_t rays = 16384;
@@ -57,8 +58,12 @@ double msSince(std::chrono::steady_clock::time_point t) {
 int run(const IrOptions& o, const CLI::App& cmd) {
   const auto t0 = std::chrono::steady_clock::now();
   nlohmann::json stats;
-  if (o.receiver == "omni" && !o.hrtf.empty()) {
+  if (o.receiver != "binaural" && !o.hrtf.empty()) {
     printError("--hrtf: an HRTF applies only to --receiver binaural");
+    return 2;
+  }
+  if (o.receiver != "ambisonic" && cmd.count("--order")) {
+    printError("--order: applies only to --receiver ambisonic");
     return 2;
   }
   auto air = parseCliAir(o.air);
@@ -119,6 +124,21 @@ int run(const IrOptions& o, const CLI::App& cmd) {
     stats["hrtf"] = binaural->model->hrtf().path();
   }
 
+  // Ambisonic receiver: AmbiX channels in the listener's frame (x forward,
+  // y left, z up from --forward and --up).
+  std::unique_ptr<AmbisonicReceiver> ambisonic;
+  if (o.receiver == "ambisonic") {
+    ListenerOrientation orientation;
+    orientation.forward = {o.forward[0], o.forward[1], o.forward[2]};
+    orientation.up = {o.up[0], o.up[1], o.up[2]};
+    if (!check(validate(orientation))) return 2;
+    ambisonic = std::make_unique<AmbisonicReceiver>();
+    ambisonic->order = o.order;
+    ambisonic->frame.worldToFrame = worldToAmbisonicFrame(orientation.forward, orientation.up);
+    stats["ambisonic"] = {{"order", o.order}, {"channel_order", "ACN"}, {"normalisation", "SN3D"},
+                          {"frame", "listener: x forward, y left, z up"}};
+  }
+
   // Every input is read now: refuse an output that would replace one (or a
   // FIFO, a device) before computing (the writes check again).
   for (const std::string* out : {&o.output, &o.json})
@@ -138,7 +158,7 @@ int run(const IrOptions& o, const CLI::App& cmd) {
                  " lies outside the closed volume of " + o.geometry,
              warnings);
   }
-  auto result = computeIr(*tracer, materials, source, listener, settings, pool, binaural.get());
+  auto result = computeIr(*tracer, materials, source, listener, settings, pool, binaural.get(), ambisonic.get());
   if (!check(result.status())) return 2;
   const OmniIrResult& r = *result;
 
@@ -170,12 +190,17 @@ const Registrar registrar([](CLI::App& root) {
       ->check(CLI::ExistingFile);
   addVec3Option(*cmd, "--source", o->source, "Source position in metres")->required();
   addVec3Option(*cmd, "--listener", o->listener, "Listener position in metres")->required();
-  cmd->add_option("-o,--output", o->output, "Output audio file, format by extension: .wav (32-bit float), .flac (24-bit), .ogg (Vorbis); binaural: 2 channels left, right; omni: 1")
+  cmd->add_option("-o,--output", o->output, "Output audio file, format by extension: .wav (32-bit float), .flac (24-bit), .ogg (Vorbis); binaural: 2 channels left, right; omni: 1; ambisonic: (order+1)^2 AmbiX (ACN, SN3D)")
       ->required();
   cmd->add_option("--materials", o->materials, "Materials JSON (default: the built-in materials/default.json)");
   cmd->add_option("--material-map", o->materialMap, "JSON object mapping glTF material names to acoustic materials");
-  cmd->add_option("--receiver", o->receiver, "Receiver: binaural (HRTF, 2 channels) or omni (1 channel)")
-      ->check(CLI::IsMember({"omni", "binaural"}))
+  cmd->add_option("--receiver", o->receiver,
+                  "Receiver: binaural (HRTF, 2 channels), omni (1 channel) or ambisonic (AmbiX: ACN order, SN3D, "
+                  "(order+1)^2 channels in the listener's frame, x forward, y left, z up; W is the omni IR)")
+      ->check(CLI::IsMember({"omni", "binaural", "ambisonic"}))
+      ->capture_default_str();
+  cmd->add_option("--order", o->order, "Ambisonic order, 1-3 (--receiver ambisonic)")
+      ->check(CLI::Range(1, kMaxAmbisonicOrder))
       ->capture_default_str();
   cmd->add_option("--hrtf", o->hrtf, "HRTF set (SOFA SimpleFreeFieldHRIR); default: the shipped Neumann KU100 set")
       ->check(CLI::ExistingFile);

@@ -10,6 +10,7 @@
 
 #include "earshot/core/audio_buffer.h"
 #include "earshot/core/status.h"
+#include "earshot/ir/ambisonic_synthesis.h"
 #include "earshot/ir/binaural_synthesis.h"
 #include "earshot/ir/ir_synthesis.h"
 #include "earshot/propagation/direct_path.h"
@@ -54,6 +55,14 @@ struct BinauralReceiver {
   ListenerOrientation orientation;
 };
 
+/** An ambisonic receiver (ambisonic_synthesis.h): AmbiX channels of
+ *  `order` in `frame` (worldAmbisonicFrame() for the runtime's world-frame
+ *  bus, or a listener's frame: worldToAmbisonicFrame(forward, up)). */
+struct AmbisonicReceiver {
+  int order = 1;
+  AmbisonicFrame frame;
+};
+
 /** Named quality presets: rays, bounces, image-source order, histogram bin, tail probes. */
 struct QualityPreset {
   std::string name;
@@ -71,7 +80,7 @@ struct OmniIrTimings {
 };
 
 struct OmniIrResult {
-  AudioBuffer ir;                      ///< 1 channel (omni) or 2 (binaural: left, right)
+  AudioBuffer ir;                      ///< 1 channel (omni), 2 (binaural: left, right) or (order+1)^2 (ambisonic, ACN)
   DirectPath direct;
   std::vector<SpecularPath> early;     ///< image-source paths rendered
   EnergyHistogram late;                ///< completed stochastic histogram
@@ -84,10 +93,11 @@ struct OmniIrResult {
 };
 
 /** The IR of one source/listener pair: binaural when `binaural` is given (its
- *  model's rate must equal settings.sampleRateHz), else omnidirectional. */
+ *  model's rate must equal settings.sampleRateHz), ambisonic when
+ *  `ambisonic` is (not both), else omnidirectional. */
 Result<OmniIrResult> computeIr(const RayTracer& tracer, const MaterialTable& materials, const Vec3d& source,
                                const Vec3d& listener, const OmniIrSettings& settings, ThreadPool& pool,
-                               const BinauralReceiver* binaural);
+                               const BinauralReceiver* binaural, const AmbisonicReceiver* ambisonic = nullptr);
 
 /** The discrete arrivals a result's IR was synthesised from: the direct sound
  *  (if audible and `includeDirect`) and the image-source paths. */

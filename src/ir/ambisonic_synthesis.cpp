@@ -1,0 +1,135 @@
+// Ambisonic IR synthesis: see ambisonic_synthesis.h for the method.
+#include "earshot/ir/ambisonic_synthesis.h"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "spectral_synth.h"
+
+namespace earshot {
+
+namespace {
+
+Vec3d rotate(const Rotation3& r, const Vec3d& d) {
+  return {r[0] * d.x + r[1] * d.y + r[2] * d.z, r[3] * d.x + r[4] * d.y + r[5] * d.z,
+          r[6] * d.x + r[7] * d.y + r[8] * d.z};
+}
+
+// Independent late noise of ambisonic channel c >= 1 (W uses kLateNoiseStream).
+uint64_t channelNoiseStream(int c) { return 0xA3B1C2D3E4F50000ULL + uint64_t(c); }
+
+// Per-bin values linear between bin centres (sample i at (i + 0.5) /
+// binSamples - 0.5 bins, as SpectralSynth::bandEnvelope), held beyond the ends.
+void binsToSamples(const std::vector<float>& perBin, double binSamples, std::vector<float>& out) {
+  const long last = long(perBin.size()) - 1;
+  for (size_t i = 0; i < out.size(); ++i) {
+    const double x = (double(i) + 0.5) / binSamples - 0.5;
+    const long j = long(std::floor(x));
+    const float frac = float(x - double(j));
+    const float lo = perBin[size_t(std::clamp(j, 0L, last))], hi = perBin[size_t(std::clamp(j + 1, 0L, last))];
+    out[i] = lo + frac * (hi - lo);
+  }
+}
+
+}  // namespace
+
+AmbisonicFrame worldAmbisonicFrame() { return AmbisonicFrame{}; }
+
+Result<AudioBuffer> synthesizeAmbisonicIr(const std::vector<Arrival>& arrivals, const EnergyHistogram* reflections,
+                                          const IrSynthesisSettings& settings, int order,
+                                          const AmbisonicFrame& frame) {
+  if (order < 1 || order > kMaxAmbisonicOrder)
+    return invalidArgument("ambisonic order " + std::to_string(order) + " is outside [1, " +
+                           std::to_string(kMaxAmbisonicOrder) + "]");
+  for (double v : frame.worldToFrame)
+    if (!std::isfinite(v)) return invalidArgument("ambisonic frame is not finite");
+  auto synth = detail::SpectralSynth::plan(arrivals, reflections, settings);
+  if (!synth.isOk()) return synth.status();
+  detail::SpectralSynth& plan = synth.value();
+  const int channels = ambisonicChannels(order);
+  const double fs = settings.sampleRateHz;
+
+  // Arrivals: the omni arrival's spectrum times the harmonics of its direction.
+  std::vector<detail::Spectrum> spectra(size_t(channels), plan.emptySpectrum());
+  detail::Spectrum one = plan.emptySpectrum();
+  double y[kMaxAmbisonicChannels];
+  for (const Arrival& a : arrivals) {
+    if (a.gain == 0) continue;
+    std::fill(one.re.begin(), one.re.end(), 0.0f);
+    std::fill(one.im.begin(), one.im.end(), 0.0f);
+    plan.addArrival(a, a.delaySeconds, {}, one);
+    const double len = length(a.direction);
+    const Vec3d d = len > 0 ? rotate(frame.worldToFrame, a.direction / len) : Vec3d(1, 0, 0);
+    realSphericalHarmonics(d, order, y);
+    const size_t used = plan.arrivalSamples() > 0 ? plan.bins() : 0;
+    for (int c = 0; c < channels; ++c) {
+      const float g = float(y[c]);
+      if (g == 0.0f) continue;
+      float* re = spectra[size_t(c)].re.data();
+      float* im = spectra[size_t(c)].im.data();
+      for (size_t k = 0; k < used; ++k) {
+        re[k] += g * one.re[k];
+        im[k] += g * one.im[k];
+      }
+    }
+  }
+  AudioBuffer out(size_t(channels), 0, fs);
+  for (int c = 0; c < channels; ++c) plan.inverse(spectra[size_t(c)], out.channels[size_t(c)]);
+
+  if (!reflections || reflections->lastNonEmptyBin() < 0) return out;
+  const size_t length = plan.length();
+  // Band envelopes (shared by every channel) and W's late field.
+  std::vector<std::vector<float>> env(kNumBands);
+  bool anyBand = false;
+  for (int b = 0; b < kNumBands; ++b) {
+    if (!plan.bandEnvelope(*reflections, b, nullptr, env[size_t(b)])) env[size_t(b)].clear();
+    anyBand = anyBand || !env[size_t(b)].empty();
+  }
+  if (!anyBand) return out;
+  auto lateOf = [&](uint64_t stream, std::vector<float>& late) {
+    const auto noise = plan.finishedBandNoise(settings.seed, stream, {}, 0);
+    const size_t offset = detail::noiseOffset(settings.seed, settings.noiseKey, (*noise)[0].size());
+    late.assign(length, 0.0f);
+    for (int b = 0; b < kNumBands; ++b)
+      if (!env[size_t(b)].empty()) plan.addEnvelopedNoise((*noise)[size_t(b)], offset, env[size_t(b)], late.data());
+  };
+  std::vector<float> lateW;
+  lateOf(detail::kLateNoiseStream, lateW);
+  for (size_t i = 0; i < length; ++i) out.channels[0][i] += lateW[i];
+
+  // Per histogram bin: direction and directional fraction -> each channel's
+  // coherent and independent gains, then per sample.
+  const size_t histBins = reflections->binCount();
+  std::vector<Vec3d> dir(histBins, Vec3d(1, 0, 0));
+  std::vector<double> frac(histBins, 0.0);
+  for (size_t bin = 0; bin < histBins; ++bin) {
+    double mean = 0;
+    for (int b = 0; b < kNumBands; ++b) mean += reflections->energy(bin, b) / kNumBands;
+    const Vec3d sum = reflections->directionSum(bin);
+    const double len = earshot::length(sum);
+    if (!(mean > 0) || !(len > 1e-9 * mean) || !std::isfinite(len)) continue;
+    frac[bin] = std::min(1.0, len / mean);
+    dir[bin] = rotate(frame.worldToFrame, sum / len);
+  }
+  const double binSamples = reflections->binSeconds() * fs;
+  std::vector<float> coherentBins(histBins), independentBins(histBins), coherent(length), independent(length),
+      lateC;
+  for (int c = 1; c < channels; ++c) {
+    const double diffuse = 1.0 / double(2 * ambisonicOrderOf(c) + 1);
+    for (size_t bin = 0; bin < histBins; ++bin) {
+      realSphericalHarmonics(dir[bin], order, y);
+      const double a = frac[bin], yc = y[c];
+      coherentBins[bin] = float(a * yc);
+      independentBins[bin] = float(std::sqrt(std::max(0.0, a * yc * yc + (1.0 - a) * diffuse - a * a * yc * yc)));
+    }
+    binsToSamples(coherentBins, binSamples, coherent);
+    binsToSamples(independentBins, binSamples, independent);
+    lateOf(channelNoiseStream(c), lateC);
+    float* o = out.channels[size_t(c)].data();
+    for (size_t i = 0; i < length; ++i) o[i] += coherent[i] * lateW[i] + independent[i] * lateC[i];
+  }
+  return out;
+}
+
+}  // namespace earshot

@@ -1,0 +1,187 @@
+// Ambisonic IRs (issue 15): exact arrival directions, W = the omni IR, the
+// late field's channel energies and correlations, frames.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <memory>
+#include <random>
+
+#include "../propagation/shoebox_fixture.h"
+#include "earshot/core/math.h"
+#include "earshot/core/thread_pool.h"
+#include "earshot/ir/ambisonic_synthesis.h"
+#include "earshot/ir/ir_pipeline.h"
+#include "earshot/scene/ray_tracer.h"
+
+namespace earshot {
+namespace {
+
+std::unique_ptr<RayTracer> freeField() {
+  auto rt = RayTracer::create(TriangleMesh{});
+  EXPECT_TRUE(rt.isOk());
+  return std::move(rt.value());
+}
+
+// Sum of x over [from, to): a band-limited impulse's area, whatever its
+// fractional delay.
+double area(const std::vector<float>& x, size_t from, size_t to) {
+  double s = 0;
+  for (size_t i = from; i < std::min(to, x.size()); ++i) s += x[i];
+  return s;
+}
+
+// A far source 90 degrees left and 30 degrees up of a listener facing
+// `forward` with `up`: each channel's direct sound over W's is the real SH of
+// (azimuth 90, elevation 30) in the listener's frame.
+TEST(AmbisonicIr, DirectSoundCarriesTheHarmonicsOfItsDirection) {
+  auto tracer = freeField();
+  MaterialTable materials;
+  const double az = kPi / 2, el = kPi / 6, r = 30.0;
+  const Vec3d inFrame(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az), std::sin(el));
+  double want[16];
+  realSphericalHarmonics(inFrame, 3, want);
+  // Two listener orientations: the glTF default and an arbitrary one.
+  const std::pair<Vec3d, Vec3d> orientations[] = {{{0, 0, -1}, {0, 1, 0}}, {{0.3, -0.2, 0.9}, {0.1, 1.0, 0.4}}};
+  for (const auto& [forward, upHint] : orientations) {
+    const Vec3d f = normalize(forward), l = normalize(cross(upHint, f)), u = cross(f, l);
+    const Vec3d listener(1, 2, 3);
+    const Vec3d source = listener + (f * inFrame.x + l * inFrame.y + u * inFrame.z) * r;
+    for (int order : {1, 3}) {
+      OmniIrSettings s;
+      s.air.enabled = false;
+      ThreadPool pool(1);
+      AmbisonicReceiver receiver;
+      receiver.order = order;
+      receiver.frame.worldToFrame = worldToAmbisonicFrame(forward, upHint);
+      auto ir = computeIr(*tracer, materials, source, listener, s, pool, nullptr, &receiver);
+      ASSERT_TRUE(ir.isOk()) << ir.status().message();
+      ASSERT_EQ(ir->ir.channelCount(), size_t(ambisonicChannels(order)));
+      const size_t at = size_t(r / 343.0 * s.sampleRateHz);
+      const double w = area(ir->ir.channels[0], at - 200, at + 200);
+      EXPECT_NEAR(w, 1.0 / r, 0.01 / r) << "W is the omni pressure, 1/r";
+      for (int c = 0; c < ambisonicChannels(order); ++c)
+        EXPECT_NEAR(area(ir->ir.channels[size_t(c)], at - 200, at + 200) / w, want[c], 0.05)
+            << "order " << order << " channel " << c;
+    }
+  }
+}
+
+// W is the omni IR of the same pair and settings (arrivals and late field).
+TEST(AmbisonicIr, WIsTheOmniIr) {
+  testing::Shoebox room(0.2f, 0.3f);
+  OmniIrSettings s;
+  s.rays = 4096;
+  ThreadPool pool(2);
+  const Vec3d src{2.3, 2.9, 1.4}, lis{7.1, 4.2, 1.7};
+  auto omni = computeIr(*room.tracer, room.materials, src, lis, s, pool, nullptr);
+  AmbisonicReceiver receiver;
+  receiver.order = 2;
+  auto amb = computeIr(*room.tracer, room.materials, src, lis, s, pool, nullptr, &receiver);
+  ASSERT_TRUE(omni.isOk() && amb.isOk());
+  ASSERT_EQ(amb->ir.channelCount(), 9u);
+  ASSERT_EQ(omni->ir.frameCount(), amb->ir.frameCount());
+  double peak = 0, worst = 0;
+  for (size_t i = 0; i < omni->ir.frameCount(); ++i) {
+    peak = std::max(peak, double(std::fabs(omni->ir.channels[0][i])));
+    worst = std::max(worst, double(std::fabs(omni->ir.channels[0][i] - amb->ir.channels[0][i])));
+  }
+  EXPECT_LT(worst, 1e-6 * peak);
+}
+
+// The late field from a synthetic histogram: fully diffuse bins give each
+// channel of order n 1/(2n+1) of W's energy, uncorrelated with W; bins whose
+// energy all comes from one direction d give channel c correlation Y_c(d)
+// with W and energy Y_c(d)^2.
+TEST(AmbisonicIr, LateFieldFollowsTheTracedDirections) {
+  const double fs = 48000, binS = 0.001;
+  const size_t bins = 1000;
+  for (double directional : {0.0, 1.0, 0.5}) {
+    EnergyHistogram h(binS, bins);
+    const Vec3d d = normalize(Vec3d(-0.4, 0.7, -0.3));  // world
+    for (size_t b = 0; b < bins; ++b) {
+      const double e = 1e-3 * std::exp(-double(b) * binS / 0.3);
+      if (directional > 0) h.add(b, filledBands(e * directional), d);
+      if (directional < 1) {
+        // Diffuse: equal energy from six opposite directions sums to no direction.
+        for (const Vec3d& v : {Vec3d(1, 0, 0), Vec3d(-1, 0, 0), Vec3d(0, 1, 0), Vec3d(0, -1, 0), Vec3d(0, 0, 1),
+                               Vec3d(0, 0, -1)})
+          h.add(b, filledBands(e * (1 - directional) / 6), v);
+      }
+    }
+    IrSynthesisSettings s;
+    s.sampleRateHz = fs;
+    AmbisonicFrame frame;  // world frame
+    auto ir = synthesizeAmbisonicIr({}, &h, s, 3, frame);
+    ASSERT_TRUE(ir.isOk()) << ir.status().message();
+    const Rotation3& r = frame.worldToFrame;
+    const Vec3d inFrame(r[0] * d.x + r[1] * d.y + r[2] * d.z, r[3] * d.x + r[4] * d.y + r[5] * d.z,
+                        r[6] * d.x + r[7] * d.y + r[8] * d.z);
+    double y[16];
+    realSphericalHarmonics(inFrame, 3, y);
+    const auto& w = ir->channels[0];
+    double ww = 0;
+    for (float v : w) ww += double(v) * v;
+    for (int c = 1; c < 16; ++c) {
+      double cc = 0, cw = 0;
+      for (size_t i = 0; i < w.size(); ++i) {
+        cc += double(ir->channels[size_t(c)][i]) * ir->channels[size_t(c)][i];
+        cw += double(ir->channels[size_t(c)][i]) * w[i];
+      }
+      const double a = directional, diffuse = 1.0 / (2 * ambisonicOrderOf(c) + 1);
+      // ~1000 ms of broadband noise: relative errors of a few percent.
+      EXPECT_NEAR(cc / ww, a * y[c] * y[c] + (1 - a) * diffuse, 0.03) << "a " << a << " channel " << c;
+      EXPECT_NEAR(cw / ww, a * y[c], 0.03) << "a " << a << " channel " << c;
+    }
+  }
+}
+
+// Arrivals in a listener's frame equal the world-frame IR rotated by the SH
+// rotation from the world frame to the listener's.
+TEST(AmbisonicIr, ListenerFrameIsTheRotatedWorldFrame) {
+  std::vector<Arrival> arrivals;
+  std::mt19937_64 rng(3);
+  std::normal_distribution<double> g;
+  for (int i = 0; i < 6; ++i) {
+    Arrival a;
+    a.delaySeconds = 0.01 + 0.003 * i;
+    a.gain = 0.5;
+    a.bandGain = filledBands(1.0);
+    a.direction = normalize(Vec3d(g(rng), g(rng), g(rng)));
+    arrivals.push_back(a);
+  }
+  IrSynthesisSettings s;
+  AmbisonicFrame world, listener;
+  listener.worldToFrame = worldToAmbisonicFrame({0.5, 0.2, -0.8}, {0.0, 1.0, 0.3});
+  auto a = synthesizeAmbisonicIr(arrivals, nullptr, s, 3, world);
+  auto b = synthesizeAmbisonicIr(arrivals, nullptr, s, 3, listener);
+  ASSERT_TRUE(a.isOk() && b.isOk());
+  // R = L W^T takes world-frame directions to the listener's frame.
+  Rotation3 rel{};
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j)
+      for (int k = 0; k < 3; ++k) rel[i * 3 + j] += listener.worldToFrame[i * 3 + k] * world.worldToFrame[j * 3 + k];
+  ShRotation rot;
+  std::vector<float> m(256);
+  rot.compute(rel, 3, m.data());
+  double worst = 0, peak = 0;
+  for (size_t i = 0; i < a->frameCount(); ++i)
+    for (int c = 0; c < 16; ++c) {
+      double v = 0;
+      for (int k = 0; k < 16; ++k) v += double(m[c * 16 + k]) * a->channels[size_t(k)][i];
+      worst = std::max(worst, std::fabs(v - b->channels[size_t(c)][i]));
+      peak = std::max(peak, std::fabs(double(b->channels[size_t(c)][i])));
+    }
+  EXPECT_LT(worst, 1e-4 * peak);
+}
+
+TEST(AmbisonicIr, RefusesBadOrdersAndFrames) {
+  IrSynthesisSettings s;
+  AmbisonicFrame frame;
+  EXPECT_FALSE(synthesizeAmbisonicIr({}, nullptr, s, 0, frame).isOk());
+  EXPECT_FALSE(synthesizeAmbisonicIr({}, nullptr, s, 4, frame).isOk());
+  frame.worldToFrame[0] = std::nan("");
+  EXPECT_FALSE(synthesizeAmbisonicIr({}, nullptr, s, 1, frame).isOk());
+}
+
+}  // namespace
+}  // namespace earshot
