@@ -211,8 +211,8 @@ IrRequest makeRequest(const std::string& receiver, const std::array<double, 3>& 
   IrRequest q;
   if (receiver == "ambisonic")
     throw py::value_error(
-        "receiver: 'ambisonic' IRs are not available in this version of earshot (head-tracked ambisonic "
-        "reflections are planned); use 'omni' or 'binaural'");
+        "receiver: 'ambisonic' IRs are not yet available from Python (they are from `earshot ir --receiver "
+        "ambisonic --order N`); use 'omni' or 'binaural'");
   if (receiver != "omni" && receiver != "binaural")
     throw py::value_error("receiver: expected 'omni' or 'binaural', got '" + receiver.substr(0, 32) + "'");
   if (receiver == "omni" && !hrtf.empty()) throw py::value_error("hrtf: an HRTF applies only to receiver='binaural'");
