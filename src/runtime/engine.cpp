@@ -25,6 +25,9 @@ double msSince(std::chrono::steady_clock::time_point t) {
 constexpr double kIrFadeSeconds = 0.010;
 // Frames per inner step of process(): bounds the per-source scratch.
 constexpr size_t kProcessChunk = 1024;
+// The ambisonic decoder's bulk delay: 2 ms (the ears' onsets lie within
+// +-0.7 ms of the head centre's; the rest is the fit's spread).
+size_t ambisonicDecoderDelayFrames(double rateHz) { return size_t(std::ceil(0.002 * rateHz)); }
 }  // namespace
 
 struct Engine::Slot {
@@ -273,7 +276,12 @@ BandArrayD volumetricTransmission(const RayTracer& tracer, const MaterialTable& 
 
 Engine::~Engine() = default;
 
-size_t Engine::latencyFrames() const { return mMixer->latencyFrames(); }
+size_t Engine::latencyFrames() const { return mLatency; }
+
+std::shared_ptr<const AmbisonicDecoder> Engine::ambisonicDecoder() const {
+  std::lock_guard<std::mutex> lock(mAddMutex);
+  return mDecoder;
+}
 
 Result<std::unique_ptr<Engine>> Engine::create(const EngineSettings& s, std::shared_ptr<const BinauralModel> model) {
   if (!model) return invalidArgument("engine: no HRTF model");
@@ -318,15 +326,28 @@ Result<std::unique_ptr<Engine>> Engine::create(const EngineSettings& s, Binaural
   e->mSettings.simulation.sampleRateHz = s.sampleRateHz;
   e->mModel = std::move(model);
 
+  if (s.ambisonicOrder < 0 || s.ambisonicOrder > kMaxAmbisonicOrder)
+    return invalidArgument("engine: ambisonicOrder " + std::to_string(s.ambisonicOrder) + " is outside [0, " +
+                           std::to_string(kMaxAmbisonicOrder) + "]");
   ConvolverSettings cs;
   cs.latencyFrames = s.blockFrames;
   cs.maxIrFrames = size_t(std::ceil(s.maxIrSeconds * s.sampleRateHz));
-  cs.channels = 2;
+  cs.channels = s.ambisonicOrder > 0 ? size_t(ambisonicChannels(s.ambisonicOrder)) : 2;
   cs.fadeFrames = s.fadeFrames;
   cs.maxPartitionFrames = s.maxPartitionFrames;
   auto mixer = ConvolutionMixer::create(cs, s.maxSources);
   if (!mixer.isOk()) return Status(mixer.status().code(), "engine: " + mixer.status().message());
   e->mMixer = std::move(mixer.value());
+  e->mLatency = e->mMixer->latencyFrames();
+  if (s.ambisonicOrder > 0) {
+    // The decoder's convolution (one more block) and its bulk delay.
+    e->mLatency += s.blockFrames + ambisonicDecoderDelayFrames(s.sampleRateHz);
+    e->mRotation = std::make_unique<ShRotation>();
+    const size_t channels = size_t(ambisonicChannels(s.ambisonicOrder));
+    e->mBus.assign(channels * kProcessChunk, 0.0f);
+    e->mRotated.assign(channels * kProcessChunk, 0.0f);
+    e->mLastRotation.assign(size_t(kMaxAmbisonicChannels * kMaxAmbisonicChannels), 0.0f);
+  }
 
   for (size_t i = 0; i < s.maxSources; ++i) e->mSlots.push_back(std::make_unique<Slot>());
   const ListenerOrientation o;
@@ -353,6 +374,32 @@ void Engine::setScene(std::shared_ptr<const RayTracer> tracer, std::shared_ptr<c
 
 bool Engine::validSource(uint32_t s) const { return s < mSlots.size() && mSlots[s]->active.load(); }
 
+Status Engine::createDecoder(const BinauralModel& model) {
+  AmbisonicDecoderSettings ds;
+  ds.order = mSettings.ambisonicOrder;
+  ds.delayFrames = ambisonicDecoderDelayFrames(mSettings.sampleRateHz);
+  ds.taps = 512;
+  while (ds.taps / 2 <= ds.delayFrames) ds.taps *= 2;
+  auto decoder = AmbisonicDecoder::create(model, ds);
+  if (!decoder.isOk()) return Status(decoder.status().code(), "engine: " + decoder.status().message());
+  ConvolverSettings cs;
+  cs.latencyFrames = mSettings.blockFrames;
+  cs.maxIrFrames = (*decoder)->taps();
+  cs.channels = 2;
+  cs.fadeFrames = 0;
+  auto mixer = ConvolutionMixer::create(cs, size_t((*decoder)->channels()));
+  if (!mixer.isOk()) return Status(mixer.status().code(), "engine: " + mixer.status().message());
+  for (int c = 0; c < (*decoder)->channels(); ++c) {
+    auto prepared = PreparedIr::create((*decoder)->channelIr(c), (*mixer)->layout());
+    if (!prepared.isOk()) return prepared.status();
+    EARSHOT_RETURN_IF_ERROR((*mixer)->setIr(size_t(c), *prepared));
+  }
+  mDecoder = *decoder;
+  mDecoderMixer = std::move(mixer.value());
+  mDecoderMixerLive.store(mDecoderMixer.get(), std::memory_order_release);
+  return Status::ok();
+}
+
 Result<uint32_t> Engine::addSource(const SourceSettings& settings) {
   EARSHOT_RETURN_IF_ERROR(validate(settings));
   std::lock_guard<std::mutex> lock(mAddMutex);
@@ -369,7 +416,8 @@ Result<uint32_t> Engine::addSource(const SourceSettings& settings) {
       ds.speedOfSound = mSettings.simulation.speedOfSound;
       ds.air = mSettings.simulation.air;
       ds.maxDelaySeconds = mSettings.maxDistanceMeters / mSettings.simulation.speedOfSound;
-      ds.extraDelayFrames = mMixer->latencyFrames();
+      ds.extraDelayFrames = mLatency;
+      if (mSettings.ambisonicOrder > 0 && !mDecoder) EARSHOT_RETURN_IF_ERROR(createDecoder(**model));
       auto voice = DirectVoice::create(ds, (*model)->hrtfPtr());
       if (!voice.isOk()) return Status(voice.status().code(), "engine: " + voice.status().message());
       EARSHOT_RETURN_IF_ERROR(mMixer->reserveSource(i));
@@ -503,6 +551,14 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& order) {
   receiver.model = *model;
   receiver.orientation.forward = {mListener[3].load(), mListener[4].load(), mListener[5].load()};
   receiver.orientation.up = {mListener[6].load(), mListener[7].load(), mListener[8].load()};
+  // Ambisonic reflections are in the world frame: the head's orientation is
+  // applied per block on the audio thread, not here.
+  AmbisonicReceiver ambisonic;
+  ambisonic.order = std::max(1, mSettings.ambisonicOrder);
+  ambisonic.frame = worldAmbisonicFrame();
+  const bool isAmbisonic = mSettings.ambisonicOrder > 0;
+  const BinauralReceiver* binauralReceiver = isAmbisonic ? nullptr : &receiver;
+  const AmbisonicReceiver* ambisonicReceiver = isAmbisonic ? &ambisonic : nullptr;
 
   SimulationStats stats;
   const size_t maxFrames = size_t(std::ceil(mSettings.maxIrSeconds * mSettings.sampleRateHz));
@@ -520,6 +576,11 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& order) {
     slot.simulatedSource = j.source;
     slot.simulatedListener = listener;
     j.settings.includeDirect = DirectMode(slot.direct.load()) == DirectMode::kInImpulseResponse;
+    // Ambisonic IRs read one noise per channel (16 at order 3): made at one
+    // length, every IR shares one size class of cached noises (a room whose
+    // decay changes would otherwise keep making new ones). Just over the cut,
+    // so that the cut's fade applies.
+    if (isAmbisonic && j.settings.lengthSeconds <= 0) j.settings.lengthSeconds = mSettings.maxIrSeconds + kIrFadeSeconds;
     j.settings.directivity.alpha = slot.directivityAlpha.load();
     j.settings.directivity.sharpness = slot.directivitySharpness.load();
     j.settings.directivity.perBand = slot.directivityPerBand.load();
@@ -533,10 +594,13 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& order) {
   if (jobs.size() >= 2 && mPool->threadCount() >= 2) {
     mPool->parallelFor(jobs.size(), [&](size_t k, unsigned worker) {
       Job& j = jobs[k];
-      j.result = computeIr(*tracer, *materials, j.source, listener, j.settings, *mWorkerPools[worker], &receiver);
+      j.result = computeIr(*tracer, *materials, j.source, listener, j.settings, *mWorkerPools[worker],
+                           binauralReceiver, ambisonicReceiver);
     });
   } else {
-    for (Job& j : jobs) j.result = computeIr(*tracer, *materials, j.source, listener, j.settings, *mPool, &receiver);
+    for (Job& j : jobs)
+      j.result = computeIr(*tracer, *materials, j.source, listener, j.settings, *mPool, binauralReceiver,
+                           ambisonicReceiver);
   }
   for (Job& j : jobs) {
     Slot& slot = *mSlots[j.slot];
@@ -662,7 +726,11 @@ void Engine::process(const float* const* inputs, float* left, float* right, size
       mInputs[i] = slot.reflectionsLive ? g : nullptr;
     }
     float* outs[2] = {left + off, right + off};
-    mMixer->process(mInputs.data(), outs, m);
+    if (mSettings.ambisonicOrder > 0) {
+      processAmbisonicBus(target.orientation, outs, m);
+    } else {
+      mMixer->process(mInputs.data(), outs, m);
+    }
     for (size_t i = 0; i < n; ++i) {
       Slot& slot = *mSlots[i];
       if (!slot.live || DirectMode(slot.direct.load(std::memory_order_relaxed)) != DirectMode::kPerBlock) continue;
@@ -739,10 +807,59 @@ void Engine::process(const float* const* inputs, float* left, float* right, size
       std::fill(left + off, left + off + m, 0.0f);
       std::fill(right + off, right + off + m, 0.0f);
       mMixer->clearState();
+      if (ConvolutionMixer* d = mDecoderMixerLive.load(std::memory_order_acquire)) d->clearState();
       for (auto& slot : mSlots)
         if (DirectVoice* v = slot->voice.load(std::memory_order_acquire)) v->reset();
       mClearedOutputChunks.fetch_add(1, std::memory_order_relaxed);
     }
+  }
+}
+
+void Engine::processAmbisonicBus(const ListenerOrientation& head, float* const* ears, size_t m) {
+  constexpr size_t C = kMaxAmbisonicChannels;
+  const int order = mSettings.ambisonicOrder;
+  const size_t channels = size_t(ambisonicChannels(order));
+  float* bus[C];
+  const float* rotatedIn[C];
+  float* rotated[C];
+  for (size_t c = 0; c < channels; ++c) {
+    bus[c] = mBus.data() + c * kProcessChunk;
+    rotated[c] = mRotated.data() + c * kProcessChunk;
+    rotatedIn[c] = rotated[c];
+  }
+  mMixer->process(mInputs.data(), bus, m);
+  // The world-frame bus into the head's frame: R = head * world^T, its SH
+  // rotation interpolated linearly across the chunk from the last one.
+  const Rotation3 h = worldToAmbisonicFrame(head.forward, head.up), w = worldAmbisonicFrame().worldToFrame;
+  Rotation3 r{};
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j)
+      for (int k = 0; k < 3; ++k) r[size_t(i * 3 + j)] += h[size_t(i * 3 + k)] * w[size_t(j * 3 + k)];
+  float now[C * C];
+  mRotation->compute(r, order, now);
+  if (!mHaveRotation) std::copy(now, now + C * C, mLastRotation.begin());
+  mHaveRotation = true;
+  const float* before = mLastRotation.data();
+  for (int n = 0; n <= order; ++n) {
+    const size_t lo = size_t(n * n), hi = size_t((n + 1) * (n + 1));
+    for (size_t i = lo; i < hi; ++i) {
+      float* out = rotated[i];
+      std::fill(out, out + m, 0.0f);
+      for (size_t j = lo; j < hi; ++j) {
+        const float a = before[i * C + j], b = now[i * C + j];
+        const float* x = bus[j];
+        if (a == 0.0f && b == 0.0f) continue;
+        const float step = (b - a) / float(m);
+        for (size_t k = 0; k < m; ++k) out[k] += (a + step * float(k + 1)) * x[k];
+      }
+    }
+  }
+  std::copy(now, now + C * C, mLastRotation.begin());
+  if (ConvolutionMixer* decoder = mDecoderMixerLive.load(std::memory_order_acquire)) {
+    decoder->process(rotatedIn, ears, m);
+  } else {
+    std::fill(ears[0], ears[0] + m, 0.0f);
+    std::fill(ears[1], ears[1] + m, 0.0f);
   }
 }
 

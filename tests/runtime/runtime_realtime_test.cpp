@@ -34,11 +34,14 @@ TEST(EngineRealtime, HooksSeeAllocationsAndLocks) {
   }
 }
 
-TEST(EngineRealtime, TenSecondsWithUpdatesAndSceneEditsNeverAllocateOrLockOnTheAudioThread) {
+// Ten seconds of audio with reflections of `ambisonicOrder` (0: binaural per
+// source; 1-3: the ambisonic bus, rotated and decoded on the audio thread).
+void tenSecondsWithUpdatesAndSceneEdits(int ambisonicOrder) {
   auto model = test::ku100();
   ASSERT_TRUE(model);
   test::Room roomA(0.1f), roomB(0.4f);
   EngineSettings es = test::fastSettings();
+  es.ambisonicOrder = ambisonicOrder;
   es.simulation.rays = 1000;
   es.simulation.bounces = 6;
   es.maxIrSeconds = 1.0;
@@ -127,5 +130,12 @@ TEST(EngineRealtime, TenSecondsWithUpdatesAndSceneEditsNeverAllocateOrLockOnTheA
     EXPECT_EQ(locks, 0) << "lock taken on the audio thread";
   }
 }
+
+TEST(EngineRealtime, TenSecondsWithUpdatesAndSceneEditsNeverAllocateOrLockOnTheAudioThread) {
+  tenSecondsWithUpdatesAndSceneEdits(0);
+}
+
+// Issue 15: the same with the ambisonic bus (the head turns all the while).
+TEST(EngineRealtime, AmbisonicBusNeverAllocatesOrLocksOnTheAudioThread) { tenSecondsWithUpdatesAndSceneEdits(1); }
 
 }  // namespace earshot::runtime

@@ -32,8 +32,10 @@
 
 #include "earshot/core/status.h"
 #include "earshot/core/vec3.h"
+#include "earshot/ir/ambisonic_decoder.h"
 #include "earshot/ir/binaural_synthesis.h"
 #include "earshot/ir/ir_pipeline.h"
+#include "earshot/ir/spherical_harmonics.h"
 #include "earshot/materials/material.h"
 
 namespace earshot {
@@ -68,6 +70,21 @@ struct EngineSettings {
    *  caller's to set (the C API's built-in thread gets the same). */
   int workerNice = 5;
   double maxDistanceMeters = 343.0;  ///< direct-path delay line capacity
+  /** How the reflections reach the ears (issue 15).
+   *  0: a binaural IR per source with the listener's orientation baked in
+   *  (each arrival through its exact HRTF; a head turn needs a new
+   *  simulation to be heard in the reflections).
+   *  1-3: an ambisonic IR per source in the world frame (AmbiX of this
+   *  order, ambisonic_synthesis.h), every source convolved into one bus that
+   *  is rotated by the head and decoded to two ears once per block
+   *  (ambisonic_decoder.h): a head turn costs no simulation, and the audio
+   *  thread's cost per source is (order+1)^2 channels of multiply-adds
+   *  instead of 2, with one decoder for all. The direct sound stays per
+   *  source through the HRTF of its current direction either way; a source
+   *  whose IR holds the direct sound (DirectMode::kInImpulseResponse) has it
+   *  in the bus, decoded with the reflections. Adds latencyFrames(): one
+   *  block for the decoder's convolution plus its 2 ms bulk delay. */
+  int ambisonicOrder = 0;
 };
 
 enum class DirectMode {
@@ -187,6 +204,9 @@ class Engine {
   /** Counts of NaN/Inf containment on the audio path since creation. Any thread. */
   ContainmentStats containment() const;
   size_t latencyFrames() const;
+  /** The decoder of the ambisonic bus (ambisonicOrder > 0), once the HRTF
+   *  model has loaded and a source was added; null before, or in binaural mode. */
+  std::shared_ptr<const AmbisonicDecoder> ambisonicDecoder() const;
 
   // ---- game thread ----
   /** Replaces the scene (an immutable snapshot; null: free field). The next
@@ -240,13 +260,26 @@ class Engine {
   Engine() = default;
   bool validSource(uint32_t s) const;
   Status simulateLocked(const std::vector<uint32_t>& sources);
+  Status createDecoder(const BinauralModel& model);  // under mAddMutex
+  // Audio thread: the bus (mInputs convolved) rotated to the head and decoded into ears[0..1].
+  void processAmbisonicBus(const ListenerOrientation& head, float* const* ears, size_t m);
 
   EngineSettings mSettings;
   BinauralModelFuture mModel;
-  std::mutex mAddMutex;  // serialises addSource() (slot state allocation)
+  mutable std::mutex mAddMutex;  // serialises addSource() (slot state allocation, the decoder)
   std::unique_ptr<ThreadPool> mPool;
   std::vector<std::unique_ptr<ThreadPool>> mWorkerPools;  // one single-thread pool per worker of mPool
   std::unique_ptr<ConvolutionMixer> mMixer;
+  // Ambisonic reflections (ambisonicOrder > 0): the bus's decoder, made at the
+  // first addSource (it needs the model), published to the audio thread.
+  std::shared_ptr<const AmbisonicDecoder> mDecoder;
+  std::unique_ptr<ConvolutionMixer> mDecoderMixer;
+  std::atomic<ConvolutionMixer*> mDecoderMixerLive{nullptr};
+  size_t mLatency = 0;
+  std::unique_ptr<ShRotation> mRotation;
+  std::vector<float> mBus, mRotated;  // audio thread: channels x chunk
+  std::vector<float> mLastRotation;   // audio thread: the bus's rotation at the end of the last chunk
+  bool mHaveRotation = false;         // audio thread
   std::vector<std::unique_ptr<Slot>> mSlots;
   std::atomic<double> mListener[9];  // position, forward, up
 
