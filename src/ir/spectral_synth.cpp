@@ -509,7 +509,7 @@ std::vector<std::shared_ptr<const std::vector<std::vector<float>>>> SpectralSynt
     out[missing[f]] = made[f];
     cache.insert(cache.begin(), Cached{seed, stream, filters[missing[f]].second, n, mFs, made[f]});
   }
-  trimNoiseCache(cache, size_t(128) << 20, 24);
+  trimNoiseCache(cache, size_t(128) << 20, 48);
   return out;
 }
 

@@ -84,8 +84,9 @@ class SpectralSynth {
    *  stationary). `filterKey` names h for the cache (0: the identity; a
    *  model's filters: BinauralModel::id() with the filter's index), so each
    *  (seed, stream, size class, filter) is filtered once per process; at most
-   *  24 kept (an order-3 ambisonic IR reads 16 noises: 101 MB for
-   *  3 s IRs), 128 MB. */
+   *  48 kept (an order-3 ambisonic IR reads 16 noises: 101 MB for
+   *  3 s IRs, and IRs of two size classes alternate as a room's decay
+   *  changes), 128 MB. */
   std::shared_ptr<const std::vector<std::vector<float>>> finishedBandNoise(uint64_t seed, uint64_t stream,
                                                                            const GridFilter& h,
                                                                            uint64_t filterKey) const;

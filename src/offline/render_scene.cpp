@@ -94,6 +94,10 @@ Result<RenderResult> renderScene(const SceneDescription& scene, const RenderOpti
   es.threads = options.threads > 0 ? options.threads : std::max(1u, std::thread::hardware_concurrency());
   es.workerNice = 0;
   es.fadeFrames = kRenderFadeFrames;
+  es.ambisonicOrder = options.ambisonicOrder.value_or(ss.ambisonicOrder);
+  if (es.ambisonicOrder < 0 || es.ambisonicOrder > kMaxAmbisonicOrder)
+    return invalidArgument("ambisonic order " + std::to_string(es.ambisonicOrder) + " is outside [0, 3]");
+  const bool ambisonic = es.ambisonicOrder > 0;
   auto preset = qualityPreset(options.quality.value_or(ss.quality));
   if (!preset.isOk()) return preset.status();
   apply(*preset, es.simulation);
@@ -105,13 +109,20 @@ Result<RenderResult> renderScene(const SceneDescription& scene, const RenderOpti
   es.simulation.air.temperatureC = ss.air.temperatureC;
   es.simulation.air.humidityPercent = ss.air.humidityPercent;
   es.simulation.air.pressureKpa = ss.air.pressureKpa;
+  out.log.push_back(ambisonic ? "reflections: world-frame ambisonics of order " + std::to_string(es.ambisonicOrder) +
+                                    ", rotated by the head every block (a head turn needs no simulation)"
+                              : std::string("reflections: a binaural IR per source (re-simulated when the head turns)"));
   out.log.push_back("quality " + preset->name + ": " + std::to_string(es.simulation.rays) + " rays, " +
                     std::to_string(es.simulation.bounces) + " bounces, image sources to order " +
                     std::to_string(es.simulation.imageSourceOrder) + ", seed " + std::to_string(es.simulation.seed));
 
   // What the engine will hold before it holds it.
   const uint64_t budget = defaultInputLimits().maxMemoryBytes;
-  const double engineBytes = double(scene.sources.size()) * kBytesPerSourceIrFrame * kMaxIrSeconds * fs;
+  // The measured 26 bytes per frame are for two channels; an ambisonic IR
+  // holds (order+1)^2.
+  const double irChannels = ambisonic ? double(ambisonicChannels(es.ambisonicOrder)) : 2.0;
+  const double engineBytes =
+      double(scene.sources.size()) * kBytesPerSourceIrFrame * (irChannels / 2.0) * kMaxIrSeconds * fs;
   if (engineBytes > double(budget))
     return outOfRange(scene.sceneFile + ": sources: " + std::to_string(scene.sources.size()) +
                       " sources need about " + formatBytes(uint64_t(engineBytes)) +
@@ -199,14 +210,21 @@ Result<RenderResult> renderScene(const SceneDescription& scene, const RenderOpti
     s.radiusMeters = src.radius;
     s.transmission = src.transmission;
     s.priority = src.priority;
-    const bool still = listenerStatic && src.trajectory.isStatic();
-    s.direct = still ? runtime::DirectMode::kInImpulseResponse : runtime::DirectMode::kPerBlock;
+    // With ambisonic reflections the direct sound always follows the head
+    // per block (its exact HRTF), and a still source (whatever the head
+    // does, if the listener stays in place) is simulated once.
+    const bool still = (ambisonic ? scene.listener.trajectory.isStationary() : listenerStatic) &&
+                       src.trajectory.isStatic();
+    s.direct = still && !ambisonic ? runtime::DirectMode::kInImpulseResponse : runtime::DirectMode::kPerBlock;
     out.log.push_back("source \"" + src.name + "\": " +
-                      (still ? "static: simulated once, direct sound inside its IR (exact convolution)"
-                             : "moving: direct sound rendered per block; reflections checked " +
-                                   formatNumber(ss.updateRateHz) + " times a second, simulated again after " +
-                                   formatNumber(options.minMoveMeters) + " m of motion or " +
-                                   formatNumber(options.minTurnDegrees) + " degrees of head turn"));
+                      (still && !ambisonic ? "static: simulated once, direct sound inside its IR (exact convolution)"
+                       : still ? "static: simulated once, direct sound rendered per block"
+                               : "moving: direct sound rendered per block; reflections checked " +
+                                     formatNumber(ss.updateRateHz) + " times a second, simulated again after " +
+                                     formatNumber(options.minMoveMeters) + " m of motion" +
+                                     (ambisonic ? std::string()
+                                                : " or " + formatNumber(options.minTurnDegrees) +
+                                                      " degrees of head turn")));
     auto id = engine.addSource(s);
     if (!id.isOk()) return id.status();
     ids.push_back(*id);
@@ -278,6 +296,10 @@ Result<RenderResult> renderScene(const SceneDescription& scene, const RenderOpti
                           scene.sources[i].directivityAlpha == 0.0 && scene.sources[i].directivityBands.empty()
                               ? Vec3d{0, 0, -1}
                               : sp.forward};
+        if (ambisonic) {  // the head's turn is the audio thread's
+          now.forward = {0, 0, -1};
+          now.up = {0, 1, 0};
+        }
         if (!now.closeTo(simulated[i], options.minMoveMeters, options.minTurnDegrees * kPi / 180.0)) {
           changed.push_back(ids[i]);
           simulated[i] = now;

@@ -41,7 +41,8 @@ const std::vector<std::string> kSourceKeys = {"name", "audio", "position", "forw
                                               "directivity_bands"};
 const std::vector<std::string> kKeyframeKeys = {"t", "position", "forward", "up"};
 const std::vector<std::string> kSettingsKeys = {"sample_rate", "quality", "rays", "bounces", "hrtf", "seed",
-                                                "update_rate_hz", "duration", "air", "speed_of_sound"};
+                                                "update_rate_hz", "duration", "air", "speed_of_sound",
+                                                "ambisonic_order"};
 const std::vector<std::string> kAirKeys = {"temperature_c", "humidity_pct", "pressure_kpa"};
 
 std::string fmt(double v) {
@@ -505,6 +506,11 @@ Status SceneReader::readSettings(const json& v, SceneSettings& out) {
     auto r = number(v["update_rate_hz"], "settings.update_rate_hz", {0.01, 1000.0, false, " Hz"});
     if (!r) return r.status();
     out.updateRateHz = *r;
+  }
+  if (v.contains("ambisonic_order")) {
+    auto r = wholeNumber(v["ambisonic_order"], "settings.ambisonic_order", 0, 3);
+    if (!r) return r.status();
+    out.ambisonicOrder = int(*r);
   }
   if (v.contains("duration")) {
     if (v["duration"].is_number() && v["duration"].get<double>() < 0)

@@ -576,11 +576,6 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& order) {
     slot.simulatedSource = j.source;
     slot.simulatedListener = listener;
     j.settings.includeDirect = DirectMode(slot.direct.load()) == DirectMode::kInImpulseResponse;
-    // Ambisonic IRs read one noise per channel (16 at order 3): made at one
-    // length, every IR shares one size class of cached noises (a room whose
-    // decay changes would otherwise keep making new ones). Just over the cut,
-    // so that the cut's fade applies.
-    if (isAmbisonic && j.settings.lengthSeconds <= 0) j.settings.lengthSeconds = mSettings.maxIrSeconds + kIrFadeSeconds;
     j.settings.directivity.alpha = slot.directivityAlpha.load();
     j.settings.directivity.sharpness = slot.directivitySharpness.load();
     j.settings.directivity.perBand = slot.directivityPerBand.load();

@@ -32,6 +32,7 @@ struct RenderCliOptions {
   bool strict = false;
   double minMove = 0.25;
   double minTurn = 5.0;
+  int ambisonicOrder = 1;
   bool quiet = false;
   double normalizeDbfs = 0.0;  // with --normalize
 };
@@ -105,6 +106,7 @@ int run(const RenderCliOptions& o, const CLI::App& cmd) {
   if (cmd.count("--to")) ro.toSeconds = o.to;
   ro.minMoveMeters = o.minMove;
   ro.minTurnDegrees = o.minTurn;
+  if (cmd.count("--ambisonic-order")) ro.ambisonicOrder = o.ambisonicOrder;
   Progress progress(o.quiet);
   ro.progress = [&](double f) { progress.update(f); };
   // The output streams to a temporary file renamed at the end: a render of
@@ -190,9 +192,16 @@ const Registrar registrar([](CLI::App& root) {
                   "change). The direct sound follows every block")
       ->check(CLI::Range(0.0, 1000.0))
       ->capture_default_str();
-  cmd->add_option("--min-turn", o->minTurn, "... or the listener turned this far (degrees; 0: any change)")
+  cmd->add_option("--min-turn", o->minTurn,
+                  "... or the listener turned this far (degrees; 0: any change). Applies only to binaural "
+                  "reflections (--ambisonic-order 0): ambisonic ones follow the head every block")
       ->check(CLI::Range(0.0, 180.0))
       ->capture_default_str();
+  cmd->add_option("--ambisonic-order", o->ambisonicOrder,
+                  "Override the scene's settings.ambisonic_order (default 1): 1-3 world-frame ambisonic "
+                  "reflections rotated by the head every block, so a head turn needs no simulation; 0 a binaural "
+                  "IR per source with each arrival's exact HRTF, simulated again after --min-turn degrees")
+      ->check(CLI::Range(0, 3));
   cmd->add_option("--normalize", o->normalizeDbfs,
                   "Scale the whole output so that its peak is at this level (dBFS, e.g. -1), reported on stderr; "
                   "two passes through a temporary float WAV beside the output (default: no scaling, the levels "

@@ -50,6 +50,10 @@ struct RenderOptions {
    *  The direct sound follows every block regardless. */
   double minMoveMeters = 0.25;
   double minTurnDegrees = 5.0;
+  /** Overrides the scene's settings.ambisonic_order. With ambisonic
+   *  reflections (1-3) a head turn never re-simulates (minTurnDegrees is not
+   *  used); with 0 (binaural) it does. */
+  std::optional<int> ambisonicOrder;
   /** Called now and then with the fraction done (0..1); from the calling thread. */
   std::function<void(double fraction)> progress;
   /** Set: each rendered block goes here (left, right, frames), in order, and

@@ -66,6 +66,9 @@ struct SceneAir {
   double pressureKpa = 101.325;   ///< [50, 120] kPa
 };
 
+/** settings.ambisonic_order when the scene does not say. */
+constexpr int kDefaultSceneAmbisonicOrder = 1;
+
 struct SceneSettings {
   double sampleRateHz = 48000.0;         ///< output rate, [8000, 192000] Hz
   std::string quality = "balanced";      ///< a name of sceneQualityNames() (ir's qualityPreset())
@@ -77,6 +80,11 @@ struct SceneSettings {
   std::optional<double> durationSeconds; ///< length of the output, (0, 86400]; unset: the renderer decides
   SceneAir air;
   double speedOfSound = 343.0;           ///< m/s, [100, 2000]
+  /** Reflections (runtime::EngineSettings::ambisonicOrder): 1-3 world-frame
+   *  ambisonic reflections rotated by the head every block (a head turn
+   *  costs no simulation); 0 a binaural IR per source, simulated again when
+   *  the head turns. */
+  int ambisonicOrder = kDefaultSceneAmbisonicOrder;
 };
 
 /** A parsed scene file. Paths are resolved against the scene file's

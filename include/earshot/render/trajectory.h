@@ -65,6 +65,12 @@ class Trajectory {
   Pose at(double t) const;
 
   bool isStatic() const { return mKeys.size() == 1; }
+  /** The position never changes (the orientation may). */
+  bool isStationary() const {
+    for (const Keyframe& k : mKeys)
+      if (!(k.position == mKeys.front().position)) return false;
+    return true;
+  }
   /** Keyframes with orthonormal forward/up (a static pose is one keyframe at t = 0). */
   const std::vector<Keyframe>& keyframes() const { return mKeys; }
   /** Time of the last keyframe (0 when static), seconds. */
