@@ -37,6 +37,9 @@ struct BenchRuntimeOptions {
   double updateHz = 10.0;  // per-source target; the thread runs round robin, never faster than this
   unsigned threads = 0;  // the engine's default: the cores less one
   size_t maxPartition = 0;
+  int ambisonicOrder = -1;  // -1: the engine's default
+  double irSeconds = 0.0;   // 0: the engine's default maxIrSeconds
+  double turnDegreesPerSecond = 90.0;
 };
 
 double threadCpuSeconds() {
@@ -56,6 +59,8 @@ int run(const BenchRuntimeOptions& o) {
   es.maxSources = o.sources;
   es.threads = o.threads;
   es.maxPartitionFrames = o.maxPartition;
+  if (o.ambisonicOrder >= 0) es.ambisonicOrder = o.ambisonicOrder;
+  if (o.irSeconds > 0) es.maxIrSeconds = o.irSeconds;
   auto model = loadBinauralModel("", es.sampleRateHz);
   if (!check(model.status())) return 2;
   auto created = runtime::Engine::create(es, *model);
@@ -126,8 +131,12 @@ int run(const BenchRuntimeOptions& o) {
     // Game thread's part, here at 90 Hz: new poses for every source.
     const double t = double(b) * period;
     const double g0 = threadCpuSeconds();
-    if (b % std::max<size_t>(1, size_t((1.0 / 90.0) / period)) == 0)
+    if (b % std::max<size_t>(1, size_t((1.0 / 90.0) / period)) == 0) {
       for (unsigned s = 0; s < o.sources; ++s) (void)engine.setSourcePosition(ids[s], sourceAt(s, t));
+      // The head turns about the up axis (z) of the samples.
+      const double a = o.turnDegreesPerSecond * kPi / 180.0 * t;
+      (void)engine.setListener(centre, {{std::cos(a), std::sin(a), 0.0}, {0.0, 0.0, 1.0}});
+    }
     gameCpu += threadCpuSeconds() - g0;
     if (b % ageEvery == 0 && double(b) * period >= 1.0) {
       // Every 100 ms after the first second: how old each source's IR is.
@@ -154,6 +163,9 @@ int run(const BenchRuntimeOptions& o) {
   const double perSourceHz = double(updates.load()) / wall / o.sources;
   std::sort(irAges.begin(), irAges.end());
   auto ageAt = [&](double q) { return irAges.empty() ? 0.0 : irAges[size_t(q * double(irAges.size() - 1))]; };
+  std::printf("runtime reflections=%s ir_seconds=%.1f head_turn_dps=%.0f\n",
+              es.ambisonicOrder > 0 ? ("ambisonic order " + std::to_string(es.ambisonicOrder)).c_str() : "binaural",
+              es.maxIrSeconds, o.turnDegreesPerSecond);
   std::printf("runtime scene=%s triangles=%zu sources=%u quality=%s block=%zu max_partition=%zu seconds=%.1f sim_threads=%u "
               "audio_cpu_pct_of_one_core=%.1f worst_block_pct_of_period=%.1f p99_block_pct=%.1f "
               "worst_block_first_second_pct=%.1f "
@@ -188,6 +200,14 @@ const Registrar registrar([](CLI::App& root) {
   cmd->add_option("--update-hz", o->updateHz, "Per-source reflection update ceiling")->check(CLI::Range(0.01, 1000.0))
       ->capture_default_str();
   cmd->add_option("--max-partition", o->maxPartition, "Largest convolution partition, frames (0: automatic)")
+      ->capture_default_str();
+  cmd->add_option("--ambisonic-order", o->ambisonicOrder,
+                  "Reflections: 0 binaural per source, 1-3 the ambisonic bus (default: the engine's)")
+      ->check(CLI::Range(0, 3));
+  cmd->add_option("--ir-seconds", o->irSeconds, "Longest IR convolved (default: the engine's, 3 s)")
+      ->check(CLI::Range(0.1, 60.0));
+  cmd->add_option("--turn-dps", o->turnDegreesPerSecond, "Head turn, degrees per second (0: still)")
+      ->check(CLI::Range(0.0, 3600.0))
       ->capture_default_str();
   cmd->add_option("--threads", o->threads, "Simulation threads (0: the cores less one, the engine's default)")->check(CLI::Range(0u, 256u))->capture_default_str();
   cmd->callback([o] { setExitCode(run(*o)); });
