@@ -30,6 +30,9 @@
 #include "earshot/core/thread_pool.h"
 #include "earshot/io/atomic_file.h"
 #include "earshot/io/wav.h"
+#include "earshot/analysis/binaural.h"
+#include "earshot/analysis/octave_filter.h"
+#include "earshot/ir/ambisonic_decoder.h"
 #include "earshot/ir/ir_pipeline.h"
 #include "earshot/materials/material.h"
 #include "earshot/scene/gltf_loader.h"
@@ -56,6 +59,11 @@ struct TradeoffOptions {
   std::string plot;
   std::string plotScript = "tools/plot_tradeoff.py";
   std::string python = "python3";
+  // Issue 15: ambisonic reflections against exact binaural ones.
+  std::string ambisonicOrders;
+  std::array<double, 3> forward{0.0, 0.0, -1.0}, up{0.0, 1.0, 0.0};
+  std::string hrtf;
+  std::string quality = "balanced";
 };
 
 /** Octave bands whose errors are averaged: 250 Hz .. 4 kHz. */
@@ -194,7 +202,200 @@ Result<PointResult> evaluatePoint(const RayTracer& tracer, const MaterialTable& 
   return p;
 }
 
+/** --ambisonic-orders: what the runtime's ambisonic reflections (world-frame
+ *  IR of each order, rotated to the head and decoded by the HRTF set's
+ *  decoder) cost in accuracy against the exact binaural reflections (every
+ *  arrival through its own HRTF) of the same simulation (same seed: the same
+ *  rays, image sources and noise), both with the exact direct sound as the
+ *  runtime renders it. Per order: the first reflection's ILD per octave
+ *  (the ear energies of each octave band within -1 .. +3 ms of the first
+ *  image source's arrival), the late IACC per octave, EDT and C80 per ear in
+ *  JND (mean |JND| over 250 Hz .. 4 kHz), and the bus's channels (the
+ *  audio thread's multiply-adds per source grow with them). */
+int runAmbisonic(const TradeoffOptions& o) {
+  std::vector<int> orders;
+  {
+    auto list = parseList("--ambisonic-orders", o.ambisonicOrders, 1);
+    if (!check(list.status())) return 2;
+    for (uint32_t v : *list) {
+      if (v > uint32_t(kMaxAmbisonicOrder)) {
+        printError("--ambisonic-orders: " + std::to_string(v) + " is outside [1, 3]");
+        return 2;
+      }
+      orders.push_back(int(v));
+    }
+  }
+  ListenerOrientation orientation{{o.forward[0], o.forward[1], o.forward[2]}, {o.up[0], o.up[1], o.up[2]}};
+  if (!check(validate(orientation))) return 2;
+  auto air = parseCliAir(o.air);
+  if (!check(air.status())) return 2;
+  if (!o.output.empty() && !check(checkOutputPath(o.output))) return 2;
+  auto scene = loadSceneInputs(o.geometry, o.materials, o.materialMap);
+  if (!check(scene.status())) return 2;
+  OmniIrSettings s;
+  auto preset = qualityPreset(o.quality);
+  if (!check(preset.status())) return 2;
+  apply(*preset, s);
+  s.air = *air;
+  s.seed = kReferenceSeed;
+  auto model = loadBinauralModel(o.hrtf, s.sampleRateHz);
+  if (!check(model.status())) return 2;
+  ThreadPool pool(o.threads);
+  const Vec3d source{o.source[0], o.source[1], o.source[2]}, listener{o.listener[0], o.listener[1], o.listener[2]};
+  const double fs = s.sampleRateHz;
+
+  // The exact binaural IR, with and without the direct sound (the runtime's
+  // direct sound is the difference).
+  BinauralReceiver binaural{*model, orientation};
+  auto full = computeIr(*scene->tracer, scene->materials, source, listener, s, pool, &binaural);
+  if (!check(full.status())) return 2;
+  OmniIrSettings sr = s;
+  sr.includeDirect = false;
+  auto exactRefl = computeIr(*scene->tracer, scene->materials, source, listener, sr, pool, &binaural);
+  if (!check(exactRefl.status())) return 2;
+  if (full->early.empty()) {
+    printError("no image source reaches the listener: no first reflection to compare");
+    return 2;
+  }
+  double first = full->early.front().delaySeconds;
+  for (const SpecularPath& p : full->early) first = std::min(first, p.delaySeconds);
+  const size_t n = exactRefl->ir.frameCount();
+
+  const double bands[] = {250, 500, 1000, 2000, 4000};
+  // Ear energies per octave in the first reflection's window.
+  auto firstReflectionIld = [&](const AudioBuffer& ir) {
+    std::array<double, 5> ild{};
+    const size_t a = size_t(std::max(0.0, (first - 0.001) * fs)), b = std::min(ir.frameCount(), size_t((first + 0.003) * fs));
+    for (size_t k = 0; k < 5; ++k) {
+      double e[2] = {0, 0};
+      for (int ear = 0; ear < 2; ++ear) {
+        size_t guard = 0;
+        const std::vector<double> f =
+            an::octaveBandFilter(ir.channels[size_t(ear)].data(), ir.frameCount(), fs, bands[k], &guard);
+        for (size_t i = a; i < b && i + guard < f.size(); ++i) e[ear] += f[i + guard] * f[i + guard];
+      }
+      ild[k] = 10.0 * std::log10(e[0] / e[1]);
+    }
+    return ild;
+  };
+  auto withDirect = [&](const AudioBuffer& refl) {
+    AudioBuffer out = full->ir;
+    for (int ear = 0; ear < 2; ++ear)
+      for (size_t i = 0; i < out.frameCount(); ++i)
+        out.channels[size_t(ear)][i] += (i < refl.frameCount() ? refl.channels[size_t(ear)][i] : 0.0f) -
+                                        (i < n ? exactRefl->ir.channels[size_t(ear)][i] : 0.0f);
+    return out;
+  };
+  struct Row {
+    int order;
+    std::array<double, 5> ildError;
+    std::array<double, 3> iaccLate, iaccError;  // 500, 1000, 2000 Hz
+    double edtJnd[2], c80Jnd[2];
+  };
+  auto evaluate = [&](const AudioBuffer& refl, int order, const std::array<double, 5>& exactIld,
+                      const an::BinauralMetrics& exactCues, const an::IrAnalysis& exactParams) -> Result<Row> {
+    Row r{};
+    r.order = order;
+    const std::array<double, 5> ild = firstReflectionIld(refl);
+    for (size_t k = 0; k < 5; ++k) r.ildError[k] = ild[k] - exactIld[k];
+    const AudioBuffer heard = withDirect(refl);
+    auto cues = an::analyzeBinaural(heard);
+    if (!cues.isOk()) return cues.status();
+    auto params = an::analyzeAudio(heard);
+    if (!params.isOk()) return params.status();
+    for (size_t k = 0; k < 3; ++k) {
+      const int band = int(k) + 2;  // 500 Hz, 1 kHz, 2 kHz
+      r.iaccLate[k] = cues->iacc[size_t(band)].late;
+      r.iaccError[k] = cues->iacc[size_t(band)].late - exactCues.iacc[size_t(band)].late;
+    }
+    for (int ear = 0; ear < 2; ++ear) {
+      double edt = 0, c80 = 0;
+      int count = 0;
+      for (int band = 0; band < kNumBands; ++band) {
+        if (kBandCentersHz[size_t(band)] < kLowestBandHz || kBandCentersHz[size_t(band)] > kHighestBandHz) continue;
+        const an::BandMetrics& t = params->channels[size_t(ear)][size_t(band)];
+        const an::BandMetrics& ref = exactParams.channels[size_t(ear)][size_t(band)];
+        const double de = an::differenceInJnd(an::Metric::kEdt, t.edtS, ref.edtS),
+                     dc = an::differenceInJnd(an::Metric::kC80, t.c80Db, ref.c80Db);
+        if (!std::isfinite(de) || !std::isfinite(dc)) continue;  // n/a in either (said by the count)
+        edt += std::fabs(de);
+        c80 += std::fabs(dc);
+        ++count;
+      }
+      r.edtJnd[ear] = count > 0 ? edt / count : an::kNaN;
+      r.c80Jnd[ear] = count > 0 ? c80 / count : an::kNaN;
+    }
+    return r;
+  };
+  const std::array<double, 5> exactIld = firstReflectionIld(exactRefl->ir);
+  auto exactCues = an::analyzeBinaural(full->ir);
+  if (!check(exactCues.status())) return 2;
+  auto exactParams = an::analyzeAudio(full->ir);
+  if (!check(exactParams.status())) return 2;
+
+  std::vector<Row> rows;
+  {
+    // The floor: the exact binaural reflections of another seed (other rays,
+    // other noise) differ from the reference by this much already.
+    OmniIrSettings other = sr;
+    other.seed = kReferenceSeed + 1;
+    auto ir = computeIr(*scene->tracer, scene->materials, source, listener, other, pool, &binaural);
+    if (!check(ir.status())) return 2;
+    AudioBuffer refl(2, n, fs);
+    for (int ear = 0; ear < 2; ++ear)
+      for (size_t i = 0; i < n && i < ir->ir.frameCount(); ++i) refl.channels[size_t(ear)][i] = ir->ir.channels[size_t(ear)][i];
+    auto row = evaluate(refl, 0, exactIld, *exactCues, *exactParams);
+    if (!check(row.status())) return 2;
+    rows.push_back(*row);
+  }
+  for (int order : orders) {
+    AmbisonicReceiver amb;
+    amb.order = order;
+    amb.frame.worldToFrame = worldToAmbisonicFrame(orientation.forward, orientation.up);
+    auto ir = computeIr(*scene->tracer, scene->materials, source, listener, sr, pool, nullptr, &amb);
+    if (!check(ir.status())) return 2;
+    AmbisonicDecoderSettings ds;
+    ds.order = order;
+    auto decoder = AmbisonicDecoder::create(**model, ds);
+    if (!check(decoder.status())) return 2;
+    auto ears = (*decoder)->decode(ir->ir);
+    if (!check(ears.status())) return 2;
+    // Undo the decoder's bulk delay, keep the exact IR's length.
+    AudioBuffer refl(2, n, fs);
+    for (int ear = 0; ear < 2; ++ear)
+      for (size_t i = 0; i < n; ++i) refl.channels[size_t(ear)][i] = ears->channels[size_t(ear)][i + (*decoder)->delayFrames()];
+    auto row = evaluate(refl, order, exactIld, *exactCues, *exactParams);
+    if (!check(row.status())) return 2;
+    rows.push_back(*row);
+  }
+  std::string csv =
+      "order,channels,ild_err_250_db,ild_err_500_db,ild_err_1000_db,ild_err_2000_db,ild_err_4000_db,"
+      "iacc_late_err_500,iacc_late_err_1000,iacc_late_err_2000,edt_jnd_left,edt_jnd_right,c80_jnd_left,"
+      "c80_jnd_right\n";
+  std::printf("exact binaural: first reflection at %.2f ms; its ILD per octave 250..4000 Hz:", first * 1000);
+  for (double v : exactIld) std::printf(" %.1f", v);
+  std::printf(" dB; late IACC 500/1k/2k: %.2f %.2f %.2f\n", exactCues->iacc[2].late, exactCues->iacc[3].late,
+              exactCues->iacc[4].late);
+  for (const Row& r : rows) {
+    csv += (r.order == 0 ? std::string("binaural_other_seed,2") : std::to_string(r.order) + "," + std::to_string(ambisonicChannels(r.order)));
+    for (double v : r.ildError) csv += "," + formatNumber(v);
+    for (double v : r.iaccError) csv += "," + formatNumber(v);
+    csv += "," + formatNumber(r.edtJnd[0]) + "," + formatNumber(r.edtJnd[1]) + "," + formatNumber(r.c80Jnd[0]) + "," +
+           formatNumber(r.c80Jnd[1]) + "\n";
+    if (r.order == 0)
+      std::printf("binaural, another seed (the floor): first-reflection ILD error");
+    else
+      std::printf("order %d (%d channels): first-reflection ILD error", r.order, ambisonicChannels(r.order));
+    for (double v : r.ildError) std::printf(" %+.1f", v);
+    std::printf(" dB; late IACC error %+.2f %+.2f %+.2f; EDT %.2f/%.2f JND, C80 %.2f/%.2f JND (left/right)\n",
+                r.iaccError[0], r.iaccError[1], r.iaccError[2], r.edtJnd[0], r.edtJnd[1], r.c80Jnd[0], r.c80Jnd[1]);
+  }
+  if (!o.output.empty() && !check(writeTextFileAtomically(o.output, csv))) return 2;
+  return 0;
+}
+
 int run(const TradeoffOptions& o) {
+  if (!o.ambisonicOrders.empty()) return runAmbisonic(o);
   // Everything that can be checked before the (long) sweep is checked first,
   // so an error never leaves a CSV or plot behind.
   auto rays = parseList("--rays", o.rays, 1);
@@ -388,6 +589,19 @@ const Registrar registrar([](CLI::App& root) {
   cmd->add_option("--plot-script", o->plotScript, "The plotting script, relative to the current directory")
       ->capture_default_str();
   cmd->add_option("--python", o->python, "Python interpreter for --plot (needs matplotlib)")->capture_default_str();
+  auto* ambOpt = cmd->add_option("--ambisonic-orders", o->ambisonicOrders,
+                                 "Instead of the sweep: ambisonic reflections of these orders (e.g. 1,2,3) against "
+                                 "exact binaural ones of the same simulation: first-reflection ILD per octave, late "
+                                 "IACC, EDT and C80 per ear (JND); the CSV has one row per order, after a row of "
+                                 "binaural reflections of another seed (the floor those figures sit on)");
+  ambOpt->excludes(raysOpt)->excludes(bouncesOpt);
+  addVec3Option(*cmd, "--forward", o->forward, "Listener forward vector, with --ambisonic-orders (default 0,0,-1)");
+  addVec3Option(*cmd, "--up", o->up, "Listener up vector, with --ambisonic-orders (default 0,1,0)");
+  cmd->add_option("--hrtf", o->hrtf, "HRTF set for --ambisonic-orders (default: the shipped KU100 set)")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--quality", o->quality, "Quality preset of the --ambisonic-orders simulation")
+      ->check(CLI::IsMember({"draft", "balanced", "high", "reference"}))
+      ->capture_default_str();
   cmd->callback([o] { setExitCode(run(*o)); });
 });
 
