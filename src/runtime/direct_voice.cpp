@@ -1,6 +1,9 @@
 // The direct sound of a moving source: see direct_voice.h.
 #include "earshot/runtime/direct_voice.h"
 
+#include "earshot/hrtf/coordinates.h"
+#include "earshot/ir/spherical_harmonics.h"
+
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -146,7 +149,7 @@ void DirectVoice::reset() {
   mStarted = false;
 }
 
-DirectVoice::Params DirectVoice::paramsFor(const DirectTarget& t, Vec3f& headDirection) const {
+DirectVoice::Params DirectVoice::paramsFor(const DirectTarget& t, Vec3f& headDirection, bool centre) const {
   Params p;
   const Vec3d d = t.source - t.listener;
   const double r = length(d);
@@ -155,7 +158,7 @@ DirectVoice::Params DirectVoice::paramsFor(const DirectTarget& t, Vec3f& headDir
   mHrtf->lookup(headDirection, *mHrirNext);
   const double fs = mSettings.sampleRateHz;
   const double travel = std::min(r / mSettings.speedOfSound, mSettings.maxDelaySeconds);
-  const double ear[2] = {mHrirNext->leftDelaySeconds, mHrirNext->rightDelaySeconds};
+  const double ear[2] = {centre ? 0.0 : mHrirNext->leftDelaySeconds, centre ? 0.0 : mHrirNext->rightDelaySeconds};
   for (int e = 0; e < 2; ++e)
     p.delay[e] = std::clamp(std::max(0.0, travel + ear[e]) * fs + double(mSettings.extraDelayFrames), kMinDelaySamples,
                             mMaxDelay);
@@ -258,6 +261,49 @@ void DirectVoice::process(const float* input, float* left, float* right, size_t 
   }
   mDelay[0] = to.delay[0];
   mDelay[1] = to.delay[1];
+}
+
+void DirectVoice::processAmbisonic(const float* input, float* const* out, int order, size_t frames,
+                                   const DirectTarget& target) {
+  if (frames == 0) return;
+  Vec3f head;
+  const Params to = paramsFor(target, head, true);
+  // Head frame (+x right, +y up, -z forward) to the ambisonic frame.
+  float sh[16];
+  realSphericalHarmonics(hrtf::headToSofa(head), order, sh);
+  const int channels = ambisonicChannels(order);
+  if (!mStarted) {
+    mCurrent = to;
+    std::copy(sh, sh + channels, mHarmonics);
+    mStarted = true;
+  }
+  const double fs = mSettings.sampleRateHz;
+  setShelf(mLow.b0, mLow.b1, mLow.b2, mLow.a1, mLow.a2, fs, kLowShelfHz, to.lowDb, false);
+  setShelf(mHigh.b0, mHigh.b1, mHigh.b2, mHigh.a1, mHigh.a2, fs, kHighShelfHz, to.highDb, true);
+  float* y = mScratch.data();
+  for (size_t off = 0; off < frames; off += kChunk) {
+    const size_t n = std::min(kChunk, frames - off);
+    const size_t base = mWrite;
+    for (size_t i = 0; i < n; ++i) {
+      const float x = input ? input[off + i] : 0.0f;
+      mRing[(mWrite++) & mRingMask] = mHigh.run(mLow.run(x));
+    }
+    for (size_t i = 0; i < n; ++i) {
+      const double a = double(off + i + 1) / double(frames);
+      const double d = mCurrent.delay[0] + (to.delay[0] - mCurrent.delay[0]) * a;
+      const double g = mCurrent.gain + (to.gain - mCurrent.gain) * a;
+      y[i] = float(g * readDelayed(double(base + i) - d));
+    }
+    for (int c = 0; c < channels; ++c) {
+      const float from = mHarmonics[c], step = (sh[c] - from) / float(frames);
+      float* o = out[c] + off;
+      for (size_t i = 0; i < n; ++i) o[i] += (from + step * float(off + i + 1)) * y[i];
+    }
+  }
+  mCurrent = to;
+  std::copy(sh, sh + channels, mHarmonics);
+  mHeadDirection = head;
+  mDelay[0] = mDelay[1] = to.delay[0];
 }
 
 }  // namespace earshot::runtime

@@ -339,9 +339,12 @@ Result<std::unique_ptr<Engine>> Engine::create(const EngineSettings& s, Binaural
   if (!mixer.isOk()) return Status(mixer.status().code(), "engine: " + mixer.status().message());
   e->mMixer = std::move(mixer.value());
   e->mLatency = e->mMixer->latencyFrames();
+  if (s.output == OutputFormat::kAmbisonic && s.ambisonicOrder < 1)
+    return invalidArgument("engine: ambisonic output needs ambisonic reflections (ambisonicOrder 1-3)");
+  e->mOutputChannels = s.output == OutputFormat::kAmbisonic ? size_t(ambisonicChannels(s.ambisonicOrder)) : 2;
   if (s.ambisonicOrder > 0) {
-    // The decoder's convolution (one more block) and its bulk delay.
-    e->mLatency += s.blockFrames + ambisonicDecoderDelayFrames(s.sampleRateHz);
+    // Binaural output: the decoder's convolution (one more block) and its bulk delay.
+    if (s.output == OutputFormat::kBinaural) e->mLatency += s.blockFrames + ambisonicDecoderDelayFrames(s.sampleRateHz);
     e->mRotation = std::make_unique<ShRotation>();
     const size_t channels = size_t(ambisonicChannels(s.ambisonicOrder));
     e->mBus.assign(channels * kProcessChunk, 0.0f);
@@ -417,7 +420,8 @@ Result<uint32_t> Engine::addSource(const SourceSettings& settings) {
       ds.air = mSettings.simulation.air;
       ds.maxDelaySeconds = mSettings.maxDistanceMeters / mSettings.simulation.speedOfSound;
       ds.extraDelayFrames = mLatency;
-      if (mSettings.ambisonicOrder > 0 && !mDecoder) EARSHOT_RETURN_IF_ERROR(createDecoder(**model));
+      if (mSettings.ambisonicOrder > 0 && mSettings.output == OutputFormat::kBinaural && !mDecoder)
+        EARSHOT_RETURN_IF_ERROR(createDecoder(**model));
       auto voice = DirectVoice::create(ds, (*model)->hrtfPtr());
       if (!voice.isOk()) return Status(voice.status().code(), "engine: " + voice.status().message());
       EARSHOT_RETURN_IF_ERROR(mMixer->reserveSource(i));
@@ -659,7 +663,14 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& order) {
 }
 
 void Engine::process(const float* const* inputs, float* left, float* right, size_t frames) {
+  float* outputs[2] = {left, right};
+  process(inputs, outputs, frames);
+}
+
+void Engine::process(const float* const* inputs, float* const* outputs, size_t frames) {
   ScopedFlushDenormals ftz;
+  const bool ambisonicOut = mSettings.output == OutputFormat::kAmbisonic;
+  const size_t outChannels = mOutputChannels;
   const size_t n = mSlots.size();
   DirectTarget target;
   target.listener = {mListener[0].load(std::memory_order_relaxed), mListener[1].load(std::memory_order_relaxed),
@@ -720,7 +731,8 @@ void Engine::process(const float* const* inputs, float* left, float* right, size
       slot.appliedGain = to;
       mInputs[i] = slot.reflectionsLive ? g : nullptr;
     }
-    float* outs[2] = {left + off, right + off};
+    float* outs[kMaxAmbisonicChannels];
+    for (size_t c = 0; c < outChannels; ++c) outs[c] = outputs[c] + off;
     if (mSettings.ambisonicOrder > 0) {
       processAmbisonicBus(target.orientation, outs, m);
     } else {
@@ -792,15 +804,19 @@ void Engine::process(const float* const* inputs, float* left, float* right, size
         }();
       }
       // A muted chunk feeds the voice the zeros the mixer got.
-      slot.voice.load(std::memory_order_relaxed)->process(slot.mutedChunk ? slot.scaled.data() : inputs[i] + off, left + off, right + off, m, target);
+      const float* voiceIn = slot.mutedChunk ? slot.scaled.data() : inputs[i] + off;
+      if (ambisonicOut)
+        slot.voice.load(std::memory_order_relaxed)->processAmbisonic(voiceIn, outs, mSettings.ambisonicOrder, m, target);
+      else
+        slot.voice.load(std::memory_order_relaxed)->process(voiceIn, outs[0], outs[1], m, target);
     }
     // Containment of an overflow anywhere in the state: never a non-finite
     // sample out, and no state that stays poisoned.
     bool finite = true;
-    for (size_t k = 0; k < m; ++k) finite &= std::isfinite(left[off + k]) && std::isfinite(right[off + k]);
+    for (size_t c = 0; c < outChannels; ++c)
+      for (size_t k = 0; k < m; ++k) finite &= std::isfinite(outs[c][k]);
     if (!finite) {
-      std::fill(left + off, left + off + m, 0.0f);
-      std::fill(right + off, right + off + m, 0.0f);
+      for (size_t c = 0; c < outChannels; ++c) std::fill(outs[c], outs[c] + m, 0.0f);
       mMixer->clearState();
       if (ConvolutionMixer* d = mDecoderMixerLive.load(std::memory_order_acquire)) d->clearState();
       for (auto& slot : mSlots)
@@ -850,6 +866,10 @@ void Engine::processAmbisonicBus(const ListenerOrientation& head, float* const* 
     }
   }
   std::copy(now, now + C * C, mLastRotation.begin());
+  if (mSettings.output == OutputFormat::kAmbisonic) {
+    for (size_t c = 0; c < channels; ++c) std::copy(rotated[c], rotated[c] + m, ears[c]);
+    return;
+  }
   if (ConvolutionMixer* decoder = mDecoderMixerLive.load(std::memory_order_acquire)) {
     decoder->process(rotatedIn, ears, m);
   } else {

@@ -7,6 +7,7 @@
 
 #include "earshot/core/math.h"
 #include "earshot/core/random.h"
+#include "earshot/ir/spherical_harmonics.h"
 #include "earshot/runtime/engine.h"
 #include "runtime_fixture.h"
 
@@ -108,6 +109,60 @@ TEST(EngineAmbisonic, LatencyAndIrLayout) {
   EngineSettings es = test::fastSettings();
   es.ambisonicOrder = 4;
   EXPECT_FALSE(Engine::create(es, test::ku100()).isOk());
+}
+
+// Ambisonic output: a source 90 degrees left and 30 degrees up of the
+// listener (free field) comes out as the AmbiX harmonics of that direction in
+// the listener's frame, W at 1/r; after the head turns 90 degrees left the
+// source is ahead, 30 degrees up.
+TEST(EngineAmbisonic, AmbisonicOutputEncodesTheDirectSoundInTheListenersFrame) {
+  ASSERT_TRUE(test::ku100());
+  EngineSettings es = test::fastSettings();
+  es.ambisonicOrder = 3;
+  es.output = OutputFormat::kAmbisonic;
+  auto e = Engine::create(es, test::ku100());
+  ASSERT_TRUE(e.isOk()) << e.status().message();
+  Engine& engine = **e;
+  ASSERT_EQ(engine.outputChannels(), 16u);
+  auto id = engine.addSource({});
+  ASSERT_TRUE(id.isOk());
+  // Listener at the origin facing +x, up +z: left is +y.
+  const double r = 10.0, el = kPi / 6;
+  ASSERT_TRUE(engine.setSourcePosition(*id, {0, r * std::cos(el), r * std::sin(el)}).isOk());
+  ASSERT_TRUE(engine.setListener({0, 0, 0}, {{1, 0, 0}, {0, 0, 1}}).isOk());
+  ASSERT_TRUE(engine.simulate().isOk());
+  auto capture = [&](const Vec3d& inFrame) {
+    // A click, then enough blocks for r/c and the latency.
+    std::vector<float> in(256, 0.0f);
+    std::vector<std::vector<float>> out(16, std::vector<float>(256));
+    std::vector<double> area(16, 0.0);
+    std::vector<const float*> inputs(es.maxSources, nullptr);
+    inputs[*id] = in.data();
+    float* outs[16];
+    for (int c = 0; c < 16; ++c) outs[c] = out[size_t(c)].data();
+    for (int b = 0; b < 20; ++b) {  // settle at the new pose in silence
+      std::fill(in.begin(), in.end(), 0.0f);
+      engine.process(inputs.data(), outs, 256);
+    }
+    for (int b = 0; b < 12; ++b) {
+      std::fill(in.begin(), in.end(), 0.0f);
+      if (b == 0) in[0] = 1.0f;
+      engine.process(inputs.data(), outs, 256);
+      for (int c = 0; c < 16; ++c)
+        for (float v : out[size_t(c)]) area[size_t(c)] += v;
+    }
+    double want[16];
+    realSphericalHarmonics(inFrame, 3, want);
+    EXPECT_NEAR(area[0], 1.0 / r, 0.02 / r);
+    for (int c = 0; c < 16; ++c) EXPECT_NEAR(area[size_t(c)] / area[0], want[c], 0.05) << "channel " << c;
+  };
+  capture({0, std::cos(el), std::sin(el)});
+  // Turn the head 90 degrees left: the source is now ahead, 30 degrees up.
+  ASSERT_TRUE(engine.setListener({0, 0, 0}, {{0, 1, 0}, {0, 0, 1}}).isOk());
+  capture({std::cos(el), 0, std::sin(el)});
+  EngineSettings bad = test::fastSettings();
+  bad.output = OutputFormat::kAmbisonic;  // with binaural reflections
+  EXPECT_FALSE(Engine::create(bad, test::ku100()).isOk());
 }
 
 }  // namespace

@@ -64,6 +64,15 @@ class DirectVoice {
    *  allocation, lock or exception. */
   void process(const float* input, float* left, float* right, size_t frames, const DirectTarget& target);
 
+  /** Ambisonic output (issue 15): the same delay line, spreading and shelves,
+   *  read at the head centre's delay (no ear onsets, no HRIR), ADDED to the
+   *  (order+1)^2 AmbiX channels (ACN, SN3D) `out` in the listener's frame (x
+   *  forward, y left, z up), the harmonics of the source's direction
+   *  interpolated across the frames from the previous call's. order in
+   *  [1, 3]. A voice renders one way or the other (reset() between).
+   *  Thread: audio only; no allocation, lock or exception. */
+  void processAmbisonic(const float* input, float* const* out, int order, size_t frames, const DirectTarget& target);
+
   /** Forgets the signal history and parameters (next call starts afresh). Thread: audio. */
   void reset();
 
@@ -87,7 +96,8 @@ class DirectVoice {
     double lowDb = 0, highDb = 0;
   };
   DirectVoice() = default;
-  Params paramsFor(const DirectTarget& t, Vec3f& headDirection) const;
+  // centre: the head centre's delay for both "ears" (ambisonic output).
+  Params paramsFor(const DirectTarget& t, Vec3f& headDirection, bool centre = false) const;
   void processChunk(const float* input, float* left, float* right, size_t frames, const Params& from,
                     const Params& to, size_t offset, size_t total, bool crossfade);
   double readDelayed(double position) const;
@@ -109,6 +119,7 @@ class DirectVoice {
   Vec3f mHeadDirection;
   bool mStarted = false;
   double mDelay[2] = {0, 0};
+  float mHarmonics[16] = {};  // ambisonic output: the direction's SH at the end of the last call
 };
 
 }  // namespace earshot::runtime

@@ -48,6 +48,11 @@ namespace earshot::runtime {
 
 class DirectVoice;
 
+enum class OutputFormat {
+  kBinaural,   ///< left, right
+  kAmbisonic,  ///< (order+1)^2 AmbiX channels in the listener's frame
+};
+
 struct EngineSettings {
   double sampleRateHz = 48000.0;  ///< must equal the HRTF model's rate
   /** Convolver latency and smallest partition (frames, even, [8, 65536]); the
@@ -85,6 +90,12 @@ struct EngineSettings {
    *  in the bus, decoded with the reflections. Adds latencyFrames(): one
    *  block for the decoder's convolution plus its 2 ms bulk delay. */
   int ambisonicOrder = 0;
+  /** What process() writes: two ears (binaural), or with ambisonic
+   *  reflections the (ambisonicOrder+1)^2 AmbiX channels (ACN, SN3D) in the
+   *  listener's frame (x forward, y left, z up): the bus rotated to the head
+   *  and not decoded, each per-block direct sound encoded at its current
+   *  direction (W is the omni pressure). */
+  OutputFormat output = OutputFormat::kBinaural;
 };
 
 enum class DirectMode {
@@ -253,6 +264,11 @@ class Engine {
    *  (maxSources pointers; nullptr or an inactive slot: silence); left and
    *  right are overwritten. No allocation, lock, log or exception. */
   void process(const float* const* inputs, float* left, float* right, size_t frames);
+  /** As above into outputChannels() buffers (binaural: left, right; ambisonic
+   *  output: the AmbiX channels in ACN order), each overwritten. */
+  void process(const float* const* inputs, float* const* outputs, size_t frames);
+  /** 2, or (ambisonicOrder+1)^2 for OutputFormat::kAmbisonic. Any thread. */
+  size_t outputChannels() const { return mOutputChannels; }
 
   struct Slot;  // one source's state (engine.cpp)
 
@@ -262,6 +278,7 @@ class Engine {
   Status simulateLocked(const std::vector<uint32_t>& sources);
   Status createDecoder(const BinauralModel& model);  // under mAddMutex
   // Audio thread: the bus (mInputs convolved) rotated to the head and decoded into ears[0..1].
+  // With OutputFormat::kAmbisonic, `ears` are the output's channels and the bus is not decoded.
   void processAmbisonicBus(const ListenerOrientation& head, float* const* ears, size_t m);
 
   EngineSettings mSettings;
@@ -276,6 +293,7 @@ class Engine {
   std::unique_ptr<ConvolutionMixer> mDecoderMixer;
   std::atomic<ConvolutionMixer*> mDecoderMixerLive{nullptr};
   size_t mLatency = 0;
+  size_t mOutputChannels = 2;
   std::unique_ptr<ShRotation> mRotation;
   std::vector<float> mBus, mRotated;  // audio thread: channels x chunk
   std::vector<float> mLastRotation;   // audio thread: the bus's rotation at the end of the last chunk
