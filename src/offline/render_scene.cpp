@@ -77,6 +77,18 @@ double defaultSceneDuration(const SceneDescription& scene, const std::vector<dou
   return end + kTailSeconds;
 }
 
+Result<size_t> renderOutputChannels(const SceneDescription& scene, const RenderOptions& options) {
+  const int order = options.ambisonicOrder.value_or(scene.settings.ambisonicOrder);
+  const std::string format = options.outputFormat.value_or(scene.settings.output);
+  if (order < 0 || order > kMaxAmbisonicOrder)
+    return invalidArgument("ambisonic order " + std::to_string(order) + " is outside [0, 3]");
+  if (format == "binaural") return size_t(2);
+  if (format != "ambisonic")
+    return invalidArgument("output format '" + format.substr(0, 32) + "' is not binaural or ambisonic");
+  if (order == 0) return invalidArgument("ambisonic output needs an ambisonic order of 1-3 (settings.ambisonic_order)");
+  return size_t(ambisonicChannels(order));
+}
+
 Result<RenderResult> renderScene(const SceneDescription& scene, const RenderOptions& options) {
   const auto t0 = Clock::now();
   RenderResult out;
@@ -95,8 +107,10 @@ Result<RenderResult> renderScene(const SceneDescription& scene, const RenderOpti
   es.workerNice = 0;
   es.fadeFrames = kRenderFadeFrames;
   es.ambisonicOrder = options.ambisonicOrder.value_or(ss.ambisonicOrder);
-  if (es.ambisonicOrder < 0 || es.ambisonicOrder > kMaxAmbisonicOrder)
-    return invalidArgument("ambisonic order " + std::to_string(es.ambisonicOrder) + " is outside [0, 3]");
+  auto outChannels = renderOutputChannels(scene, options);
+  if (!outChannels.isOk()) return outChannels.status();
+  const size_t channels = *outChannels;
+  if (options.outputFormat.value_or(ss.output) == "ambisonic") es.output = runtime::OutputFormat::kAmbisonic;
   const bool ambisonic = es.ambisonicOrder > 0;
   auto preset = qualityPreset(options.quality.value_or(ss.quality));
   if (!preset.isOk()) return preset.status();
@@ -245,24 +259,28 @@ Result<RenderResult> renderScene(const SceneDescription& scene, const RenderOpti
   const size_t latency = engine.latencyFrames();
   const size_t block = latency;
   const size_t processFrames = size_t(endFrame - firstFrame) + latency;
-  const double outBytes = double(outFrames) * 2 * sizeof(float);
+  const double outBytes = double(outFrames) * double(channels) * sizeof(float);
   if (options.sink && outBytes > double(kMaxWavBytes))
-    return outOfRange(scene.sceneFile + ": " + formatNumber(to - options.fromSeconds) + " s of stereo audio at " +
-                      formatNumber(fs) + " Hz is " + formatBytes(uint64_t(outBytes)) +
+    return outOfRange(scene.sceneFile + ": " + formatNumber(to - options.fromSeconds) + " s of " +
+                      std::to_string(channels) + "-channel audio at " + formatNumber(fs) + " Hz is " +
+                      formatBytes(uint64_t(outBytes)) +
                       ", more than a WAV file holds (4 GiB); render it in parts with --from/--to");
   if (!options.sink && heldBytes + outBytes > double(budget))
     return outOfRange(scene.sceneFile + ": " + formatNumber(to - options.fromSeconds) +
                       " s of output held in memory need " + formatBytes(uint64_t(outBytes)) +
                       ", over the memory limit of " + formatBytes(budget) + " (--max-memory)");
-  if (!options.sink) out.audio = AudioBuffer(2, outFrames, fs);
-  else out.audio = AudioBuffer(2, 0, fs);
-  std::vector<float> outLeft, outRight;
-  if (options.sink) outLeft.reserve(block), outRight.reserve(block);
+  if (!options.sink) out.audio = AudioBuffer(channels, outFrames, fs);
+  else out.audio = AudioBuffer(channels, 0, fs);
+  std::vector<std::vector<float>> pending(channels);
+  if (options.sink)
+    for (auto& p : pending) p.reserve(block);
 
   std::vector<std::vector<float>> input(ids.size(), std::vector<float>(block, 0.0f));
   std::vector<const float*> inputs(es.maxSources, nullptr);
   for (size_t i = 0; i < ids.size(); ++i) inputs[ids[i]] = input[i].data();
-  std::vector<float> left(block), right(block);
+  std::vector<std::vector<float>> rendered(channels, std::vector<float>(block));
+  std::vector<float*> renderedPtrs(channels);
+  for (size_t c = 0; c < channels; ++c) renderedPtrs[c] = rendered[c].data();
   std::vector<SimulatedPose> simulated(ids.size());
   const long long updateFrames = std::max<long long>(1, std::llround(fs / ss.updateRateHz));
   long long nextUpdate = firstFrame;
@@ -323,27 +341,29 @@ Result<RenderResult> renderScene(const SceneDescription& scene, const RenderOpti
       }
     }
     const auto ta = Clock::now();
-    engine.process(inputs.data(), left.data(), right.data(), block);
+    engine.process(inputs.data(), renderedPtrs.data(), block);
     out.audioProcessSeconds += secondsSince(ta);
     // Output frame f is scene frame firstFrame + f - latency.
-    outLeft.clear();
-    outRight.clear();
+    for (auto& p : pending) p.clear();
     for (size_t k = 0; k < block; ++k) {
       const long long sceneOut = firstFrame + (long long)(f + k) - (long long)latency;
       const long long o = sceneOut - outFirstFrame;
       if (o >= 0 && o < (long long)outFrames) {
-        out.peak = std::max({out.peak, double(std::fabs(left[k])), double(std::fabs(right[k]))});
-        if (options.sink) {
-          outLeft.push_back(left[k]);
-          outRight.push_back(right[k]);
-        } else {
-          out.audio.channels[0][size_t(o)] = left[k];
-          out.audio.channels[1][size_t(o)] = right[k];
+        for (size_t c = 0; c < channels; ++c) {
+          const float v = rendered[c][k];
+          out.peak = std::max(out.peak, double(std::fabs(v)));
+          if (options.sink)
+            pending[c].push_back(v);
+          else
+            out.audio.channels[c][size_t(o)] = v;
         }
       }
     }
-    if (options.sink && !outLeft.empty())
-      EARSHOT_RETURN_IF_ERROR(options.sink(outLeft.data(), outRight.data(), outLeft.size()));
+    if (options.sink && !pending[0].empty()) {
+      std::vector<const float*> planar(channels);
+      for (size_t c = 0; c < channels; ++c) planar[c] = pending[c].data();
+      EARSHOT_RETURN_IF_ERROR(options.sink(planar.data(), pending[0].size()));
+    }
     if (options.progress) {
       const double fraction = double(f + block) / double(processFrames);
       if (fraction - lastProgress >= 0.01 || f + block >= processFrames) {

@@ -42,7 +42,7 @@ const std::vector<std::string> kSourceKeys = {"name", "audio", "position", "forw
 const std::vector<std::string> kKeyframeKeys = {"t", "position", "forward", "up"};
 const std::vector<std::string> kSettingsKeys = {"sample_rate", "quality", "rays", "bounces", "hrtf", "seed",
                                                 "update_rate_hz", "duration", "air", "speed_of_sound",
-                                                "ambisonic_order"};
+                                                "ambisonic_order", "output"};
 const std::vector<std::string> kAirKeys = {"temperature_c", "humidity_pct", "pressure_kpa"};
 
 std::string fmt(double v) {
@@ -512,6 +512,15 @@ Status SceneReader::readSettings(const json& v, SceneSettings& out) {
     if (!r) return r.status();
     out.ambisonicOrder = int(*r);
   }
+  if (v.contains("output")) {
+    auto f = text(v["output"], "settings.output", "\"binaural\" or \"ambisonic\"");
+    if (!f) return f.status();
+    if (*f != "binaural" && *f != "ambisonic")
+      return fail("settings.output", "'" + f->substr(0, 32) + "' is not \"binaural\" or \"ambisonic\"");
+    out.output = *f;
+  }
+  if (out.output == "ambisonic" && out.ambisonicOrder == 0)
+    return fail("settings.output", "ambisonic output needs settings.ambisonic_order 1-3, not 0");
   if (v.contains("duration")) {
     if (v["duration"].is_number() && v["duration"].get<double>() < 0)
       return fail("settings.duration", fmt(v["duration"].get<double>()) + " s is negative (expected seconds > 0)");

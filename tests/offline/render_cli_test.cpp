@@ -75,7 +75,8 @@ std::string vec(double x, double y, double z) {
 
 }  // namespace
 
-// Issue 7: one static source and listener render to exactly the convolution
+// Issue 7: one static source and listener (binaural reflections,
+// ambisonic_order 0: the exact per-arrival path) render to exactly the convolution
 // of the dry signal with `earshot ir`'s IR for the same positions and seed
 // (to 1e-5 of the peak).
 TEST(RenderCli, StaticSceneIsTheDrySignalConvolvedWithEarshotIrsIr) {
@@ -89,7 +90,7 @@ TEST(RenderCli, StaticSceneIsTheDrySignalConvolvedWithEarshotIrsIr) {
     "material_map": ")" << kSamples << R"(shoebox/materials_map.json",
     "listener": {"position": [7, 4, 1.6], "forward": [-1, 0.2, 0], "up": [0, 0, 1]},
     "sources": [{"name": "noise", "audio": "dry.wav", "position": [2.5, 3, 1.4]}],
-    "settings": {"quality": "draft", "seed": 3, "duration": 1.6}
+    "settings": {"quality": "draft", "seed": 3, "duration": 1.6, "ambisonic_order": 0}
   })";
   auto ir = runEarshot("ir " + kSamples + "shoebox/shoebox.gltf --material-map " + kSamples +
                        "shoebox/materials_map.json --source 2.5,3,1.4 --listener 7,4,1.6 --forward -1,0.2,0 --up 0,0,1 "
@@ -228,6 +229,44 @@ TEST(RenderCli, FastHeadTurnHasNoJumpsLargerThanAStillHead) {
     EXPECT_GT(s, 0.0);
     EXPECT_LE(m, s * 1.1) << "ear " << ear;
   }
+}
+
+// Issue 15: "output": "ambisonic" writes the AmbiX channels of the order in
+// the listener's frame: a source on the listener's left (free field) is all
+// in W and Y (Y = W), nothing in X or Z; ambisonic output without an
+// ambisonic order is one clear error.
+TEST(RenderCli, AmbisonicOutputIsAmbiXInTheListenersFrame) {
+  TempDir dir("render_ambix");
+  writeMono(dir / "sine.wav", sine(500.0, 1.0));
+  auto scene = [&](const std::string& settings) {
+    return R"({"listener": {"position": [0, 0, 0], "forward": [1, 0, 0], "up": [0, 0, 1]},
+           "sources": [{"name": "tone", "audio": "sine.wav", "position": [0, 5, 0]}],
+           "settings": {"duration": 1, )" + settings + "}}";
+  };
+  std::ofstream(dir / "ambix.json") << scene(R"("ambisonic_order": 2, "output": "ambisonic")");
+  auto a = runEarshot("render " + dir / "ambix.json" + " -o " + dir / "ambix.wav --quiet");
+  ASSERT_EQ(a.exitCode, 0) << a.output;
+  const AudioBuffer out = read(dir / "ambix.wav");
+  ASSERT_EQ(out.channelCount(), 9u);
+  auto energy = [&](size_t c) {
+    double e = 0;
+    for (size_t i = size_t(0.2 * kFs); i < size_t(0.8 * kFs); ++i) e += double(out.channels[c][i]) * out.channels[c][i];
+    return e;
+  };
+  const double w = energy(0);
+  EXPECT_GT(w, 0.0);
+  EXPECT_NEAR(energy(1) / w, 1.0, 0.01);  // Y
+  EXPECT_LT(energy(2) / w, 1e-4);         // Z
+  EXPECT_LT(energy(3) / w, 1e-4);         // X
+  EXPECT_NEAR(energy(8) / w, 0.75, 0.01); // U = sqrt(3)/2 (x^2 - y^2): 3/4 of W's energy
+  std::ofstream(dir / "bad.json") << scene(R"("ambisonic_order": 0, "output": "ambisonic")");
+  auto b = runEarshot("render " + dir / "bad.json" + " -o " + dir / "bad.wav --quiet");
+  EXPECT_EQ(b.exitCode, 2);
+  EXPECT_NE(b.output.find("ambisonic_order"), std::string::npos) << b.output;
+  EXPECT_FALSE(std::filesystem::exists(dir / "bad.wav"));
+  auto c = runEarshot("render " + dir / "ambix.json" + " -o " + dir / "bin.wav --quiet --output-format binaural");
+  ASSERT_EQ(c.exitCode, 0) << c.output;
+  EXPECT_EQ(read(dir / "bin.wav").channelCount(), 2u);
 }
 
 // Issue 7: bad scene files each give one clear error naming the file and the

@@ -33,6 +33,7 @@ struct RenderCliOptions {
   double minMove = 0.25;
   double minTurn = 5.0;
   int ambisonicOrder = 1;
+  std::string outputFormat;
   bool quiet = false;
   double normalizeDbfs = 0.0;  // with --normalize
 };
@@ -107,6 +108,9 @@ int run(const RenderCliOptions& o, const CLI::App& cmd) {
   ro.minMoveMeters = o.minMove;
   ro.minTurnDegrees = o.minTurn;
   if (cmd.count("--ambisonic-order")) ro.ambisonicOrder = o.ambisonicOrder;
+  if (cmd.count("--output-format")) ro.outputFormat = o.outputFormat;
+  auto channels = renderOutputChannels(*scene, ro);
+  if (!check(channels.status())) return 2;
   Progress progress(o.quiet);
   ro.progress = [&](double f) { progress.update(f); };
   // The output streams to a temporary file renamed at the end: a render of
@@ -122,19 +126,16 @@ int run(const RenderCliOptions& o, const CLI::App& cmd) {
       if (!path.empty()) std::remove(path.c_str());
     }
   } removeFirstPass{normalize ? firstPass : std::string()};
-  auto writer = WavStreamWriter::open(firstPass, 2, scene->settings.sampleRateHz);
+  auto writer = WavStreamWriter::open(firstPass, *channels, scene->settings.sampleRateHz);
   if (!check(writer.status())) return 2;
-  ro.sink = [&](const float* l, const float* r, size_t n) {
-    const float* planar[2] = {l, r};
-    return (*writer)->write(planar, n);
-  };
+  ro.sink = [&](const float* const* planar, size_t n) { return (*writer)->write(planar, n); };
   auto result = renderScene(*scene, ro);
   if (!check(result.status())) return 2;
   const RenderResult& r = *result;
   if (!check((*writer)->commit())) return 2;
   double normalizeGain = 1.0;
   if (normalize) {
-    auto final = WavStreamWriter::open(o.output, 2, scene->settings.sampleRateHz);
+    auto final = WavStreamWriter::open(o.output, *channels, scene->settings.sampleRateHz);
     if (!check(final.status())) return 2;
     normalizeGain = r.peak > 0 ? std::pow(10.0, o.normalizeDbfs / 20.0) / r.peak : 1.0;
     if (!check(appendScaled(firstPass, float(normalizeGain), **final)) || !check((*final)->commit())) return 2;
@@ -168,10 +169,12 @@ int run(const RenderCliOptions& o, const CLI::App& cmd) {
 const Registrar registrar([](CLI::App& root) {
   auto o = std::make_shared<RenderCliOptions>();
   CLI::App* cmd = root.add_subcommand(
-      "render", "Render a scene file (moving sources and listener) to binaural audio: WAV, FLAC or Ogg (docs/scene-format.md)");
+      "render",
+      "Render a scene file (moving sources and listener) to binaural or ambisonic audio: WAV, FLAC or Ogg "
+      "(docs/scene-format.md)");
   cmd->add_option("scene", o->scene, "Scene file (JSON)")->required()->check(CLI::ExistingFile);
   cmd->add_option("-o,--output", o->output,
-                  "Output audio, 2 channels (left, right), format by extension: .wav (32-bit float), .flac (24-bit), "
+                  "Output audio, 2 channels (left, right) or with --output-format ambisonic the AmbiX channels, format by extension: .wav (32-bit float), .flac (24-bit), "
                   ".ogg (Vorbis; FLAC and Ogg clip beyond full scale, and say how many samples). Written to a "
                   "temporary file and renamed at the end: an existing file is replaced only on success")
       ->required();
@@ -197,6 +200,10 @@ const Registrar registrar([](CLI::App& root) {
                   "reflections (--ambisonic-order 0): ambisonic ones follow the head every block")
       ->check(CLI::Range(0.0, 180.0))
       ->capture_default_str();
+  cmd->add_option("--output-format", o->outputFormat,
+                  "Override the scene's settings.output: binaural (2 channels, the default) or ambisonic "
+                  "((order+1)^2 AmbiX channels, ACN order, SN3D, in the listener's frame: x forward, y left, z up)")
+      ->check(CLI::IsMember({"binaural", "ambisonic"}));
   cmd->add_option("--ambisonic-order", o->ambisonicOrder,
                   "Override the scene's settings.ambisonic_order (default 1): 1-3 world-frame ambisonic "
                   "reflections rotated by the head every block, so a head turn needs no simulation; 0 a binaural "

@@ -56,16 +56,20 @@ struct RenderOptions {
   std::optional<int> ambisonicOrder;
   /** Called now and then with the fraction done (0..1); from the calling thread. */
   std::function<void(double fraction)> progress;
-  /** Set: each rendered block goes here (left, right, frames), in order, and
+  /** Overrides the scene's settings.output ("binaural" or "ambisonic": the
+   *  AmbiX channels of the reflections' order in the listener's frame). */
+  std::optional<std::string> outputFormat;
+  /** Set: each rendered block goes here (outputChannels() planar channels:
+   *  left, right or the AmbiX channels; frames), in order, and
    *  RenderResult::audio stays empty, so a render of any length needs no
    *  memory for its output (`earshot render` streams to its WAV). A non-ok
    *  Status stops the render with it. Unset: the output is collected in
    *  RenderResult::audio, within the memory limit. */
-  std::function<Status(const float* left, const float* right, size_t frames)> sink;
+  std::function<Status(const float* const* channels, size_t frames)> sink;
 };
 
 struct RenderResult {
-  AudioBuffer audio;            ///< 2 channels (left, right) at the scene's rate
+  AudioBuffer audio;            ///< 2 channels (left, right) or the AmbiX channels, at the scene's rate
   double audioSeconds = 0.0;
   double wallSeconds = 0.0;
   double simulationSeconds = 0.0;  ///< tracing and IR synthesis (wall)
@@ -87,6 +91,11 @@ Result<RenderResult> renderScene(const SceneDescription& scene, const RenderOpti
 
 /** The scene's length when settings.durationSeconds is unset: the last dry
  *  sample's time (start + length) over all sources, plus 2 s of reverberation. */
+/** The channels renderScene() writes for `scene` with `options`: 2, or
+ *  (order+1)^2 for ambisonic output; an error for ambisonic output without
+ *  ambisonic reflections or an unknown format. */
+Result<size_t> renderOutputChannels(const SceneDescription& scene, const RenderOptions& options);
+
 double defaultSceneDuration(const SceneDescription& scene, const std::vector<double>& dryLengthsSeconds);
 
 }  // namespace earshot

@@ -85,6 +85,10 @@ struct SceneSettings {
    *  costs no simulation); 0 a binaural IR per source, simulated again when
    *  the head turns. */
   int ambisonicOrder = kDefaultSceneAmbisonicOrder;
+  /** "binaural" (left, right) or "ambisonic": the AmbiX channels (ACN,
+   *  SN3D) of ambisonicOrder in the listener's frame, for any ambisonic
+   *  player. */
+  std::string output = "binaural";
 };
 
 /** A parsed scene file. Paths are resolved against the scene file's
