@@ -146,6 +146,20 @@ enum {
   EARSHOT_CONTEXT_VALIDATION = 1u << 0
 };
 
+/** What earshot_process_channels() writes (earshot_context_settings). */
+typedef enum earshot_output_format {
+  /** 2 channels: left, right (earshot_process or earshot_process_channels). */
+  EARSHOT_OUTPUT_BINAURAL = 0,
+  /** (ambisonic_order + 1)^2 channels, AmbiX: ACN channel order (W, Y, Z, X,
+   *  V, T, R, S, U, Q, O, M, K, L, N, P), SN3D normalisation, in the
+   *  listener's frame (x forward, y left, z up, from
+   *  earshot_context_set_listener's forward and up); W is the omni pressure
+   *  (1/r for the direct sound). Every source's reflections are rotated to
+   *  the head and each direct sound encoded at its current direction; no
+   *  HRTF. For a host that renders ambisonics itself (earshot_process_channels only). */
+  EARSHOT_OUTPUT_AMBISONIC = 1
+} earshot_output_format;
+
 typedef struct earshot_context_settings {
   uint32_t struct_size;        /**< sizeof(earshot_context_settings) */
   uint32_t flags;              /**< EARSHOT_CONTEXT_* flags; default 0 */
@@ -178,6 +192,23 @@ typedef struct earshot_context_settings {
   earshot_allocate_callback allocate;
   earshot_free_callback free;
   void* allocator_user_data;          /**< passed to allocate and free */
+  /** How the reflections reach the ears, [0, 3]; default 1.
+   *  1-3: each source's reflections are simulated as a world-frame ambisonic
+   *  IR of this order; the context sums all sources into one bus, rotates it
+   *  to the head every audio block and decodes it to two ears once (with a
+   *  decoder made from the HRTF set): a head turn is heard in the next block
+   *  and never needs a simulation. The audio thread multiplies and adds
+   *  (order+1)^2 channels per source (4 at order 1) instead of 2, and one
+   *  decoder for all; the latency grows by one block and 2 ms
+   *  (earshot_context_info's latency_frames). docs/ambisonics.md measures the
+   *  orders against the exact binaural reflections.
+   *  0: a binaural IR per source with each arrival through its own HRTF, the
+   *  head's orientation baked in: a head turn is heard in the reflections
+   *  only after the source's next simulation. */
+  uint32_t ambisonic_order;
+  /** EARSHOT_OUTPUT_BINAURAL (default) or EARSHOT_OUTPUT_AMBISONIC (needs
+   *  ambisonic_order 1-3). */
+  earshot_output_format output_format;
 } earshot_context_settings;
 
 /** Fills `settings` with the defaults above (and struct_size). Any thread. */
@@ -220,6 +251,9 @@ typedef struct earshot_context_info {
    *  output was not finite (an overflow). A source is never left poisoned. */
   uint64_t muted_source_blocks;
   uint64_t cleared_output_blocks;
+  uint32_t ambisonic_order;             /**< the settings': 0 binaural reflections, 1-3 the ambisonic bus */
+  earshot_output_format output_format;  /**< the settings' */
+  uint32_t output_channels;             /**< channels earshot_process_channels writes: 2 or (order+1)^2 */
 } earshot_context_info;
 
 /** Reads the context's settings and state into *info (info->struct_size
@@ -266,7 +300,8 @@ EARSHOT_API earshot_status earshot_context_start_simulation(earshot_context* con
  *  OK if it was not running. Game thread. */
 EARSHOT_API earshot_status earshot_context_stop_simulation(earshot_context* context);
 
-/** Renders `frames` frames of binaural output: inputs[i] is the dry mono
+/** Renders `frames` frames of binaural output (a context with
+ *  EARSHOT_OUTPUT_BINAURAL; INVALID_STATE otherwise): inputs[i] is the dry mono
  *  signal (`frames` floats) of the source whose index
  *  (earshot_source_get_index) is i, for i < input_count; a NULL entry, an
  *  index with no source and every index >= input_count play silence.
@@ -278,6 +313,16 @@ EARSHOT_API earshot_status earshot_context_stop_simulation(earshot_context* cont
  *  time per context). */
 EARSHOT_API earshot_status earshot_process(earshot_context* context, const float* const* inputs,
                                            size_t input_count, float* left, float* right, size_t frames);
+
+/** As earshot_process, into `output_count` channels (`frames` floats each,
+ *  distinct, overwritten): output_count must be earshot_context_info's
+ *  output_channels (2 for binaural output: left, right; (order+1)^2 for
+ *  EARSHOT_OUTPUT_AMBISONIC, in ACN order). The only way to render an
+ *  ambisonic context (earshot_process refuses it: INVALID_STATE). Audio
+ *  thread; no allocation, lock, log or system call. */
+EARSHOT_API earshot_status earshot_process_channels(earshot_context* context, const float* const* inputs,
+                                                    size_t input_count, float* const* outputs, size_t output_count,
+                                                    size_t frames);
 
 /** Copies the path of the default HRTF (the SOFA file a context loads when
  *  hrtf_path is NULL) into `buffer` (`capacity` bytes, NUL-terminated) and
@@ -589,12 +634,17 @@ EARSHOT_API earshot_status earshot_source_get_settings(earshot_source* source, e
 
 typedef enum earshot_receiver {
   EARSHOT_RECEIVER_BINAURAL = 0, /**< 2 channels through the context's HRTF */
-  EARSHOT_RECEIVER_OMNI = 1      /**< 1 channel */
+  EARSHOT_RECEIVER_OMNI = 1,     /**< 1 channel */
+  /** (ambisonic_order+1)^2 AmbiX channels (ACN, SN3D) in the listener's
+   *  frame (x forward, y left, z up, from the request's forward and up),
+   *  the direct sound included, W the omni IR: `earshot ir --receiver
+   *  ambisonic --order N`. */
+  EARSHOT_RECEIVER_AMBISONIC = 2
 } earshot_receiver;
 
 typedef struct earshot_ir_info {
   uint32_t struct_size;     /**< sizeof(earshot_ir_info), set by the caller */
-  uint32_t channels;        /**< 1 (omni) or 2 (binaural: left, right) */
+  uint32_t channels;        /**< 1 (omni), 2 (binaural: left, right) or (order+1)^2 (ambisonic, ACN) */
   uint64_t frames;          /**< samples per channel */
   double sample_rate_hz;    /**< the context's rate */
   uint32_t includes_direct; /**< 1 if the direct sound is in the IR */
@@ -607,9 +657,12 @@ typedef struct earshot_ir_info {
 
 /** The IR the source's last simulation made and its reflections are being
  *  convolved with (a shared, immutable copy: later simulations do not change
- *  it): binaural; with EARSHOT_DIRECT_IN_IMPULSE_RESPONSE it holds the
- *  direct sound (then it is the IR `earshot ir` computes for the same
- *  positions and settings), with EARSHOT_DIRECT_PER_BLOCK the reflections
+ *  it): binaural with ambisonic_order 0; with ambisonic_order 1-3 the
+ *  world-frame AmbiX IR of that order (ACN, SN3D; its frame: x = world -Z,
+ *  y = world -X, z = world +Y, the glTF default listener's). With
+ *  EARSHOT_DIRECT_IN_IMPULSE_RESPONSE it holds the
+ *  direct sound (then, with ambisonic_order 0, it is the IR `earshot ir`
+ *  computes for the same positions and settings), with EARSHOT_DIRECT_PER_BLOCK the reflections
  *  only; cut at max_ir_seconds with a 10 ms fade. *out holds one reference.
  *  Errors: NOT_FOUND (the source has not been simulated yet). Game thread or
  *  any thread but the audio thread (takes a lock the simulation also takes,
@@ -624,6 +677,7 @@ typedef struct earshot_ir_request {
   earshot_vec3 up;            /**< listener's up; default (0, 1, 0) */
   earshot_receiver receiver;  /**< default EARSHOT_RECEIVER_BINAURAL */
   uint64_t seed;              /**< default 0: the context's seed */
+  uint32_t ambisonic_order;   /**< EARSHOT_RECEIVER_AMBISONIC's order, [1, 3]; default 1 */
 } earshot_ir_request;
 
 /** Fills `request` with the defaults above (and struct_size). Any thread. */

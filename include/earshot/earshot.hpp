@@ -201,6 +201,11 @@ class Context : public detail::Handle<earshot_context, earshot_context_retain, e
   earshot_status process(Span<const float* const> inputs, float* left, float* right, size_t frames) noexcept {
     return earshot_process(get(), inputs.data(), inputs.size(), left, right, frames);
   }
+  /** Audio thread: earshot_process_channels (binaural or ambisonic output);
+   *  outputs.size() must be Info::output_channels. */
+  earshot_status process(Span<const float* const> inputs, Span<float* const> outputs, size_t frames) noexcept {
+    return earshot_process_channels(get(), inputs.data(), inputs.size(), outputs.data(), outputs.size(), frames);
+  }
 
  private:
   explicit Context(earshot_context* adopted) noexcept : Handle(adopted) {}

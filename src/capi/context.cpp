@@ -60,6 +60,13 @@ std::string checkSettings(const earshot_context_settings& s) {
     return "settings->log_level " + std::to_string(level) + " is not an earshot_log_level";
   if ((s.allocate == nullptr) != (s.free == nullptr))
     return "settings->allocate and settings->free must both be set or both NULL";
+  if (s.ambisonic_order > uint32_t(kMaxAmbisonicOrder))
+    return "settings->ambisonic_order " + std::to_string(s.ambisonic_order) + " is outside [0, 3]";
+  const int64_t format = rawEnum(s.output_format);
+  if (format != EARSHOT_OUTPUT_BINAURAL && format != EARSHOT_OUTPUT_AMBISONIC)
+    return "settings->output_format " + std::to_string(format) + " is not an earshot_output_format";
+  if (format == EARSHOT_OUTPUT_AMBISONIC && s.ambisonic_order == 0)
+    return "settings->output_format EARSHOT_OUTPUT_AMBISONIC needs settings->ambisonic_order 1-3, not 0";
   return "";
 }
 
@@ -186,6 +193,8 @@ earshot_status earshot_context_settings_init(earshot_context_settings* s) {
   s->allocate = nullptr;
   s->free = nullptr;
   s->allocator_user_data = nullptr;
+  s->ambisonic_order = uint32_t(runtime::EngineSettings{}.ambisonicOrder);
+  s->output_format = EARSHOT_OUTPUT_BINAURAL;
   return EARSHOT_OK;
 }
 
@@ -241,6 +250,9 @@ earshot_status earshot_context_create(const earshot_context_settings* settings, 
       es.simulation.seed = settings->seed;
       es.threads = settings->threads;
       es.maxDistanceMeters = settings->max_distance_meters;
+      es.ambisonicOrder = int(settings->ambisonic_order);
+      es.output = settings->output_format == EARSHOT_OUTPUT_AMBISONIC ? runtime::OutputFormat::kAmbisonic
+                                                                      : runtime::OutputFormat::kBinaural;
       auto engine = runtime::Engine::create(es, model);
       if (!engine.isOk()) return fromStatus(&env, kFn, engine.status());
 
@@ -298,6 +310,10 @@ earshot_status earshot_context_get_info(earshot_context* c, earshot_context_info
     const runtime::ContainmentStats contained = c->engine->containment();
     i.muted_source_blocks = contained.mutedSourceChunks;
     i.cleared_output_blocks = contained.clearedOutputChunks;
+    const runtime::EngineSettings& es = c->engine->settings();
+    i.ambisonic_order = uint32_t(es.ambisonicOrder);
+    i.output_format = es.output == runtime::OutputFormat::kAmbisonic ? EARSHOT_OUTPUT_AMBISONIC : EARSHOT_OUTPUT_BINAURAL;
+    i.output_channels = uint32_t(c->engine->outputChannels());
     *info = i;
     return EARSHOT_OK;
   });
@@ -390,12 +406,34 @@ earshot_status earshot_process(earshot_context* c, const float* const* inputs, s
   if (inputCount > c->maxSources || (inputCount > 0 && !inputs)) return EARSHOT_ERROR_INVALID_ARGUMENT;
   if (frames > kMaxProcessFrames) return EARSHOT_ERROR_INVALID_ARGUMENT;
   if (frames == 0) return EARSHOT_OK;
+  if (c->engine->outputChannels() != 2) return EARSHOT_ERROR_INVALID_STATE;  // ambisonic output: earshot_process_channels
   if (!left || !right) return EARSHOT_ERROR_INVALID_ARGUMENT;
   const uintptr_t l = reinterpret_cast<uintptr_t>(left), r = reinterpret_cast<uintptr_t>(right);
   const uintptr_t bytes = frames * sizeof(float);
   if ((l < r ? r - l : l - r) < bytes) return EARSHOT_ERROR_INVALID_ARGUMENT;  // overlapping outputs
   for (size_t i = 0; i < c->maxSources; ++i) c->inputs[i] = i < inputCount ? inputs[i] : nullptr;
   c->engine->process(c->inputs.data(), left, right, frames);
+  return EARSHOT_OK;
+}
+
+earshot_status earshot_process_channels(earshot_context* c, const float* const* inputs, size_t inputCount,
+                                        float* const* outputs, size_t outputCount, size_t frames) {
+  // The audio thread: as earshot_process, no allocation, lock or log.
+  if (!alive(c)) return EARSHOT_ERROR_INVALID_ARGUMENT;
+  if (inputCount > c->maxSources || (inputCount > 0 && !inputs)) return EARSHOT_ERROR_INVALID_ARGUMENT;
+  if (frames > kMaxProcessFrames) return EARSHOT_ERROR_INVALID_ARGUMENT;
+  if (!outputs || outputCount != c->engine->outputChannels()) return EARSHOT_ERROR_INVALID_ARGUMENT;
+  if (frames == 0) return EARSHOT_OK;
+  const uintptr_t bytes = frames * sizeof(float);
+  for (size_t a = 0; a < outputCount; ++a) {
+    if (!outputs[a]) return EARSHOT_ERROR_INVALID_ARGUMENT;
+    for (size_t b = 0; b < a; ++b) {
+      const uintptr_t x = reinterpret_cast<uintptr_t>(outputs[a]), y = reinterpret_cast<uintptr_t>(outputs[b]);
+      if ((x < y ? y - x : x - y) < bytes) return EARSHOT_ERROR_INVALID_ARGUMENT;  // overlapping outputs
+    }
+  }
+  for (size_t i = 0; i < c->maxSources; ++i) c->inputs[i] = i < inputCount ? inputs[i] : nullptr;
+  c->engine->process(c->inputs.data(), outputs, frames);
   return EARSHOT_OK;
 }
 

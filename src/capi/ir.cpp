@@ -51,6 +51,7 @@ earshot_status earshot_ir_request_init(earshot_ir_request* r) {
   r->up = {0.0f, 1.0f, 0.0f};
   r->receiver = EARSHOT_RECEIVER_BINAURAL;
   r->seed = 0;
+  r->ambisonic_order = 1;
   return EARSHOT_OK;
 }
 
@@ -69,8 +70,13 @@ earshot_status earshot_context_compute_ir(earshot_context* c, const earshot_ir_r
       if (!bad.empty()) return argError(&c->env, kFn, bad);
     }
     const int64_t receiver = rawEnum(request->receiver);
-    if (receiver != EARSHOT_RECEIVER_BINAURAL && receiver != EARSHOT_RECEIVER_OMNI)
+    if (receiver != EARSHOT_RECEIVER_BINAURAL && receiver != EARSHOT_RECEIVER_OMNI &&
+        receiver != EARSHOT_RECEIVER_AMBISONIC)
       return argError(&c->env, kFn, "request->receiver " + std::to_string(receiver) + " is not an earshot_receiver");
+    if (receiver == EARSHOT_RECEIVER_AMBISONIC &&
+        (request->ambisonic_order < 1 || request->ambisonic_order > uint32_t(kMaxAmbisonicOrder)))
+      return argError(&c->env, kFn,
+                      "request->ambisonic_order " + std::to_string(request->ambisonic_order) + " is outside [1, 3]");
     // The scene as the context's next simulation would see it.
     std::shared_ptr<const RayTracer> tracer;
     std::shared_ptr<const MaterialTable> materials;
@@ -103,9 +109,18 @@ earshot_status earshot_context_compute_ir(earshot_context* c, const earshot_ir_r
       Status v = validate(binaural.orientation);
       if (!v.isOk()) return fromStatus(&c->env, kFn, v);
     }
+    AmbisonicReceiver ambisonic;
+    if (receiver == EARSHOT_RECEIVER_AMBISONIC) {
+      ListenerOrientation o{vec(request->forward), vec(request->up)};
+      Status v = validate(o);
+      if (!v.isOk()) return fromStatus(&c->env, kFn, v);
+      ambisonic.order = int(request->ambisonic_order);
+      ambisonic.frame.worldToFrame = worldToAmbisonicFrame(o.forward, o.up);
+    }
     ThreadPool pool(es.threads);
     auto r = computeIr(*tracer, *materials, vec(request->source), vec(request->listener), settings, pool,
-                       receiver == EARSHOT_RECEIVER_BINAURAL ? &binaural : nullptr);
+                       receiver == EARSHOT_RECEIVER_BINAURAL ? &binaural : nullptr,
+                       receiver == EARSHOT_RECEIVER_AMBISONIC ? &ambisonic : nullptr);
     if (!r.isOk()) return fromStatus(&c->env, kFn, r.status());
     earshot_ir* ir = create<earshot_ir>(c->env);
     ir->ir = std::make_shared<const AudioBuffer>(std::move(r->ir));

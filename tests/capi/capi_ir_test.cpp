@@ -24,13 +24,13 @@ const std::string kShoeboxMap = std::string(EARSHOT_SOURCE_DIR) + "/samples/shoe
 
 /** `earshot ir` in the shoebox: source (2, 3.5, 1.5), listener (7, 3.5, 1.5)
  *  facing -x with +z up, balanced defaults, seed `seed`. */
-earshot::AudioBuffer cliIr(const std::string& receiver, int seed) {
+earshot::AudioBuffer cliIr(const std::string& receiver, int seed, const std::string& extra = "") {
   const auto dir = std::filesystem::temp_directory_path() / ("earshot_capi_ir_" + std::to_string(::getpid()));
   std::filesystem::create_directories(dir);
   const std::string out = (dir / (receiver + ".wav")).string();
   const std::string cmd = std::string(EARSHOT_CLI) + " ir " + kShoebox + " --material-map " + kShoeboxMap +
                           " --source 2,3.5,1.5 --listener 7,3.5,1.5 --forward -1,0,0 --up 0,0,1 --receiver " +
-                          receiver + " --seed " + std::to_string(seed) + " -o " + out + " 2>/dev/null";
+                          receiver + extra + " --seed " + std::to_string(seed) + " -o " + out + " 2>/dev/null";
   EXPECT_EQ(std::system(cmd.c_str()), 0) << cmd;
   auto r = earshot::readAudioFile(out);
   EXPECT_TRUE(r.isOk()) << r.status().message();
@@ -42,11 +42,12 @@ struct Shoebox {
   earshot_context* context = nullptr;
   earshot_scene* scene = nullptr;
 
-  explicit Shoebox(uint64_t seed = 1) {
+  explicit Shoebox(uint64_t seed = 1, uint32_t ambisonicOrder = 0) {
     earshot_context_settings cs;
     earshot_context_settings_init(&cs);  // the balanced defaults, as `earshot ir`
     cs.max_sources = 2;
     cs.seed = seed;
+    cs.ambisonic_order = ambisonicOrder;  // 0: binaural source IRs, as `earshot ir --receiver binaural`
     EXPECT_EQ(earshot_context_create(&cs, &context), EARSHOT_OK) << earshot_last_error_message();
     EXPECT_EQ(earshot_scene_create(context, nullptr, &scene), EARSHOT_OK);
     earshot_gltf_settings gs;
@@ -141,6 +142,46 @@ TEST(CapiIr, ComputedIrIsEarshotIrsOmniAndBinaural) {
   ASSERT_EQ(earshot_context_compute_ir(box.context, &req, &ir), EARSHOT_OK);
   expectSame(copyOut(ir), cliIr("omni", 3));
   earshot_ir_release(ir);
+}
+
+// Issue 15: an ambisonic request is `earshot ir --receiver ambisonic`'s IR;
+// an ambisonic context's source IR is the world-frame AmbiX IR of its order
+// (the listener's orientation plays no part: the same IR whichever way the
+// listener faces).
+TEST(CapiIr, AmbisonicIrsAreEarshotIrsAndWorldFrameForSources) {
+  Shoebox box(7, 2);
+  earshot_ir_request req;
+  ASSERT_EQ(earshot_ir_request_init(&req), EARSHOT_OK);
+  EXPECT_EQ(req.ambisonic_order, 1u);
+  req.source = {2, 3.5f, 1.5f};
+  req.listener = {7, 3.5f, 1.5f};
+  req.forward = {-1, 0, 0};
+  req.up = {0, 0, 1};
+  req.receiver = EARSHOT_RECEIVER_AMBISONIC;
+  req.ambisonic_order = 3;
+  earshot_ir* ir = nullptr;
+  ASSERT_EQ(earshot_context_compute_ir(box.context, &req, &ir), EARSHOT_OK) << earshot_last_error_message();
+  expectSame(copyOut(ir), cliIr("ambisonic", 7, " --order 3"));
+  earshot_ir_release(ir);
+  req.ambisonic_order = 4;
+  EXPECT_EQ(earshot_context_compute_ir(box.context, &req, &ir), EARSHOT_ERROR_INVALID_ARGUMENT);
+
+  earshot_source_settings ss;
+  earshot_source_settings_init(&ss);
+  earshot_source* src = nullptr;
+  ASSERT_EQ(earshot_source_create(box.context, &ss, &src), EARSHOT_OK);
+  ASSERT_EQ(earshot_source_set_position(src, {2, 3.5f, 1.5f}), EARSHOT_OK);
+  ASSERT_EQ(earshot_simulate(box.context, 0), EARSHOT_OK);
+  ASSERT_EQ(earshot_source_get_ir(src, &ir), EARSHOT_OK);
+  const earshot::AudioBuffer first = copyOut(ir);
+  earshot_ir_release(ir);
+  EXPECT_EQ(first.channelCount(), 9u);
+  ASSERT_EQ(earshot_context_set_listener(box.context, {7, 3.5f, 1.5f}, {0, 1, 0}, {0, 0, 1}), EARSHOT_OK);
+  ASSERT_EQ(earshot_simulate(box.context, 0), EARSHOT_OK);
+  ASSERT_EQ(earshot_source_get_ir(src, &ir), EARSHOT_OK);
+  expectSame(copyOut(ir), first);
+  earshot_ir_release(ir);
+  earshot_source_release(src);
 }
 
 TEST(CapiIr, FreeFieldWithoutAScene) {
@@ -247,7 +288,7 @@ TEST(CppIr, SourceAndComputedIrs) {
   EXPECT_THROW(source.ir(), earshot::Error);
   context.simulate();
   earshot::Ir reflections = source.ir();  // per-block direct: reflections only (free field: none)
-  EXPECT_EQ(reflections.channels(), 2u);
+  EXPECT_EQ(reflections.channels(), 4u);  // the default: world-frame AmbiX of order 1
   EXPECT_EQ(reflections.info().includes_direct, 0u);
   earshot::IrRequest req;
   req.source = earshot::vec3(0, 0, -2);
@@ -276,14 +317,20 @@ TEST(CapiBlocks, AnyBlockSizeRenders) {
     info.struct_size = sizeof(info);
     ASSERT_EQ(earshot_context_get_info(c, &info), EARSHOT_OK);
     EXPECT_EQ(info.block_frames, block);
-    EXPECT_GE(info.latency_frames, std::max(block, 8u));
-    EXPECT_EQ(info.latency_frames % 2, 0u);
-    uint32_t rest = info.latency_frames;
+    // The default ambisonic reflections add the decoder's block and its 2 ms.
+    ASSERT_EQ(info.ambisonic_order, 1u);
+    const uint32_t decoderDelay = 96;  // ceil(0.002 * 48000)
+    ASSERT_GT(info.latency_frames, decoderDelay);
+    ASSERT_EQ((info.latency_frames - decoderDelay) % 2, 0u);
+    const uint32_t convolverBlock = (info.latency_frames - decoderDelay) / 2;
+    EXPECT_GE(convolverBlock, std::max(block, 8u));
+    EXPECT_EQ(convolverBlock % 2, 0u);
+    uint32_t rest = convolverBlock;
     for (uint32_t f : {2u, 3u, 5u})
       while (rest % f == 0) rest /= f;
-    EXPECT_EQ(rest, 1u) << info.latency_frames;
+    EXPECT_EQ(rest, 1u) << convolverBlock;
     if (block == 254) {
-      EXPECT_EQ(info.latency_frames, 256u);
+      EXPECT_EQ(convolverBlock, 256u);
     }
     earshot_source* src = nullptr;
     ASSERT_EQ(earshot_source_create(c, nullptr, &src), EARSHOT_OK);
@@ -543,6 +590,82 @@ TEST(CapiLazyContext, ABrokenHrtfFailsItsFirstUseNotTheContext) {
   for (float v : left) EXPECT_EQ(v, 0.0f);
   earshot_context_release(c);
   std::filesystem::remove_all(dir);
+}
+
+}  // namespace
+
+namespace {
+
+// Issue 15: the context's output format. An ambisonic context reports its
+// channels, renders through earshot_process_channels only (earshot_process
+// is INVALID_STATE) and refuses a wrong channel count; a source on the
+// listener's left is all in W and Y. Settings out of range are refused.
+TEST(CapiAmbisonic, OutputFormatSelectsTheChannels) {
+  earshot_context_settings cs = earshot::capi::test::fastSettings();
+  cs.ambisonic_order = 2;
+  cs.output_format = EARSHOT_OUTPUT_AMBISONIC;
+  earshot_context* c = nullptr;
+  ASSERT_EQ(earshot_context_create(&cs, &c), EARSHOT_OK) << earshot_last_error_message();
+  earshot_context_info info;
+  info.struct_size = sizeof(info);
+  ASSERT_EQ(earshot_context_get_info(c, &info), EARSHOT_OK);
+  EXPECT_EQ(info.output_channels, 9u);
+  EXPECT_EQ(info.ambisonic_order, 2u);
+  EXPECT_EQ(info.output_format, EARSHOT_OUTPUT_AMBISONIC);
+  earshot_source_settings ss;
+  earshot_source_settings_init(&ss);
+  earshot_source* src = nullptr;
+  ASSERT_EQ(earshot_source_create(c, &ss, &src), EARSHOT_OK) << earshot_last_error_message();
+  ASSERT_EQ(earshot_context_set_listener(c, {0, 0, 0}, {1, 0, 0}, {0, 0, 1}), EARSHOT_OK);
+  ASSERT_EQ(earshot_source_set_position(src, {0, 3, 0}), EARSHOT_OK);  // left
+  ASSERT_EQ(earshot_simulate(c, 0), EARSHOT_OK);
+  const size_t frames = 256;
+  std::vector<float> in(frames), l(frames), r(frames);
+  std::vector<std::vector<float>> out(9, std::vector<float>(frames));
+  std::vector<float*> outs;
+  for (auto& o : out) outs.push_back(o.data());
+  const float* inputs[1] = {in.data()};
+  EXPECT_EQ(earshot_process(c, inputs, 1, l.data(), r.data(), frames), EARSHOT_ERROR_INVALID_STATE);
+  EXPECT_EQ(earshot_process_channels(c, inputs, 1, outs.data(), 2, frames), EARSHOT_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(earshot_process_channels(c, inputs, 1, nullptr, 9, frames), EARSHOT_ERROR_INVALID_ARGUMENT);
+  std::vector<float*> overlapping = outs;
+  overlapping[4] = overlapping[3] + 1;
+  EXPECT_EQ(earshot_process_channels(c, inputs, 1, overlapping.data(), 9, frames), EARSHOT_ERROR_INVALID_ARGUMENT);
+  double w = 0, y = 0, x = 0;
+  for (int b = 0; b < 40; ++b) {
+    for (size_t i = 0; i < frames; ++i) in[i] = float(std::sin(0.07 * double(b * frames + i)));
+    ASSERT_EQ(earshot_process_channels(c, inputs, 1, outs.data(), 9, frames), EARSHOT_OK);
+    for (size_t i = 0; i < frames; ++i) {
+      w += double(out[0][i]) * out[0][i];
+      y += double(out[1][i]) * out[1][i];
+      x += double(out[3][i]) * out[3][i];
+    }
+  }
+  EXPECT_GT(w, 0.0);
+  EXPECT_NEAR(y / w, 1.0, 0.01);
+  EXPECT_LT(x / w, 1e-4);
+  earshot_source_release(src);
+  earshot_context_release(c);
+
+  // A binaural context writes two channels either way.
+  cs = earshot::capi::test::fastSettings();
+  ASSERT_EQ(earshot_context_create(&cs, &c), EARSHOT_OK);
+  ASSERT_EQ(earshot_context_get_info(c, &info), EARSHOT_OK);
+  EXPECT_EQ(info.output_channels, 2u);
+  EXPECT_EQ(info.ambisonic_order, 1u) << "the default: ambisonic reflections of order 1";
+  float* two[2] = {l.data(), r.data()};
+  EXPECT_EQ(earshot_process_channels(c, nullptr, 0, two, 2, frames), EARSHOT_OK);
+  EXPECT_EQ(earshot_process(c, nullptr, 0, l.data(), r.data(), frames), EARSHOT_OK);
+  earshot_context_release(c);
+
+  for (auto [order, format] : {std::pair{0u, EARSHOT_OUTPUT_AMBISONIC}, {4u, EARSHOT_OUTPUT_BINAURAL},
+                               {1u, earshot_output_format(7)}}) {
+    cs = earshot::capi::test::fastSettings();
+    cs.ambisonic_order = order;
+    cs.output_format = format;
+    EXPECT_EQ(earshot_context_create(&cs, &c), EARSHOT_ERROR_INVALID_ARGUMENT) << order << " " << int(format);
+    EXPECT_EQ(c, nullptr);
+  }
 }
 
 }  // namespace

@@ -722,11 +722,16 @@ TEST(CApiAudio, AnyBlockSizeGivesTheSameOutput) {
   EXPECT_TRUE(allFinite(la) && allFinite(ra));
   EXPECT_GT(energy(la), 0.0);
   // The source is 2 m to the listener's left (forward +x, up +z): the direct
-  // sound (at the 256-frame latency + 280 frames, before the first
-  // reflection at ~420 frames after it) is louder in the left ear.
+  // sound (at the latency + 280 frames, before the first reflection at ~420
+  // frames after it) is louder in the left ear.
+  earshot_context_info info;
+  info.struct_size = sizeof(info);
+  ASSERT_EQ(earshot_context_get_info(a.context, &info), EARSHOT_OK);
+  const size_t latency = info.latency_frames;
   double directL = 0, directR = 0;
-  for (size_t p = 0; p < la.size(); p += kPeriod)
-    for (size_t i = p + 256; i < p + 656; ++i) directL += double(la[i]) * la[i], directR += double(ra[i]) * ra[i];
+  for (size_t p = 0; p + latency + 400 <= la.size(); p += kPeriod)
+    for (size_t i = p + latency; i < p + latency + 400; ++i)
+      directL += double(la[i]) * la[i], directR += double(ra[i]) * ra[i];
   EXPECT_GT(directL, 2.0 * directR);
 
   // Odd sizes: 1, 7, 333, 1024, 3001 in turn, on an identical context.
