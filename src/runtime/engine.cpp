@@ -23,6 +23,8 @@ double msSince(std::chrono::steady_clock::time_point t) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count();
 }
 constexpr double kIrFadeSeconds = 0.010;
+// The crossfade from a source's own IR into the shared tail.
+constexpr double kTailFadeSeconds = 0.010;
 // Frames per inner step of process(): bounds the per-source scratch.
 constexpr size_t kProcessChunk = 1024;
 // The ambisonic decoder's bulk delay: 2 ms (the ears' onsets lie within
@@ -63,6 +65,10 @@ struct Engine::Slot {
   double appliedGain = 1.0;            // audio thread: gain at the end of the last chunk
   double appliedReflectionsGain = 1.0; // audio thread: the reflections' gain at the end of the last chunk
   std::vector<float> scaled;           // audio thread: gained input for the mixer
+  // Shared tail: the source's late level (sqrt of its tail's W energy),
+  // written by the simulation, ramped by the audio thread.
+  std::atomic<double> tailGain{0.0};
+  double appliedTailGain = 0.0;        // audio thread
   // Poses of the last simulation (simulation thread only): how far the
   // source and the listener moved since orders the next simulations.
   Vec3d simulatedSource, simulatedListener;
@@ -329,9 +335,15 @@ Result<std::unique_ptr<Engine>> Engine::create(const EngineSettings& s, Binaural
   if (s.ambisonicOrder < 0 || s.ambisonicOrder > kMaxAmbisonicOrder)
     return invalidArgument("engine: ambisonicOrder " + std::to_string(s.ambisonicOrder) + " is outside [0, " +
                            std::to_string(kMaxAmbisonicOrder) + "]");
+  if (!(s.sharedTailSeconds >= 0 && s.sharedTailSeconds < s.maxIrSeconds))
+    return invalidArgument("engine: sharedTailSeconds " + std::to_string(s.sharedTailSeconds) + " is outside [0, " +
+                           std::to_string(s.maxIrSeconds) + ")");
+  const bool sharedTail = s.ambisonicOrder > 0 && s.sharedTailSeconds > 0;
   ConvolverSettings cs;
   cs.latencyFrames = s.blockFrames;
   cs.maxIrFrames = size_t(std::ceil(s.maxIrSeconds * s.sampleRateHz));
+  if (sharedTail)  // the sources' own IRs end with the crossfade into the shared tail
+    cs.maxIrFrames = std::min(cs.maxIrFrames, size_t(std::ceil((s.sharedTailSeconds + kTailFadeSeconds) * s.sampleRateHz)) + 2);
   cs.channels = s.ambisonicOrder > 0 ? size_t(ambisonicChannels(s.ambisonicOrder)) : 2;
   cs.fadeFrames = s.fadeFrames;
   cs.maxPartitionFrames = s.maxPartitionFrames;
@@ -350,6 +362,16 @@ Result<std::unique_ptr<Engine>> Engine::create(const EngineSettings& s, Binaural
     e->mBus.assign(channels * kProcessChunk, 0.0f);
     e->mRotated.assign(channels * kProcessChunk, 0.0f);
     e->mLastRotation.assign(size_t(kMaxAmbisonicChannels * kMaxAmbisonicChannels), 0.0f);
+    if (sharedTail) {
+      ConvolverSettings ts = cs;
+      ts.maxIrFrames = size_t(std::ceil(s.maxIrSeconds * s.sampleRateHz));
+      auto tail = ConvolutionMixer::create(ts, 1);
+      if (!tail.isOk()) return Status(tail.status().code(), "engine: " + tail.status().message());
+      e->mTailMixer = std::move(tail.value());
+      EARSHOT_RETURN_IF_ERROR(e->mTailMixer->reserveSource(0));
+      e->mTailInput.assign(kProcessChunk, 0.0f);
+      e->mTailBus.assign(channels * kProcessChunk, 0.0f);
+    }
   }
 
   for (size_t i = 0; i < s.maxSources; ++i) e->mSlots.push_back(std::make_unique<Slot>());
@@ -434,6 +456,7 @@ Result<uint32_t> Engine::addSource(const SourceSettings& settings) {
       slot.voice.store(slot.voiceOwner.get(), std::memory_order_release);
     }
     slot.gain.store(std::pow(10.0, settings.gainDb / 20.0));
+    slot.tailGain.store(0.0);  // until its first simulation
     slot.direct.store(int(settings.direct));
     storeControls(slot, settings);
     for (auto& t : slot.transmission) t.store(1.0);
@@ -601,6 +624,7 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& order) {
       j.result = computeIr(*tracer, *materials, j.source, listener, j.settings, *mPool, binauralReceiver,
                            ambisonicReceiver);
   }
+  std::optional<AudioBuffer> sharedTail;
   for (Job& j : jobs) {
     Slot& slot = *mSlots[j.slot];
     auto& r = *j.result;
@@ -617,7 +641,36 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& order) {
         for (size_t k = 0; k < fade; ++k) ch[maxFrames - 1 - k] *= float(k) / float(fade);
       }
     }
-    auto prepared = PreparedIr::create(ir, mMixer->layout());
+    // Shared tail: the source's own IR up to sharedTailSeconds, crossfaded
+    // (complementary linear ramps) into its tail, whose W energy is the
+    // source's late level; the last source simulated with a tail gives the
+    // shared one, at unit energy.
+    AudioBuffer own;
+    const AudioBuffer* convolved = &ir;
+    if (mTailMixer) {
+      const size_t split = size_t(std::llround(mSettings.sharedTailSeconds * mSettings.sampleRateHz));
+      const size_t fade = size_t(std::llround(kTailFadeSeconds * mSettings.sampleRateHz));
+      const size_t ownFrames = std::min(ir.frameCount(), split + fade);
+      own = AudioBuffer(ir.channelCount(), ownFrames, ir.sampleRateHz);
+      AudioBuffer tail(ir.channelCount(), ir.frameCount(), ir.sampleRateHz);
+      for (size_t c = 0; c < ir.channelCount(); ++c)
+        for (size_t i = 0; i < ir.frameCount(); ++i) {
+          const float w = i < split ? 0.0f : i >= split + fade ? 1.0f : float(i - split) / float(fade);
+          if (i < ownFrames) own.channels[c][i] = ir.channels[c][i] * (1.0f - w);
+          tail.channels[c][i] = ir.channels[c][i] * w;
+        }
+      double energy = 0;
+      for (float v : tail.channels[0]) energy += double(v) * v;
+      slot.tailGain.store(std::sqrt(energy));
+      if (energy > 0) {
+        const float norm = float(1.0 / std::sqrt(energy));
+        for (auto& ch : tail.channels)
+          for (float& v : ch) v *= norm;
+        sharedTail = std::move(tail);
+      }
+      convolved = &own;
+    }
+    auto prepared = PreparedIr::create(*convolved, mMixer->layout());
     if (!prepared.isOk()) return prepared.status();
     EARSHOT_RETURN_IF_ERROR(mMixer->setIr(j.slot, *prepared));
     {
@@ -656,6 +709,11 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& order) {
     slot.simulatedGeneration.store(j.generation);
     stats.prepareMs += msSince(tPrepare);
     ++stats.sourcesSimulated;
+  }
+  if (sharedTail) {
+    auto prepared = PreparedIr::create(*sharedTail, mTailMixer->layout());
+    if (!prepared.isOk()) return prepared.status();
+    EARSHOT_RETURN_IF_ERROR(mTailMixer->setIr(0, *prepared));
   }
   stats.totalMs = msSince(t0);
   mStats = stats;
@@ -699,11 +757,14 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
       slot.voiceGeneration = generation;
       slot.appliedGain = slot.gain.load(std::memory_order_relaxed);
       slot.appliedReflectionsGain = slot.reflectionsGain.load(std::memory_order_relaxed);
+      slot.appliedTailGain = slot.tailGain.load(std::memory_order_relaxed);
     }
   }
   // Chunks bound the gain scratch buffers whatever the host block size.
   for (size_t off = 0; off < frames; off += kProcessChunk) {
     const size_t m = std::min(kProcessChunk, frames - off);
+    bool tailUsed = false;
+    if (mTailMixer) std::fill(mTailInput.begin(), mTailInput.begin() + std::ptrdiff_t(m), 0.0f);
     for (size_t i = 0; i < n; ++i) {
       Slot& slot = *mSlots[i];
       mInputs[i] = nullptr;
@@ -730,11 +791,19 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
       slot.appliedReflectionsGain = slot.reflectionsGain.load(std::memory_order_relaxed);
       slot.appliedGain = to;
       mInputs[i] = slot.reflectionsLive ? g : nullptr;
+      if (mTailMixer && slot.reflectionsLive) {
+        // The shared tail's input: this source at its late level, ramped.
+        const float t0 = float(slot.appliedTailGain), t1 = float(slot.tailGain.load(std::memory_order_relaxed));
+        float* tail = mTailInput.data();
+        for (size_t k = 0; k < m; ++k) tail[k] += g[k] * (t0 + (t1 - t0) * float(k + 1) / float(m));
+        slot.appliedTailGain = t1;
+        tailUsed = true;
+      }
     }
     float* outs[kMaxAmbisonicChannels];
     for (size_t c = 0; c < outChannels; ++c) outs[c] = outputs[c] + off;
     if (mSettings.ambisonicOrder > 0) {
-      processAmbisonicBus(target.orientation, outs, m);
+      processAmbisonicBus(target.orientation, outs, m, tailUsed);
     } else {
       mMixer->process(mInputs.data(), outs, m);
     }
@@ -819,6 +888,7 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
       for (size_t c = 0; c < outChannels; ++c) std::fill(outs[c], outs[c] + m, 0.0f);
       mMixer->clearState();
       if (ConvolutionMixer* d = mDecoderMixerLive.load(std::memory_order_acquire)) d->clearState();
+      if (mTailMixer) mTailMixer->clearState();
       for (auto& slot : mSlots)
         if (DirectVoice* v = slot->voice.load(std::memory_order_acquire)) v->reset();
       mClearedOutputChunks.fetch_add(1, std::memory_order_relaxed);
@@ -826,7 +896,7 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
   }
 }
 
-void Engine::processAmbisonicBus(const ListenerOrientation& head, float* const* ears, size_t m) {
+void Engine::processAmbisonicBus(const ListenerOrientation& head, float* const* ears, size_t m, bool tailUsed) {
   constexpr size_t C = kMaxAmbisonicChannels;
   const int order = mSettings.ambisonicOrder;
   const size_t channels = size_t(ambisonicChannels(order));
@@ -839,6 +909,16 @@ void Engine::processAmbisonicBus(const ListenerOrientation& head, float* const* 
     rotatedIn[c] = rotated[c];
   }
   mMixer->process(mInputs.data(), bus, m);
+  if (mTailMixer) {
+    // The shared tail, convolved once for every source (it runs on silence
+    // too, so that its state stays in step).
+    float* tailOut[C];
+    for (size_t c = 0; c < channels; ++c) tailOut[c] = mTailBus.data() + c * kProcessChunk;
+    const float* tailIn[1] = {tailUsed ? mTailInput.data() : nullptr};
+    mTailMixer->process(tailIn, tailOut, m);
+    for (size_t c = 0; c < channels; ++c)
+      for (size_t k = 0; k < m; ++k) bus[c][k] += tailOut[c][k];
+  }
   // The world-frame bus into the head's frame: R = head * world^T, its SH
   // rotation interpolated linearly across the chunk from the last one.
   const Rotation3 h = worldToAmbisonicFrame(head.forward, head.up), w = worldAmbisonicFrame().worldToFrame;

@@ -100,6 +100,17 @@ struct EngineSettings {
    *  and not decoded, each per-block direct sound encoded at its current
    *  direction (W is the omni pressure). */
   OutputFormat output = OutputFormat::kBinaural;
+  /** With ambisonic reflections: each source's own IR is convolved up to
+   *  this time (seconds after the emission, then a 10 ms crossfade); after
+   *  it one late tail shared by every source is convolved once, for the sum
+   *  of the sources' inputs each weighted by its own late level (the
+   *  energy of its tail's W after this time). The shared tail is the
+   *  latest simulated source's, normalised; in a room whose late field is
+   *  diffuse every source's tail has the same decay and differs in level
+   *  only (docs/ambisonics.md measures what this costs). The audio thread's
+   *  multiply-adds per source fall from the whole IR's length to this.
+   *  0: every source's whole IR. [0, maxIrSeconds). */
+  double sharedTailSeconds = 0.15;
 };
 
 enum class DirectMode {
@@ -283,7 +294,7 @@ class Engine {
   Status createDecoder(const BinauralModel& model);  // under mAddMutex
   // Audio thread: the bus (mInputs convolved) rotated to the head and decoded into ears[0..1].
   // With OutputFormat::kAmbisonic, `ears` are the output's channels and the bus is not decoded.
-  void processAmbisonicBus(const ListenerOrientation& head, float* const* ears, size_t m);
+  void processAmbisonicBus(const ListenerOrientation& head, float* const* ears, size_t m, bool tailUsed);
 
   EngineSettings mSettings;
   BinauralModelFuture mModel;
@@ -299,6 +310,9 @@ class Engine {
   size_t mLatency = 0;
   size_t mOutputChannels = 2;
   std::unique_ptr<ShRotation> mRotation;
+  // The shared late tail (sharedTailSeconds > 0, ambisonic reflections).
+  std::unique_ptr<ConvolutionMixer> mTailMixer;
+  std::vector<float> mTailInput, mTailBus;  // audio thread: chunk, channels x chunk
   std::vector<float> mBus, mRotated;  // audio thread: channels x chunk
   std::vector<float> mLastRotation;   // audio thread: the bus's rotation at the end of the last chunk
   bool mHaveRotation = false;         // audio thread
