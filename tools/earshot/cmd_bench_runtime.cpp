@@ -40,6 +40,7 @@ struct BenchRuntimeOptions {
   int ambisonicOrder = -1;  // -1: the engine's default
   double irSeconds = 0.0;   // 0: the engine's default maxIrSeconds
   double turnDegreesPerSecond = 90.0;
+  double sharedTail = -1.0;  // < 0: the engine's default
 };
 
 double threadCpuSeconds() {
@@ -61,6 +62,7 @@ int run(const BenchRuntimeOptions& o) {
   es.maxPartitionFrames = o.maxPartition;
   if (o.ambisonicOrder >= 0) es.ambisonicOrder = o.ambisonicOrder;
   if (o.irSeconds > 0) es.maxIrSeconds = o.irSeconds;
+  if (o.sharedTail >= 0) es.sharedTailSeconds = o.sharedTail;
   auto model = loadBinauralModel("", es.sampleRateHz);
   if (!check(model.status())) return 2;
   auto created = runtime::Engine::create(es, *model);
@@ -163,9 +165,9 @@ int run(const BenchRuntimeOptions& o) {
   const double perSourceHz = double(updates.load()) / wall / o.sources;
   std::sort(irAges.begin(), irAges.end());
   auto ageAt = [&](double q) { return irAges.empty() ? 0.0 : irAges[size_t(q * double(irAges.size() - 1))]; };
-  std::printf("runtime reflections=%s ir_seconds=%.1f head_turn_dps=%.0f\n",
+  std::printf("runtime reflections=%s ir_seconds=%.1f shared_tail_s=%.2f head_turn_dps=%.0f\n",
               es.ambisonicOrder > 0 ? ("ambisonic order " + std::to_string(es.ambisonicOrder)).c_str() : "binaural",
-              es.maxIrSeconds, o.turnDegreesPerSecond);
+              es.maxIrSeconds, es.ambisonicOrder > 0 ? es.sharedTailSeconds : 0.0, o.turnDegreesPerSecond);
   std::printf("runtime scene=%s triangles=%zu sources=%u quality=%s block=%zu max_partition=%zu seconds=%.1f sim_threads=%u "
               "audio_cpu_pct_of_one_core=%.1f worst_block_pct_of_period=%.1f p99_block_pct=%.1f "
               "worst_block_first_second_pct=%.1f "
@@ -206,6 +208,10 @@ const Registrar registrar([](CLI::App& root) {
       ->check(CLI::Range(0, 3));
   cmd->add_option("--ir-seconds", o->irSeconds, "Longest IR convolved (default: the engine's, 3 s)")
       ->check(CLI::Range(0.1, 60.0));
+  cmd->add_option("--shared-tail", o->sharedTail,
+                  "Ambisonic reflections: each source's own IR up to this time, one shared tail after it "
+                  "(seconds; 0: whole IRs per source; default: the engine's, 0.15)")
+      ->check(CLI::Range(0.0, 60.0));
   cmd->add_option("--turn-dps", o->turnDegreesPerSecond, "Head turn, degrees per second (0: still)")
       ->check(CLI::Range(0.0, 3600.0))
       ->capture_default_str();
