@@ -60,6 +60,26 @@ const SincTable& sincTable() {
   static const SincTable table;
   return table;
 }
+// FIR by taps over a chunk: y[i] = sum_j h[j] x[i + j]. The inner loop runs
+// over output frames, so it vectorises (a per-output dot product is a serial
+// float reduction); on x86-64 an AVX2+FMA clone is chosen at load time when
+// the CPU has it, as for the convolver's kernels (src/dsp/mac_kernels.cpp).
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__SANITIZE_THREAD__) && \
+    !defined(__SANITIZE_ADDRESS__)
+#define EARSHOT_FIR_CLONES __attribute__((target_clones("arch=x86-64-v3", "default")))
+#else
+#define EARSHOT_FIR_CLONES
+#endif
+EARSHOT_FIR_CLONES
+void firInto(const float* __restrict h, size_t taps, const float* __restrict x, float* __restrict y, size_t frames) {
+  for (size_t i = 0; i < frames; ++i) y[i] = 0.0f;
+  for (size_t j = 0; j < taps; ++j) {
+    const float c = h[j];
+    const float* xj = x + j;
+    for (size_t i = 0; i < frames; ++i) y[i] += c * xj[i];
+  }
+}
+
 // Shelf corners, Hz.
 constexpr double kLowShelfHz = 250.0, kHighShelfHz = 4000.0;
 
@@ -205,16 +225,7 @@ void DirectVoice::processChunk(const float* input, float* left, float* right, si
       const double g = from.gain + (to.gain - from.gain) * a;
       hist[taps - 1 + i] = float(g * readDelayed(double(base + i) - d));
     }
-    // FIR by taps over the chunk (the inner loop runs over output frames, so
-    // it vectorises; a per-output dot product is a serial float reduction).
-    auto fir = [&](const float* h, float* y) {
-      std::fill(y, y + frames, 0.0f);
-      for (size_t j = 0; j < taps; ++j) {
-        const float c = h[j];
-        const float* x = hist + j;
-        for (size_t i = 0; i < frames; ++i) y[i] += c * x[i];
-      }
-    };
+    auto fir = [&](const float* h, float* y) { firInto(h, taps, hist, y, frames); };
     float* y = mScratch.data();
     fir(mTaps[e].data(), y);
     if (crossfade) {
