@@ -294,9 +294,15 @@ class Scene:
                 sample_rate=48000.0, length=None, air="20,50", hrtf=None, receiver_radius=0.0, converge=0.0,
                 flutter_cones=True):
         if not isinstance(receiver, str):
-            raise TypeError("receiver: expected 'omni' or 'binaural'")
+            raise TypeError("receiver: expected 'omni', 'binaural' or 'ambisonic'")
         if order is not None and receiver != "ambisonic":
             raise ValueError("order: applies only to receiver='ambisonic'")
+        if receiver == "ambisonic":
+            order = 1 if order is None else order
+            if isinstance(order, bool) or not isinstance(order, (int, _np.integer)):
+                raise TypeError(f"order: expected a whole number 1 .. 3, got {type(order).__name__}")
+        else:
+            order = 0
         if not isinstance(quality, str):
             raise TypeError("quality: expected one of " + ", ".join(QUALITIES))
         h = ""
@@ -304,7 +310,8 @@ class Scene:
             h = _path(hrtf)
             if h is None:
                 raise TypeError("hrtf: expected a path to a SOFA file or None")
-        return dict(receiver=receiver, forward=_vec3("forward", forward), up=_vec3("up", up), quality=quality,
+        return dict(receiver=receiver, order=int(order), forward=_vec3("forward", forward), up=_vec3("up", up),
+                    quality=quality,
                     rays=_optional_uint("rays", rays), bounces=_optional_uint("bounces", bounces),
                     ism_order=_optional_uint("ism_order", ism_order),
                     bin_ms=_number("bin_ms", bin_ms, allow_none=True),
@@ -317,7 +324,9 @@ class Scene:
         """The IR from `source` to `listener` (metres). Options (as `earshot
         ir`): receiver 'omni' | 'binaural' (default, HRTF; forward, up: the
         listener's orientation, default (0,0,-1), (0,1,0); hrtf: a SOFA file,
-        default the shipped set), quality 'draft' | 'balanced' | 'high' |
+        default the shipped set) | 'ambisonic' (order 1-3, default 1: AmbiX,
+        ACN order, SN3D, (order+1)^2 channels in the listener's frame, x
+        forward, y left, z up; W is the omni IR), quality 'draft' | 'balanced' | 'high' |
         'reference' and any of rays, bounces, ism_order, bin_ms, tail_probes
         over it, sample_rate (Hz), length (s, default from the decay), air
         ('off', 'T,H' or (T, H)), receiver_radius, converge (dB),
@@ -400,7 +409,7 @@ def _engine_args(kw):
                 rays=kw["rays"], bounces=kw["bounces"], ismOrder=kw["ism_order"], binMs=kw["bin_ms"],
                 tailProbes=kw["tail_probes"], sampleRate=kw["sample_rate"], length=kw["length"], air=kw["air"],
                 hrtf=kw["hrtf"], receiverRadius=kw["receiver_radius"], converge=kw["converge"],
-                flutterCones=kw["flutter_cones"])
+                flutterCones=kw["flutter_cones"], order=kw["order"])
 
 
 def _seed(seed):

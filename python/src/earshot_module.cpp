@@ -196,6 +196,7 @@ std::shared_ptr<SceneData> sceneFromArrays(py::array_t<double, py::array::c_styl
 struct IrRequest {
   OmniIrSettings settings;
   bool binaural = false;
+  int ambisonicOrder = 0;  ///< > 0: an ambisonic receiver of this order
   std::string hrtfPath;
   ListenerOrientation orientation;
   std::string quality;
@@ -207,15 +208,15 @@ IrRequest makeRequest(const std::string& receiver, const std::array<double, 3>& 
                       std::optional<uint32_t> bounces, std::optional<uint32_t> ismOrder, std::optional<double> binMs,
                       std::optional<uint32_t> tailProbes, uint64_t seed, double sampleRate,
                       std::optional<double> lengthSeconds, const std::string& air, const std::string& hrtf,
-                      double receiverRadius, double convergeDb, bool flutterCones) {
+                      double receiverRadius, double convergeDb, bool flutterCones, int order) {
   IrRequest q;
-  if (receiver == "ambisonic")
-    throw py::value_error(
-        "receiver: 'ambisonic' IRs are not yet available from Python (they are from `earshot ir --receiver "
-        "ambisonic --order N`); use 'omni' or 'binaural'");
-  if (receiver != "omni" && receiver != "binaural")
-    throw py::value_error("receiver: expected 'omni' or 'binaural', got '" + receiver.substr(0, 32) + "'");
-  if (receiver == "omni" && !hrtf.empty()) throw py::value_error("hrtf: an HRTF applies only to receiver='binaural'");
+  if (receiver != "omni" && receiver != "binaural" && receiver != "ambisonic")
+    throw py::value_error("receiver: expected 'omni', 'binaural' or 'ambisonic', got '" + receiver.substr(0, 32) + "'");
+  if (receiver != "binaural" && !hrtf.empty()) throw py::value_error("hrtf: an HRTF applies only to receiver='binaural'");
+  if (receiver == "ambisonic") {
+    if (order < 1 || order > kMaxAmbisonicOrder) throw py::value_error("order: expected 1 .. 3");
+    q.ambisonicOrder = order;
+  }
   q.receiver = receiver;
   q.binaural = receiver == "binaural";
   q.hrtfPath = hrtf;
@@ -262,7 +263,7 @@ IrRequest makeRequest(const std::string& receiver, const std::array<double, 3>& 
   checkVec("up", up);
   q.orientation.forward = vec(forward);
   q.orientation.up = vec(up);
-  if (q.binaural) {
+  if (q.binaural || q.ambisonicOrder > 0) {
     Status v = validate(q.orientation);
     if (!v.isOk()) raise(v);
   }
@@ -299,7 +300,13 @@ IrOut computeOne(SceneData& scene, const IrRequest& q, const std::array<double, 
       if (enclosureOf(*scene.tracer, true, p) == Enclosure::kOutside)
         out.warnings.push_back(std::string(name) + " lies outside the closed volume of " + scene.name);
   }
-  auto r = computeIr(*scene.tracer, scene.materials, source, listener, s, pool, bin.get());
+  std::unique_ptr<AmbisonicReceiver> amb;
+  if (q.ambisonicOrder > 0) {
+    amb = std::make_unique<AmbisonicReceiver>();
+    amb->order = q.ambisonicOrder;
+    amb->frame.worldToFrame = worldToAmbisonicFrame(q.orientation.forward, q.orientation.up);
+  }
+  auto r = computeIr(*scene.tracer, scene.materials, source, listener, s, pool, bin.get(), amb.get());
   if (!r.isOk()) {
     out.status = r.status();
     return out;
@@ -615,32 +622,33 @@ PYBIND11_MODULE(_earshot, m) {
               const P3& up, const std::string& quality, std::optional<uint32_t> rays, std::optional<uint32_t> bounces,
               std::optional<uint32_t> ismOrder, std::optional<double> binMs, std::optional<uint32_t> tailProbes,
               uint64_t seed, double sampleRate, std::optional<double> length, const std::string& air,
-              const std::string& hrtf, double receiverRadius, double converge, bool flutterCones, unsigned threads) {
+              const std::string& hrtf, double receiverRadius, double converge, bool flutterCones, unsigned threads,
+              int order) {
              const IrRequest q = makeRequest(receiver, forward, up, quality, rays, bounces, ismOrder, binMs, tailProbes,
                                              seed, sampleRate, length, air, hrtf, receiverRadius, converge,
-                                             flutterCones);
+                                             flutterCones, order);
              return irOne(s, source, listener, q, threads);
            },
            py::arg("source"), py::arg("listener"), py::arg("receiver"), py::arg("forward"), py::arg("up"), py::arg("quality"), py::arg("rays"),
            py::arg("bounces"), py::arg("ismOrder"), py::arg("binMs"), py::arg("tailProbes"), py::arg("seed"),
            py::arg("sampleRate"), py::arg("length"), py::arg("air"), py::arg("hrtf"), py::arg("receiverRadius"),
-           py::arg("converge"), py::arg("flutterCones"), py::arg("threads"))
+           py::arg("converge"), py::arg("flutterCones"), py::arg("threads"), py::arg("order"))
       .def("ir_batch",
            [](SceneData& s, const std::vector<std::pair<P3, P3>>& pairs, const std::string& receiver,
               const P3& forward, const P3& up, const std::string& quality, std::optional<uint32_t> rays,
               std::optional<uint32_t> bounces, std::optional<uint32_t> ismOrder, std::optional<double> binMs,
               std::optional<uint32_t> tailProbes, uint64_t seed, double sampleRate, std::optional<double> length,
               const std::string& air, const std::string& hrtf, double receiverRadius, double converge,
-              bool flutterCones, unsigned threads) {
+              bool flutterCones, unsigned threads, int order) {
              const IrRequest q = makeRequest(receiver, forward, up, quality, rays, bounces, ismOrder, binMs, tailProbes,
                                              seed, sampleRate, length, air, hrtf, receiverRadius, converge,
-                                             flutterCones);
+                                             flutterCones, order);
              return irBatch(s, pairs, q, threads);
            },
            py::arg("pairs"), py::arg("receiver"), py::arg("forward"), py::arg("up"), py::arg("quality"), py::arg("rays"),
            py::arg("bounces"), py::arg("ismOrder"), py::arg("binMs"), py::arg("tailProbes"), py::arg("seed"),
            py::arg("sampleRate"), py::arg("length"), py::arg("air"), py::arg("hrtf"), py::arg("receiverRadius"),
-           py::arg("converge"), py::arg("flutterCones"), py::arg("threads"));
+           py::arg("converge"), py::arg("flutterCones"), py::arg("threads"), py::arg("order"));
 
   m.def("_analyze", &analyze);
   m.def("_binaural", &binaural);

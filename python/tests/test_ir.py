@@ -39,6 +39,20 @@ def test_ir_equals_the_cli(tmp_path, shoebox, receiver):
     assert set(r.time_ms) == set(stats["time_ms"])
 
 
+def test_ambisonic_ir_equals_the_cli(tmp_path, shoebox):
+    """receiver='ambisonic' (issue 15): `earshot ir --receiver ambisonic`'s
+    IR bit for bit, (order+1)^2 channels, W the omni IR."""
+    x, rate, stats = cli_ir(tmp_path, SHOEBOX, "--material-map", SHOEBOX_MAP, "--source", "2,3.5,1.5",
+                            "--listener", "7,3.5,1.5", "--receiver", "ambisonic", "--order", 2, "--forward",
+                            "-1,0,0", "--up", "0,0,1", "--seed", 5, "--quality", "draft")
+    r = shoebox.ir(SRC, LIS, receiver="ambisonic", order=2, forward=(-1, 0, 0), up=(0, 0, 1), seed=5,
+                   quality="draft")
+    assert r.samples.shape == x.shape == (9, stats["ir_samples"])
+    assert np.array_equal(r.samples, x)
+    omni = shoebox.ir(SRC, LIS, receiver="omni", seed=5, quality="draft")
+    assert np.max(np.abs(r.samples[0] - omni.samples[0])) <= 1e-6 * np.max(np.abs(omni.samples[0]))
+
+
 def test_options_reach_the_engine(tmp_path):
     x, _, stats = cli_ir(tmp_path, "--source", "0,0,-10", "--listener", "0,0,0", "--receiver", "omni",
                          "--rate", 44100, "--length", 0.25, "--air", "off")
@@ -131,7 +145,9 @@ def test_from_arrays_with_material_dicts():
     (dict(rays=-5), ValueError, "rays"),
     (dict(rays=2.5), TypeError, "rays"),
     (dict(rays=0), ValueError, "rays"),
-    (dict(receiver="ambisonic"), ValueError, "ambisonic"),
+    (dict(receiver="ambisonic", order=4), ValueError, "order"),
+    (dict(receiver="ambisonic", order=1.5), TypeError, "order"),
+    (dict(receiver="ambisonic", hrtf="x.sofa"), ValueError, "hrtf"),
     (dict(receiver="stereo"), ValueError, "receiver"),
     (dict(quality="ultra"), ValueError, "ultra"),
     (dict(seed=-1), ValueError, "seed"),
