@@ -24,6 +24,10 @@ size_t nextPow2(size_t n) {
 
 using cd = std::complex<double>;
 
+// Directions x frequency bins the design holds (as float pairs per ear:
+// 128 MB at the limit; the shipped KU100 set needs 1.2 M).
+constexpr size_t kMaxDecoderDesignValues = size_t(8) << 20;
+
 // The 2x2 mixing M closest to the identity with M Cx M^H = Cy (Vilkamo et
 // al. 2013, with the identity as prototype): M = Ky P Kx^-1, P = V U^H from
 // the SVD of Kx^H Ky = U S V^H, K the Cholesky factors.
@@ -85,8 +89,14 @@ Result<std::shared_ptr<const AmbisonicDecoder>> AmbisonicDecoder::create(const B
   if (!fft || !ifft) return Status(StatusCode::kInternal, "FFT allocation failed");
   std::vector<float> padded(n);
   std::vector<kiss_fft_cpx> spec(bins);
-  Eigen::MatrixXcd full[2] = {Eigen::MatrixXcd(m, Eigen::Index(bins)), Eigen::MatrixXcd(m, Eigen::Index(bins))};
-  Eigen::MatrixXcd aligned[2] = {Eigen::MatrixXcd(m, Eigen::Index(bins)), Eigen::MatrixXcd(m, Eigen::Index(bins))};
+  // Held in float, the full HRTFs only (the time-aligned ones differ by the
+  // onset's phase, applied per bin below): 2 x directions x bins values.
+  if (double(m) * double(bins) > double(kMaxDecoderDesignValues))
+    return outOfRange(set.path() + ": " + std::to_string(m) + " HRTF directions x " + std::to_string(bins) +
+                      " frequency bins is over the ambisonic decoder's design limit of " +
+                      std::to_string(kMaxDecoderDesignValues) + " (HRIRs too long or too many directions)");
+  Eigen::MatrixXcf full[2] = {Eigen::MatrixXcf(m, Eigen::Index(bins)), Eigen::MatrixXcf(m, Eigen::Index(bins))};
+  Eigen::MatrixXd onsetFrames(m, 2);
   for (Eigen::Index r = 0; r < m; ++r) {
     const hrtf::HrtfMeasurement meas = set.measurement(used[size_t(r)]);
     for (int ear = 0; ear < 2; ++ear) {
@@ -95,11 +105,11 @@ Result<std::shared_ptr<const AmbisonicDecoder>> AmbisonicDecoder::create(const B
       std::copy(taps, taps + hrir, padded.begin());
       kiss_fftr(fft.get(), padded.data(), spec.data());
       const double onset = (ear == 0 ? meas.leftDelaySeconds : meas.rightDelaySeconds) * fs;
+      onsetFrames(r, ear) = onset;
       for (size_t k = 0; k < bins; ++k) {
         const cd v(spec[k].r, spec[k].i);
         const double w0 = -2.0 * kPi * double(k) / double(n);
-        full[ear](r, Eigen::Index(k)) = v * std::polar(1.0, w0 * (onset + double(s.delayFrames)));
-        aligned[ear](r, Eigen::Index(k)) = v * std::polar(1.0, w0 * double(s.delayFrames));
+        full[ear](r, Eigen::Index(k)) = std::complex<float>(v * std::polar(1.0, w0 * (onset + double(s.delayFrames))));
       }
     }
   }
@@ -110,17 +120,23 @@ Result<std::shared_ptr<const AmbisonicDecoder>> AmbisonicDecoder::create(const B
   // field. Each fit is a fixed linear combination of compact HRIRs, so the
   // filters stay compact.
   std::vector<Eigen::MatrixXcd> decoders(bins);
-  Eigen::MatrixXcd d(channels, 2);
+  Eigen::MatrixXcd d(channels, 2), hk(m, 2);
+  Eigen::VectorXcd aligned(m);
   const double lo = s.alignedAboveHz / std::sqrt(2.0), hi = s.alignedAboveHz * std::sqrt(2.0);
   for (size_t k = 0; k < bins; ++k) {
     const double f = double(k) * fs / double(n);
     const double t = f <= lo ? 0.0 : f >= hi ? 1.0 : 0.5 - 0.5 * std::cos(kPi * std::log(f / lo) / std::log(hi / lo));
-    for (int ear = 0; ear < 2; ++ear)
-      d.col(ear) = (1.0 - t) * (pinv * full[ear].col(Eigen::Index(k))) + t * (pinv * aligned[ear].col(Eigen::Index(k)));
+    for (int ear = 0; ear < 2; ++ear) {
+      hk.col(ear) = full[ear].col(Eigen::Index(k)).cast<cd>();
+      if (t > 0) {  // the time-aligned HRTFs: the onset's phase taken out
+        const double w0 = 2.0 * kPi * double(k) / double(n);
+        for (Eigen::Index r = 0; r < m; ++r) aligned(r) = hk(r, ear) * std::polar(1.0, w0 * onsetFrames(r, ear));
+        d.col(ear) = (1.0 - t) * (pinv * hk.col(ear)) + t * (pinv * aligned);
+      } else {
+        d.col(ear) = pinv * hk.col(ear);
+      }
+    }
     if (s.covarianceConstraint) {
-      Eigen::MatrixXcd hk(m, 2);
-      hk.col(0) = full[0].col(Eigen::Index(k));
-      hk.col(1) = full[1].col(Eigen::Index(k));
       const Eigen::Matrix2cd target = hk.transpose() * w.asDiagonal() * hk.conjugate();
       const Eigen::Matrix2cd decoded = d.transpose() * phi * d.conjugate();
       decoders[k] = d * covarianceMixing(decoded, target).transpose();
