@@ -194,3 +194,31 @@ TEST(TradeoffCli, HelpDescribesTheOptions) {
 }
 
 }  // namespace
+
+namespace {
+
+// Issue 15: --ambisonic-orders writes the floor row (binaural reflections of
+// another seed) and one row per order; the late IACC of every order is
+// within 0.1 of the exact binaural rendering (the issue's criterion).
+TEST(TradeoffCli, AmbisonicOrdersAgainstExactBinaural) {
+  TempDir dir("tradeoff_ambisonic");
+  auto r = runEarshot("tradeoff " + kScene + " --forward 0,1,0 --up 0,0,1 " +
+                      "--quality draft --ambisonic-orders 1,3 -o '" + dir / "amb.csv'");
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  std::string header;
+  const auto rows = readCsv(dir / "amb.csv", header);
+  ASSERT_EQ(rows.size(), 3u) << header;
+  EXPECT_EQ(header.rfind("order,channels,ild_err_250_db", 0), 0u) << header;
+  EXPECT_EQ(rows[0][0], "binaural_other_seed");
+  EXPECT_EQ(rows[1][0], "1");
+  EXPECT_EQ(rows[1][1], "4");
+  EXPECT_EQ(rows[2][1], "16");
+  for (size_t i = 1; i < rows.size(); ++i)
+    for (size_t c = 7; c <= 9; ++c) EXPECT_LT(std::fabs(std::stod(rows[i][c])), 0.1) << header << " row " << i;
+  auto bad = runEarshot("tradeoff " + kScene + " --ambisonic-orders 4 -o '" +
+                        dir / "bad.csv'");
+  EXPECT_EQ(bad.exitCode, 2);
+  EXPECT_FALSE(fs::exists(dir / "bad.csv"));
+}
+
+}  // namespace

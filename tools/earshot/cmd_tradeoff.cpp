@@ -395,7 +395,14 @@ int runAmbisonic(const TradeoffOptions& o) {
 }
 
 int run(const TradeoffOptions& o) {
-  if (!o.ambisonicOrders.empty()) return runAmbisonic(o);
+  if (!o.ambisonicOrders.empty()) {
+    if (!o.presets.empty() || !o.reference.empty() || !o.plot.empty()) {
+      printError("--ambisonic-orders: compares against its own exact binaural rendering; --presets, --reference "
+                 "and --plot do not apply");
+      return 2;
+    }
+    return runAmbisonic(o);
+  }
   // Everything that can be checked before the (long) sweep is checked first,
   // so an error never leaves a CSV or plot behind.
   auto rays = parseList("--rays", o.rays, 1);
