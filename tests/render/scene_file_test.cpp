@@ -318,6 +318,14 @@ TEST_F(SceneFileTest, HugeAndOverflowingNumbersAreRejected) {
   EXPECT_HAS(error(scene("", R"("settings": {"air": {"humidity_pct": 101}})")),
              "scene.json: settings.air.humidity_pct: 101 % is outside [0, 100] %");
   EXPECT_HAS(error(scene(R"("start": 1e6)")), "scene.json: sources[0].start: 1000000 s is outside [0, 86400] s");
+  // Issue 15's keys.
+  EXPECT_HAS(error(scene("", R"("settings": {"ambisonic_order": 4})")),
+             "scene.json: settings.ambisonic_order: 4 is outside [0, 3]");
+  EXPECT_HAS(error(scene("", R"("settings": {"ambisonic_order": 1.5})")), "settings.ambisonic_order");
+  EXPECT_HAS(error(scene("", R"("settings": {"output": "surround"})")),
+             "scene.json: settings.output: 'surround' is not \"binaural\" or \"ambisonic\"");
+  EXPECT_HAS(error(scene("", R"("settings": {"output": "ambisonic", "ambisonic_order": 0})")),
+             "settings.output: ambisonic output needs settings.ambisonic_order 1-3");
 }
 
 TEST_F(SceneFileTest, BadOrientationsAreRejected) {
