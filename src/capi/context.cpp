@@ -403,17 +403,9 @@ earshot_status earshot_process(earshot_context* c, const float* const* inputs, s
   // The audio thread: no allocation, lock or log here, so no guard() (which
   // may format a message); the engine's process() does not throw.
   if (!alive(c)) return EARSHOT_ERROR_INVALID_ARGUMENT;
-  if (inputCount > c->maxSources || (inputCount > 0 && !inputs)) return EARSHOT_ERROR_INVALID_ARGUMENT;
-  if (frames > kMaxProcessFrames) return EARSHOT_ERROR_INVALID_ARGUMENT;
-  if (frames == 0) return EARSHOT_OK;
   if (c->engine->outputChannels() != 2) return EARSHOT_ERROR_INVALID_STATE;  // ambisonic output: earshot_process_channels
-  if (!left || !right) return EARSHOT_ERROR_INVALID_ARGUMENT;
-  const uintptr_t l = reinterpret_cast<uintptr_t>(left), r = reinterpret_cast<uintptr_t>(right);
-  const uintptr_t bytes = frames * sizeof(float);
-  if ((l < r ? r - l : l - r) < bytes) return EARSHOT_ERROR_INVALID_ARGUMENT;  // overlapping outputs
-  for (size_t i = 0; i < c->maxSources; ++i) c->inputs[i] = i < inputCount ? inputs[i] : nullptr;
-  c->engine->process(c->inputs.data(), left, right, frames);
-  return EARSHOT_OK;
+  float* outputs[2] = {left, right};
+  return earshot_process_channels(c, inputs, inputCount, outputs, 2, frames);
 }
 
 earshot_status earshot_process_channels(earshot_context* c, const float* const* inputs, size_t inputCount,

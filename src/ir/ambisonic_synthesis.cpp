@@ -11,11 +11,6 @@ namespace earshot {
 
 namespace {
 
-Vec3d rotate(const Rotation3& r, const Vec3d& d) {
-  return {r[0] * d.x + r[1] * d.y + r[2] * d.z, r[3] * d.x + r[4] * d.y + r[5] * d.z,
-          r[6] * d.x + r[7] * d.y + r[8] * d.z};
-}
-
 // Independent late noise of ambisonic channel c >= 1 (W uses kLateNoiseStream).
 uint64_t channelNoiseStream(int c) { return 0xA3B1C2D3E4F50000ULL + uint64_t(c); }
 

@@ -57,6 +57,19 @@ Rotation3 worldToAmbisonicFrame(const Vec3d& forward, const Vec3d& up) {
   return {f.x, f.y, f.z, l.x, l.y, l.z, u.x, u.y, u.z};
 }
 
+Vec3d rotate(const Rotation3& r, const Vec3d& d) {
+  return {r[0] * d.x + r[1] * d.y + r[2] * d.z, r[3] * d.x + r[4] * d.y + r[5] * d.z,
+          r[6] * d.x + r[7] * d.y + r[8] * d.z};
+}
+
+Rotation3 relativeRotation(const Rotation3& to, const Rotation3& from) {
+  Rotation3 r{};
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j)
+      for (int k = 0; k < 3; ++k) r[size_t(i * 3 + j)] += to[size_t(i * 3 + k)] * from[size_t(j * 3 + k)];
+  return r;
+}
+
 ShRotation::ShRotation() {
   constexpr int K = kRotationDirections, C = kMaxAmbisonicChannels;
   const double golden = kPi * (3.0 - std::sqrt(5.0));
@@ -83,8 +96,8 @@ void ShRotation::compute(const Rotation3& r, int order, float* m) const {
   double h[C];
   for (size_t k = 0; k < mDirections.size(); ++k) {
     const Vec3d& d = mDirections[k];
-    harmonics(r[0] * d.x + r[1] * d.y + r[2] * d.z, r[3] * d.x + r[4] * d.y + r[5] * d.z,
-              r[6] * d.x + r[7] * d.y + r[8] * d.z, order, h);
+    const Vec3d rd = rotate(r, d);
+    harmonics(rd.x, rd.y, rd.z, order, h);
     const double* p = &mPinv[k * C];
     // Only the blocks of equal order are non-zero.
     for (int n = 0; n <= order; ++n)

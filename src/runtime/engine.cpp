@@ -900,9 +900,9 @@ void Engine::processAmbisonicBus(const ListenerOrientation& head, float* const* 
   constexpr size_t C = kMaxAmbisonicChannels;
   const int order = mSettings.ambisonicOrder;
   const size_t channels = size_t(ambisonicChannels(order));
-  float* bus[C];
-  const float* rotatedIn[C];
-  float* rotated[C];
+  float* bus[C] = {};
+  const float* rotatedIn[C] = {};
+  float* rotated[C] = {};
   for (size_t c = 0; c < channels; ++c) {
     bus[c] = mBus.data() + c * kProcessChunk;
     rotated[c] = mRotated.data() + c * kProcessChunk;
@@ -912,7 +912,7 @@ void Engine::processAmbisonicBus(const ListenerOrientation& head, float* const* 
   if (mTailMixer) {
     // The shared tail, convolved once for every source (it runs on silence
     // too, so that its state stays in step).
-    float* tailOut[C];
+    float* tailOut[C] = {};
     for (size_t c = 0; c < channels; ++c) tailOut[c] = mTailBus.data() + c * kProcessChunk;
     const float* tailIn[1] = {tailUsed ? mTailInput.data() : nullptr};
     mTailMixer->process(tailIn, tailOut, m);
@@ -921,11 +921,8 @@ void Engine::processAmbisonicBus(const ListenerOrientation& head, float* const* 
   }
   // The world-frame bus into the head's frame: R = head * world^T, its SH
   // rotation interpolated linearly across the chunk from the last one.
-  const Rotation3 h = worldToAmbisonicFrame(head.forward, head.up), w = worldAmbisonicFrame().worldToFrame;
-  Rotation3 r{};
-  for (int i = 0; i < 3; ++i)
-    for (int j = 0; j < 3; ++j)
-      for (int k = 0; k < 3; ++k) r[size_t(i * 3 + j)] += h[size_t(i * 3 + k)] * w[size_t(j * 3 + k)];
+  const Rotation3 r =
+      relativeRotation(worldToAmbisonicFrame(head.forward, head.up), worldAmbisonicFrame().worldToFrame);
   float now[C * C];
   mRotation->compute(r, order, now);
   if (!mHaveRotation) std::copy(now, now + C * C, mLastRotation.begin());

@@ -113,9 +113,7 @@ TEST(AmbisonicIr, LateFieldFollowsTheTracedDirections) {
     AmbisonicFrame frame;  // world frame
     auto ir = synthesizeAmbisonicIr({}, &h, s, 3, frame);
     ASSERT_TRUE(ir.isOk()) << ir.status().message();
-    const Rotation3& r = frame.worldToFrame;
-    const Vec3d inFrame(r[0] * d.x + r[1] * d.y + r[2] * d.z, r[3] * d.x + r[4] * d.y + r[5] * d.z,
-                        r[6] * d.x + r[7] * d.y + r[8] * d.z);
+    const Vec3d inFrame = rotate(frame.worldToFrame, d);
     double y[16];
     realSphericalHarmonics(inFrame, 3, y);
     const auto& w = ir->channels[0];
@@ -156,10 +154,7 @@ TEST(AmbisonicIr, ListenerFrameIsTheRotatedWorldFrame) {
   auto b = synthesizeAmbisonicIr(arrivals, nullptr, s, 3, listener);
   ASSERT_TRUE(a.isOk() && b.isOk());
   // R = L W^T takes world-frame directions to the listener's frame.
-  Rotation3 rel{};
-  for (int i = 0; i < 3; ++i)
-    for (int j = 0; j < 3; ++j)
-      for (int k = 0; k < 3; ++k) rel[i * 3 + j] += listener.worldToFrame[i * 3 + k] * world.worldToFrame[j * 3 + k];
+  const Rotation3 rel = relativeRotation(listener.worldToFrame, world.worldToFrame);
   ShRotation rot;
   std::vector<float> m(256);
   rot.compute(rel, 3, m.data());

@@ -29,11 +29,6 @@ Rotation3 randomRotation(std::mt19937_64& rng) {
           2 * (x * z - y * w),     2 * (y * z + x * w),     1 - 2 * (x * x + y * y)};
 }
 
-Vec3d apply(const Rotation3& r, const Vec3d& d) {
-  return {r[0] * d.x + r[1] * d.y + r[2] * d.z, r[3] * d.x + r[4] * d.y + r[5] * d.z,
-          r[6] * d.x + r[7] * d.y + r[8] * d.z};
-}
-
 TEST(SphericalHarmonics, Sn3dNormsAndOrthogonality) {
   // Mean over the sphere of Y_i Y_j: 1/(2n+1) on the diagonal, 0 elsewhere.
   constexpr int kN = 20000, C = kMaxAmbisonicChannels;
@@ -67,7 +62,7 @@ TEST(SphericalHarmonics, KnownDirections) {
 TEST(SphericalHarmonics, WorldToAmbisonicFrame) {
   // glTF listener: forward -Z, up +Y; so world -Z is x, world -X is y (left), +Y is z.
   const Rotation3 r = worldToAmbisonicFrame({0, 0, -1}, {0, 1, 0});
-  const Vec3d f = apply(r, {0, 0, -1}), l = apply(r, {-1, 0, 0}), u = apply(r, {0, 1, 0});
+  const Vec3d f = rotate(r, {0, 0, -1}), l = rotate(r, {-1, 0, 0}), u = rotate(r, {0, 1, 0});
   EXPECT_NEAR(f.x, 1, 1e-12);
   EXPECT_NEAR(l.y, 1, 1e-12);
   EXPECT_NEAR(u.z, 1, 1e-12);
@@ -86,7 +81,7 @@ TEST(SphericalHarmonics, RotationOfEncodingIsEncodingOfRotatedDirection) {
       const Vec3d d = normalize(Vec3d(g(rng), g(rng), g(rng)));
       double y[16], yr[16];
       realSphericalHarmonics(d, order, y);
-      realSphericalHarmonics(apply(r, d), order, yr);
+      realSphericalHarmonics(rotate(r, d), order, yr);
       const int c = ambisonicChannels(order);
       for (int i = 0; i < c; ++i) {
         double v = 0;

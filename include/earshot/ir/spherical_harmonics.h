@@ -51,6 +51,12 @@ using Rotation3 = std::array<double, 9>;
  *  parallel). Its rows are forward, left = up x forward, up. */
 Rotation3 worldToAmbisonicFrame(const Vec3d& forward, const Vec3d& up);
 
+/** R d. */
+Vec3d rotate(const Rotation3& r, const Vec3d& d);
+/** The rotation from frame `from` to frame `to`, both given as rotations from
+ *  the world: to from^T. */
+Rotation3 relativeRotation(const Rotation3& to, const Rotation3& from);
+
 /** M(R) for SH up to kMaxAmbisonicOrder: prepared once (allocates), then
  *  compute() is allocation-free and cheap (~10 us), for the audio thread. */
 class ShRotation {
