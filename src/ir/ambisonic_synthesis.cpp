@@ -96,8 +96,7 @@ Result<AudioBuffer> synthesizeAmbisonicIr(const std::vector<Arrival>& arrivals, 
   // Per histogram bin: direction and directional fraction -> each channel's
   // coherent and independent gains, then per sample.
   const size_t histBins = reflections->binCount();
-  std::vector<Vec3d> dir(histBins, Vec3d(1, 0, 0));
-  std::vector<double> frac(histBins, 0.0);
+  std::vector<double> frac(histBins, 0.0), harmonicsOf(histBins * kMaxAmbisonicChannels, 0.0);
   for (size_t bin = 0; bin < histBins; ++bin) {
     double mean = 0;
     for (int b = 0; b < kNumBands; ++b) mean += reflections->energy(bin, b) / kNumBands;
@@ -105,7 +104,7 @@ Result<AudioBuffer> synthesizeAmbisonicIr(const std::vector<Arrival>& arrivals, 
     const double len = earshot::length(sum);
     if (!(mean > 0) || !(len > 1e-9 * mean) || !std::isfinite(len)) continue;
     frac[bin] = std::min(1.0, len / mean);
-    dir[bin] = rotate(frame.worldToFrame, sum / len);
+    realSphericalHarmonics(rotate(frame.worldToFrame, sum / len), order, &harmonicsOf[bin * kMaxAmbisonicChannels]);
   }
   const double binSamples = reflections->binSeconds() * fs;
   std::vector<float> coherentBins(histBins), independentBins(histBins), coherent(length), independent(length),
@@ -113,8 +112,7 @@ Result<AudioBuffer> synthesizeAmbisonicIr(const std::vector<Arrival>& arrivals, 
   for (int c = 1; c < channels; ++c) {
     const double diffuse = 1.0 / double(2 * ambisonicOrderOf(c) + 1);
     for (size_t bin = 0; bin < histBins; ++bin) {
-      realSphericalHarmonics(dir[bin], order, y);
-      const double a = frac[bin], yc = y[c];
+      const double a = frac[bin], yc = harmonicsOf[bin * kMaxAmbisonicChannels + size_t(c)];
       coherentBins[bin] = float(a * yc);
       independentBins[bin] = float(std::sqrt(std::max(0.0, a * yc * yc + (1.0 - a) * diffuse - a * a * yc * yc)));
     }

@@ -111,7 +111,7 @@ Result<RenderResult> renderScene(const SceneDescription& scene, const RenderOpti
   auto outChannels = renderOutputChannels(scene, options);
   if (!outChannels.isOk()) return outChannels.status();
   const size_t channels = *outChannels;
-  if (options.outputFormat.value_or(ss.output) == "ambisonic") es.output = runtime::OutputFormat::kAmbisonic;
+  if (channels != 2) es.output = runtime::OutputFormat::kAmbisonic;  // AmbiX: 4, 9 or 16
   const bool ambisonic = es.ambisonicOrder > 0;
   auto preset = qualityPreset(options.quality.value_or(ss.quality));
   if (!preset.isOk()) return preset.status();

@@ -60,10 +60,9 @@ const SincTable& sincTable() {
   static const SincTable table;
   return table;
 }
-// FIR by taps over a chunk: y[i] = sum_j h[j] x[i + j]. The inner loop runs
-// over output frames, so it vectorises (a per-output dot product is a serial
-// float reduction); on x86-64 an AVX2+FMA clone is chosen at load time when
-// the CPU has it, as for the convolver's kernels (src/dsp/mac_kernels.cpp).
+// FIR by taps over a chunk: y[i] = sum_j h[j] x[i + j] (firInto below); on
+// x86-64 an AVX2+FMA clone is chosen at load time when the CPU has it, as for
+// the convolver's kernels (src/dsp/mac_kernels.cpp).
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__SANITIZE_THREAD__) && \
     !defined(__SANITIZE_ADDRESS__)
 #define EARSHOT_FIR_CLONES __attribute__((target_clones("arch=x86-64-v3", "default")))
@@ -222,6 +221,21 @@ DirectVoice::Params DirectVoice::paramsFor(const DirectTarget& t, Vec3f& headDir
   return p;
 }
 
+void DirectVoice::setShelves(const Params& to) {
+  const double fs = mSettings.sampleRateHz;
+  setShelf(mLow.b0, mLow.b1, mLow.b2, mLow.a1, mLow.a2, fs, kLowShelfHz, to.lowDb, false);
+  setShelf(mHigh.b0, mHigh.b1, mHigh.b2, mHigh.a1, mHigh.a2, fs, kHighShelfHz, to.highDb, true);
+}
+
+size_t DirectVoice::pushInput(const float* input, size_t frames) {
+  const size_t base = mWrite;
+  for (size_t i = 0; i < frames; ++i) {
+    const float x = input ? input[i] : 0.0f;
+    mRing[(mWrite++) & mRingMask] = mHigh.run(mLow.run(x));
+  }
+  return base;
+}
+
 double DirectVoice::readDelayed(double position) const {
   // Windowed-sinc interpolation around `position` (absolute sample index,
   // fractional): taps at i - 3 .. i + 4 for position in [i, i + 1).
@@ -239,11 +253,7 @@ double DirectVoice::readDelayed(double position) const {
 
 void DirectVoice::processChunk(const float* input, float* left, float* right, size_t frames, const Params& from,
                                const Params& to, size_t offset, size_t total, bool crossfade) {
-  const size_t base = mWrite;
-  for (size_t i = 0; i < frames; ++i) {
-    const float x = input ? input[i] : 0.0f;
-    mRing[(mWrite++) & mRingMask] = mHigh.run(mLow.run(x));
-  }
+  const size_t base = pushInput(input, frames);
   const size_t taps = mTaps[0].size();
   float* out[2] = {left, right};
   for (int e = 0; e < 2; ++e) {
@@ -286,9 +296,7 @@ void DirectVoice::process(const float* input, float* left, float* right, size_t 
     mTaps[1] = mTapsNext[1];
     mStarted = true;
   }
-  const double fs = mSettings.sampleRateHz;
-  setShelf(mLow.b0, mLow.b1, mLow.b2, mLow.a1, mLow.a2, fs, kLowShelfHz, to.lowDb, false);
-  setShelf(mHigh.b0, mHigh.b1, mHigh.b2, mHigh.a1, mHigh.a2, fs, kHighShelfHz, to.highDb, true);
+  setShelves(to);
   for (size_t off = 0; off < frames; off += kChunk) {
     const size_t n = std::min(kChunk, frames - off);
     processChunk(input ? input + off : nullptr, left + off, right + off, n, mCurrent, to, off, frames, crossfade);
@@ -317,17 +325,11 @@ void DirectVoice::processAmbisonic(const float* input, float* const* out, int or
     std::copy(sh, sh + channels, mHarmonics);
     mStarted = true;
   }
-  const double fs = mSettings.sampleRateHz;
-  setShelf(mLow.b0, mLow.b1, mLow.b2, mLow.a1, mLow.a2, fs, kLowShelfHz, to.lowDb, false);
-  setShelf(mHigh.b0, mHigh.b1, mHigh.b2, mHigh.a1, mHigh.a2, fs, kHighShelfHz, to.highDb, true);
+  setShelves(to);
   float* y = mScratch.data();
   for (size_t off = 0; off < frames; off += kChunk) {
     const size_t n = std::min(kChunk, frames - off);
-    const size_t base = mWrite;
-    for (size_t i = 0; i < n; ++i) {
-      const float x = input ? input[off + i] : 0.0f;
-      mRing[(mWrite++) & mRingMask] = mHigh.run(mLow.run(x));
-    }
+    const size_t base = pushInput(input ? input + off : nullptr, n);
     for (size_t i = 0; i < n; ++i) {
       const double a = double(off + i + 1) / double(frames);
       const double d = mCurrent.delay[0] + (to.delay[0] - mCurrent.delay[0]) * a;

@@ -101,6 +101,11 @@ class DirectVoice {
   void processChunk(const float* input, float* left, float* right, size_t frames, const Params& from,
                     const Params& to, size_t offset, size_t total, bool crossfade);
   double readDelayed(double position) const;
+  // The shelves for `to` (air, transmission around the 1 kHz band).
+  void setShelves(const Params& to);
+  // `frames` of input (nullptr: silence) through the shelves into the delay
+  // line; returns the absolute index of the first.
+  size_t pushInput(const float* input, size_t frames);
 
   DirectVoiceSettings mSettings;
   const SincTable* mSincTable = nullptr;
