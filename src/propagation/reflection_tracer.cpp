@@ -116,22 +116,44 @@ inline Vec3f cosineDirection(const Vec3f& n, Pcg32& rng) {
   return normalize(t * u + b * v + n * w);
 }
 
+// Where detections happen: the listener (a trace from the source), or each
+// source (a shared trace, which runs from the listener: reciprocity).
+struct Detector {
+  Vec3d position;
+  double radius = 0;
+  bool probesDetected = false;  // a sphere of at least kMinProbeSphere
+  float sphereR2 = 0, invSphereVolume = 0;
+  bool shadowsNeeded = true;    // not a convex room around it
+  const PlaneSequenceSet* excluded = nullptr;
+  uint32_t excludedMaxOrder = 0;
+  // A shared trace: the source's directivity, applied to what it detects
+  // (at the direction the sound left it in). Unused in a forward trace.
+  Directivity directivity;
+  bool directional = false;
+  BandArrayD meanSquares{};
+};
+
+// One detector's sums, per worker thread.
+struct alignas(64) DetectorSums {
+  std::vector<int64_t> hist;                 // [bin][kStride]
+  std::vector<int64_t> perOrder;             // [order][band]
+  std::vector<int64_t> probeHist;            // [bin][band]: what tail probes past their cut deposit
+  int64_t late[kNumBands] = {};
+  uint64_t shadows = 0, shadowsSkipped = 0, excluded = 0;
+};
+
 // One per worker thread. NOTE: cache-line aligned: side by side in a vector,
 // one thread's counters (written every segment) shared a line with the other
 // thread's buffer pointers (read every detection), and the line bounced
 // between cores (perf: 64 % of the detection code's time on that load).
 struct alignas(64) Accumulator {
-  std::vector<int64_t> hist;                 // [bin][kStride]
-  std::vector<int64_t> perOrder;             // [order][band]
+  std::vector<DetectorSums> det;             // per detector
   std::vector<int64_t> aliveDiff;            // [bin + 1][band]: difference array of energy in flight
   int64_t escaped[kNumBands] = {};
-  int64_t late[kNumBands] = {};
   std::vector<int64_t> pathEnergy, pathRetained;  // [free-path bin][band]
   std::vector<int64_t> probeAliveDiff;       // as aliveDiff, tail probes past their cut
-  std::vector<int64_t> probeHist;            // [bin][band]: what tail probes past their cut deposit
   int64_t probeCut[kNumBands] = {};
-  uint64_t raysEscaped = 0, segments = 0, shadows = 0, raysCut = 0, rouletted = 0, excluded = 0, probeSegments = 0,
-           shadowsSkipped = 0;
+  uint64_t raysEscaped = 0, segments = 0, raysCut = 0, rouletted = 0, probeSegments = 0;
 };
 
 // A rotation matrix from a random unit quaternion (Shoemake 1992).
@@ -458,38 +480,49 @@ Status validate(const ReflectionSettings& s) {
   return validate(s.air);
 }
 
-Result<ReflectionResult> traceReflections(const RayTracer& tracer, const MaterialTable& materials, const Vec3d& source,
-                                          const Vec3d& listener, const ReflectionSettings& settings, ThreadPool& pool) {
-  EARSHOT_RETURN_IF_ERROR(validate(settings));
-  if (!isFinite(source) || !isFinite(listener)) return invalidArgument("source or listener position is not finite");
-  for (uint32_t id : tracer.mesh().materialIds)
-    if (id >= materials.size())
-      return invalidArgument("material id " + std::to_string(id) + " is beyond the " + std::to_string(materials.size()) +
-                             " materials");
-  const auto start = std::chrono::steady_clock::now();
+namespace {
 
+// The trace behind traceReflections (one detector, the listener; rays from
+// the source) and traceReflectionsShared (rays from the listener, a
+// detector per source: reciprocity). `reciprocal`: each detection's arrival
+// direction at the listener is its ray's first direction, and the
+// detector's directivity weighs what it detects. Inputs validated by the
+// callers; one result per detector.
+std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialTable& materials, const Vec3d& emitter,
+                                        std::vector<Detector> detectors, bool reciprocal,
+                                        const ReflectionSettings& settings, ThreadPool& pool) {
+  const auto start = std::chrono::steady_clock::now();
   const size_t bins = size_t(std::ceil(settings.maxTimeSeconds / settings.binSeconds));
   const uint32_t maxOrder = settings.bounces;
-  ReflectionResult result;
-  result.histogram = EnergyHistogram(settings.binSeconds, bins);
-  ReflectionStats& stats = result.stats;
-  stats.detectedPerOrder.assign(maxOrder + 1, BandArrayD{});
-  stats.raysTraced = settings.rays;
-  if (tracer.empty() || settings.bounces == 0) return result;  // nothing to reflect from
+  const size_t nd = detectors.size();
+  std::vector<ReflectionResult> results(nd);
+  for (ReflectionResult& result : results) {
+    result.histogram = EnergyHistogram(settings.binSeconds, bins);
+    result.stats.detectedPerOrder.assign(maxOrder + 1, BandArrayD{});
+    result.stats.raysTraced = settings.rays;
+  }
+  if (tracer.empty() || settings.bounces == 0) return results;  // nothing to reflect from
 
-  const double R = settings.receiverRadiusMeters > 0 ? settings.receiverRadiusMeters
-                                                     : autoReceiverRadius(tracer, listener, settings.rays, settings.bounces);
-  stats.receiverRadiusMeters = R;
-  const bool probesDetected = R >= kMinProbeSphere;
-  const float sphereR2 = float(R * R);
-  const float invSphereVolume = float(1.0 / (4.0 / 3.0 * kPi * R * R * R));
+  bool anyProbeDetector = false;
+  for (size_t r = 0; r < nd; ++r) {
+    Detector& dt = detectors[r];
+    const double R = dt.radius > 0 ? dt.radius : autoReceiverRadius(tracer, dt.position, settings.rays, settings.bounces);
+    dt.radius = R;
+    results[r].stats.receiverRadiusMeters = R;
+    dt.probesDetected = R >= kMinProbeSphere;
+    anyProbeDetector |= dt.probesDetected;
+    dt.sphereR2 = float(R * R);
+    dt.invSphereVolume = float(1.0 / (4.0 / 3.0 * kPi * R * R * R));
+    // A convex room around the detector blocks no path from its surface to
+    // it: next-event estimation needs no occlusion test.
+    dt.shadowsNeeded = !tracer.convexAround(dt.position);
+    dt.directional = reciprocal && !dt.directivity.isOmni();
+    dt.meanSquares = dt.directivity.meanSquares();
+  }
   const float invC = float(1.0 / settings.speedOfSound);
   const float invBin = float(1.0 / settings.binSeconds);
   const float minD2 = float(settings.minDistanceMeters * settings.minDistanceMeters);
   const float eps = tracer.surfaceEpsilon();
-  // A convex room around the listener blocks no path from its surface to
-  // the listener: next-event estimation needs no occlusion test.
-  const bool shadowsNeeded = !tracer.convexAround(listener);
   // Paths longer than the histogram covers are counted as late whatever their air.
   const AirTable air(airEnergyAttenuationPerMeter(settings.air), settings.maxTimeSeconds * settings.speedOfSound);
   const Rotation rot = randomRotation(mix64(settings.seed));
@@ -500,8 +533,6 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
                                              ? findFlutterAxes(tracer, materials)
                                              : std::vector<Vec3d>{};
   const DirectionSampler sampler(settings.rays, rot, flutterAxes, settings.seed);
-  stats.flutterAxes = uint32_t(flutterAxes.size());
-  stats.coneRays = sampler.coneRays();
 
   // Per-material factors, precomputed.
   struct MatFactors {
@@ -530,28 +561,29 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
   // in flight, a smooth sum: kUndetectedProbes of them do (the default up
   // to b20d7e4); more would cost time for nothing (in the two-room sample,
   // 3.7 million probe segments against 0.93 million).
-  const uint32_t probes = probesDetected ? settings.tailProbes : std::min(settings.tailProbes, kUndetectedProbes);
+  const uint32_t probes = anyProbeDetector ? settings.tailProbes : std::min(settings.tailProbes, kUndetectedProbes);
   const uint32_t probeStride = probes > 0 ? std::max(1u, settings.rays / probes) : 0;
   const uint32_t probeSlots = probeStride > 0 ? settings.rays : 0;
   std::vector<CutRay> probeEnds(probeSlots);
   std::vector<uint8_t> probeEnded(probeSlots, 0);
   std::vector<Accumulator> acc(pool.threadCount());
   for (auto& a : acc) {
-    a.hist.assign(bins * EnergyHistogram::kStride, 0);
-    a.perOrder.assign(size_t(maxOrder + 1) * kNumBands, 0);
+    a.det.resize(nd);
+    for (size_t r = 0; r < nd; ++r) {
+      a.det[r].hist.assign(bins * EnergyHistogram::kStride, 0);
+      a.det[r].perOrder.assign(size_t(maxOrder + 1) * kNumBands, 0);
+      if (probeStride > 0 && detectors[r].probesDetected) a.det[r].probeHist.assign(bins * kNumBands, 0);
+    }
     a.aliveDiff.assign((bins + 1) * kNumBands, 0);
     a.pathEnergy.assign(kFreePathBins * kNumBands, 0);
     a.pathRetained.assign(kFreePathBins * kNumBands, 0);
-    if (probeStride > 0) {
-      a.probeAliveDiff.assign((bins + 1) * kNumBands, 0);
-      a.probeHist.assign(bins * kNumBands, 0);
-    }
+    if (probeStride > 0) a.probeAliveDiff.assign((bins + 1) * kNumBands, 0);
   }
   const uint32_t lossFromOrder = std::max(1u, maxOrder / 2);  // the later half of the bounces
   constexpr float kSurvival = 0.1f;
 
   auto binOf = [&](float pathLength) { return std::min(bins, size_t(pathLength * invC * invBin)); };
-  auto deposit = [&](Accumulator& a, float pathLength, const float* energy, float weight, const Vec3f& doa,
+  auto deposit = [&](DetectorSums& a, float pathLength, const float* energy, float weight, const Vec3f& doa,
                      uint32_t order) {
     const size_t bin = size_t(pathLength * invC * invBin);
     if (bin >= bins) {
@@ -576,12 +608,41 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
     addSat(h[kNumBands + 2], toFixed(mean * doa.z));
   };
   // A tail probe's detection (no direction, no order): kept apart, for tail completion.
-  auto depositProbe = [&](Accumulator& a, float pathLength, const float* energy, float weight) {
+  auto depositProbe = [&](DetectorSums& a, float pathLength, const float* energy, float weight) {
     const size_t bin = size_t(pathLength * invC * invBin);
     if (bin >= bins) return;
     float f[kNumBands];
     air.factors(pathLength, f);
     for (int b = 0; b < kNumBands; ++b) addSat(a.probeHist[bin * kNumBands + b], toFixed(double(energy[b]) * weight * f[b]));
+  };
+  // A detection by detector r. `away` is the direction from the detector
+  // toward the event: forward, where the sound arrives from; in a shared
+  // trace, where it left the source for (its directivity's argument), and
+  // it arrives at the listener from the ray's first direction `first`.
+  auto detect = [&](DetectorSums& a, const Detector& dt, float pathLength, const float* energy, float weight,
+                    const Vec3f& away, const Vec3f& first, uint32_t order, bool probe) {
+    const float* e = energy;
+    float weighted[kNumBands];
+    if (dt.directional) {
+      const BandArrayD d = dt.directivity.energyFactors(Vec3d(away), dt.meanSquares);
+      for (int b = 0; b < kNumBands; ++b) weighted[b] = float(double(energy[b]) * d[size_t(b)]);
+      e = weighted;
+    }
+    if (probe)
+      depositProbe(a, pathLength, e, weight);
+    else
+      deposit(a, pathLength, e, weight, reciprocal ? first : away, order);
+  };
+  // A purely specular path the image sources rendered. The planes are in
+  // the ray's order: from the source forward, from the listener in a shared
+  // trace (the image sources' sequences run from the source).
+  auto excludedPath = [&](const Detector& dt, const PlaneSequence& planes, uint32_t order) {
+    if (!reciprocal) return dt.excluded->count(planes) > 0;
+    PlaneSequence reversed;
+    reversed.fill(0xFFFFFFFFu);
+    const uint32_t n = std::min<uint32_t>(order, kMaxImageSourceOrder);
+    for (uint32_t k = 0; k < n; ++k) reversed[k] = planes[n - 1 - k];
+    return dt.excluded->count(reversed) > 0;
   };
   // Energy in flight over [from, to) bins (air applied at the segment's start).
   auto alive = [&](std::vector<int64_t>& diff, float fromLength, float toLength, const float* energy) {
@@ -602,10 +663,11 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
   // trace stops after the round where the late histogram's estimated error
   // falls below it. The decision depends on completed rounds only: the
   // same whatever the thread count.
-  const bool directional = !settings.directivity.isOmni();
+  const bool directional = !reciprocal && !settings.directivity.isOmni();
   const BandArrayD directivityMeanSquares = settings.directivity.meanSquares();
-  const uint32_t rounds = settings.convergenceDb > 0 ? std::min(kConvergenceRounds, settings.rays) : 1u;
+  const uint32_t rounds = !reciprocal && settings.convergenceDb > 0 ? std::min(kConvergenceRounds, settings.rays) : 1u;
   uint32_t traced = 0;
+  double estimatedErrorDb = 0;
   ConvergenceMonitor monitor(bins, settings.binSeconds, rounds);
   for (uint32_t round = 0; round < rounds; ++round) {
     const uint32_t residue = rounds == 1 ? 0u : bitReverse(round, rounds);
@@ -613,6 +675,16 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
     const uint32_t tasks = (count + kRaysPerTask - 1) / kRaysPerTask;
     pool.parallelFor(tasks, [&](size_t task, unsigned worker) {
       Accumulator& a = acc[worker];
+      // Next-event estimation's scratch: a candidate and a shadow ray per detector.
+      struct NeeCandidate {
+        uint32_t detector, shadowIndex;
+        Vec3f toL;
+        float d, d2, cosL;
+      };
+      std::vector<NeeCandidate> nee(nd);
+      std::vector<Ray> shadowRays(nd);
+      std::vector<uint8_t> blocked(nd);
+      uint32_t shadowCount = 0;
       const uint32_t first = uint32_t(task) * kRaysPerTask;
       const uint32_t last = std::min(count, first + kRaysPerTask);
       for (uint32_t k = first; k < last; ++k) {
@@ -637,7 +709,8 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
         // float they are ~8 mm apart at 1e5 m, and a hit point near an edge
         // could round to beyond the neighbouring wall. Directions and
         // distances stay float.
-        Ray ray{source, 0.0f, Vec3f(direction), 1e30f};
+        Ray ray{emitter, 0.0f, Vec3f(direction), 1e30f};
+        const Vec3f first(direction);
         float pathLength = 0;
         bool detectSegment = false;  // last event specular/transmission after a reflection
         bool reflected = false;
@@ -656,24 +729,26 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
           // sphere alone (no next-event estimation): unbiased for specular
           // and diffuse paths alike, and no shadow rays; not by a sphere
           // squeezed below kMinProbeSphere by a nearby surface (too few hits).
-          if ((probing && probesDetected) || (detectSegment && !probing)) {
-            // Chord of this segment through the receiver sphere.
-            const Vec3f oc(ray.origin - listener);
-            const float bq = dot(oc, ray.direction);
-            const float disc = bq * bq - (dot(oc, oc) - sphereR2);
-            if (disc > 0) {
+          if ((probing && anyProbeDetector) || (detectSegment && !probing)) {
+            for (size_t r = 0; r < nd; ++r) {
+              const Detector& dt = detectors[r];
+              if (probing && !dt.probesDetected) continue;
+              // Chord of this segment through the receiver sphere.
+              const Vec3f oc(ray.origin - dt.position);
+              const float bq = dot(oc, ray.direction);
+              const float disc = bq * bq - (dot(oc, oc) - dt.sphereR2);
+              if (!(disc > 0)) continue;
               const float root = std::sqrt(disc);
               const float t0 = std::max(0.0f, -bq - root), t1 = std::min(segment, -bq + root);
-              if (t1 > t0) {
-                if (probing) {
-                  depositProbe(a, pathLength + std::clamp(-bq, t0, t1), energy, (t1 - t0) * invSphereVolume);
-                } else if (pureSpecular && order <= settings.excludedMaxOrder && settings.excludedSpecular &&
-                           settings.excludedSpecular->count(planes)) {
-                  ++a.excluded;
-                } else {
-                  const float tc = std::clamp(-bq, t0, t1);
-                  deposit(a, pathLength + tc, energy, (t1 - t0) * invSphereVolume, -ray.direction, order);
-                }
+              if (!(t1 > t0)) continue;
+              DetectorSums& ds = a.det[r];
+              if (!probing && pureSpecular && order <= dt.excludedMaxOrder && dt.excluded &&
+                  excludedPath(dt, planes, order)) {
+                ++ds.excluded;
+              } else {
+                const float tc = std::clamp(-bq, t0, t1);
+                detect(ds, dt, pathLength + tc, energy, (t1 - t0) * dt.invSphereVolume, -ray.direction, first, order,
+                       probing);
               }
             }
           }
@@ -727,31 +802,59 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
           const Vec3d offset = nearEdge ? clearOffset(tracer, p, n, eps) : Vec3d(n * eps);
 
           // Next-event estimation of the diffusely reflected part.
-          const Vec3f toL(listener - p);
-          const float d2 = dot(toL, toL);
-          const float cosL = dot(n, toL);
-          if (cosL > 0 && !probing) {
+          if (!probing) {
             float scattered[kNumBands];
             bool any = false;
             for (int b = 0; b < kNumBands; ++b) {
               scattered[b] = energy[b] * m.reflect[b] * m.scatter[b];
               any |= scattered[b] > 0;
             }
-            if (any) {
+            // The detectors facing this hit; their shadow rays go to Embree
+            // together (one origin: a coherent stream).
+            size_t facing = 0;
+            for (size_t r = 0; any && r < nd; ++r) {
+              const Detector& dt = detectors[r];
+              const Vec3f toL(dt.position - p);
+              const float d2 = dot(toL, toL);
+              const float cosL = dot(n, toL);
+              if (!(cosL > 0)) continue;
               const float d = std::sqrt(d2);
-              bool visible = true;
-              if (shadowsNeeded) {
-                Ray shadow{p + offset, 0.0f, toL / d, d - eps};
-                ++a.shadows;
-                visible = shadow.tFar <= 0 || !tracer.occluded(shadow);
+              NeeCandidate& c = nee[facing++];
+              c.detector = uint32_t(r);
+              c.toL = toL;
+              c.d = d;
+              c.d2 = d2;
+              c.cosL = cosL;
+              if (dt.shadowsNeeded) {
+                shadowRays[c.shadowIndex = shadowCount++] = Ray{p + offset, 0.0f, toL / d, d - eps};
               } else {
-                ++a.shadowsSkipped;
-              }
-              if (visible) {
-                const float w = (cosL / d) / (float(kPi) * std::max(d2, minD2));
-                deposit(a, pathLength + d, scattered, w, -toL / d, order + 1);
+                c.shadowIndex = ~0u;
               }
             }
+            if (shadowCount == 1) {
+              const Ray& shadow = shadowRays[0];
+              blocked[0] = shadow.tFar > 0 && tracer.occluded(shadow);
+            } else if (shadowCount > 1) {
+              tracer.occludedMany(shadowRays.data(), shadowCount, blocked.data());
+              for (uint32_t k = 0; k < shadowCount; ++k) blocked[k] &= shadowRays[k].tFar > 0;
+            }
+            for (size_t k = 0; k < facing; ++k) {
+              const NeeCandidate& c = nee[k];
+              const Detector& dt = detectors[c.detector];
+              DetectorSums& ds = a.det[c.detector];
+              bool visible = true;
+              if (c.shadowIndex != ~0u) {
+                ++ds.shadows;
+                visible = !blocked[c.shadowIndex];
+              } else {
+                ++ds.shadowsSkipped;
+              }
+              if (visible) {
+                const float w = (c.cosL / c.d) / (float(kPi) * std::max(c.d2, minD2));
+                detect(ds, dt, pathLength + c.d, scattered, w, -c.toL / c.d, first, order + 1, false);
+              }
+            }
+            shadowCount = 0;
           }
 
           // Continue: through the surface, specularly, or diffusely.
@@ -819,48 +922,54 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
     traced += count;
     if (rounds > 1) {
       std::vector<const std::vector<int64_t>*> hists;
-      for (const Accumulator& a : acc) hists.push_back(&a.hist);
+      for (const Accumulator& a : acc) hists.push_back(&a.det[0].hist);
       monitor.addRound(hists);
-      stats.estimatedErrorDb = monitor.errorDb();
-      if (round + 1 < rounds && stats.estimatedErrorDb <= settings.convergenceDb) break;
+      estimatedErrorDb = monitor.errorDb();
+      if (round + 1 < rounds && estimatedErrorDb <= settings.convergenceDb) break;
     }
   }
-  stats.raysTraced = traced;
   // Energies were emitted as 4 pi / rays per ray: scale to the rays traced.
   const double unit = double(settings.rays) / double(traced) / kFixedScale;
 
   // Reduce in fixed point (exact, order-independent), then convert.
   Accumulator& total = acc[0];
   for (size_t w = 1; w < acc.size(); ++w) {
-    for (size_t i = 0; i < total.hist.size(); ++i) addSat(total.hist[i], acc[w].hist[i]);
-    for (size_t i = 0; i < total.perOrder.size(); ++i) addSat(total.perOrder[i], acc[w].perOrder[i]);
+    for (size_t r = 0; r < nd; ++r) {
+      DetectorSums& t = total.det[r];
+      const DetectorSums& o = acc[w].det[r];
+      for (size_t i = 0; i < t.hist.size(); ++i) addSat(t.hist[i], o.hist[i]);
+      for (size_t i = 0; i < t.perOrder.size(); ++i) addSat(t.perOrder[i], o.perOrder[i]);
+      for (size_t i = 0; i < t.probeHist.size(); ++i) addSat(t.probeHist[i], o.probeHist[i]);
+      for (int b = 0; b < kNumBands; ++b) addSat(t.late[b], o.late[b]);
+      t.shadows += o.shadows;
+      t.shadowsSkipped += o.shadowsSkipped;
+      t.excluded += o.excluded;
+    }
     for (size_t i = 0; i < total.aliveDiff.size(); ++i) addSat(total.aliveDiff[i], acc[w].aliveDiff[i]);
     for (size_t i = 0; i < total.probeAliveDiff.size(); ++i) addSat(total.probeAliveDiff[i], acc[w].probeAliveDiff[i]);
-    for (size_t i = 0; i < total.probeHist.size(); ++i) addSat(total.probeHist[i], acc[w].probeHist[i]);
     for (size_t i = 0; i < total.pathEnergy.size(); ++i) {
       addSat(total.pathEnergy[i], acc[w].pathEnergy[i]);
       addSat(total.pathRetained[i], acc[w].pathRetained[i]);
     }
     for (int b = 0; b < kNumBands; ++b) {
       addSat(total.escaped[b], acc[w].escaped[b]);
-      addSat(total.late[b], acc[w].late[b]);
       addSat(total.probeCut[b], acc[w].probeCut[b]);
     }
     total.raysEscaped += acc[w].raysEscaped;
     total.segments += acc[w].segments;
-    total.shadows += acc[w].shadows;
-    total.shadowsSkipped += acc[w].shadowsSkipped;
     total.raysCut += acc[w].raysCut;
     total.rouletted += acc[w].rouletted;
-    total.excluded += acc[w].excluded;
     total.probeSegments += acc[w].probeSegments;
   }
-  auto& data = result.histogram.data();
-  for (size_t i = 0; i < data.size(); ++i) data[i] = double(total.hist[i]) * unit;
-  for (uint32_t o = 0; o <= maxOrder; ++o)
-    for (int b = 0; b < kNumBands; ++b)
-      stats.detectedPerOrder[o][b] = double(total.perOrder[size_t(o) * kNumBands + b]) * unit;
-  TailData& tail = result.tail;
+
+  // What the detectors share: the rays' tail data and counts.
+  ReflectionResult& shared = results[0];
+  ReflectionStats& stats = shared.stats;
+  TailData& tail = shared.tail;
+  stats.raysTraced = traced;
+  stats.estimatedErrorDb = estimatedErrorDb;
+  stats.flutterAxes = uint32_t(flutterAxes.size());
+  stats.coneRays = sampler.coneRays();
   tail.cutRays.reserve(total.raysCut);
   const float rayScale = float(double(settings.rays) / double(traced));
   auto scaled = [&](CutRay c) {
@@ -881,17 +990,11 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
   integrate(total.aliveDiff, tail.alive);
   if (probeStride > 0) {
     integrate(total.probeAliveDiff, tail.probeAlive);
-    if (probesDetected) tail.probeDetected.assign(bins, BandArrayD{});
-    for (size_t i = 0; i < tail.probeDetected.size(); ++i)
-      for (int b = 0; b < kNumBands; ++b) tail.probeDetected[i][b] = double(total.probeHist[i * kNumBands + b]) * unit;
     for (int b = 0; b < kNumBands; ++b) tail.probeCutEnergy[b] = double(total.probeCut[b]) * unit;
     for (uint32_t i = 0; i < probeSlots; ++i)
       if (probeEnded[i]) tail.probeEnds.push_back(scaled(probeEnds[i]));
   }
-  for (int b = 0; b < kNumBands; ++b) {
-    stats.energyEscaped[b] = double(total.escaped[b]) * unit;
-    stats.energyLate[b] = double(total.late[b]) * unit;
-  }
+  for (int b = 0; b < kNumBands; ++b) stats.energyEscaped[b] = double(total.escaped[b]) * unit;
   tail.pathEnergy.assign(kFreePathBins, BandArrayD{});
   tail.pathRetained.assign(kFreePathBins, BandArrayD{});
   for (size_t i = 0; i < kFreePathBins; ++i)
@@ -901,14 +1004,98 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
     }
   stats.raysEscaped = total.raysEscaped;
   stats.segmentsTraced = total.segments;
-  stats.shadowRays = total.shadows;
-  stats.shadowRaysSkipped = total.shadowsSkipped;
   stats.raysCut = total.raysCut;
   stats.raysRouletted = total.rouletted;
-  stats.specularExcluded = total.excluded;
   stats.tailProbeSegments = total.probeSegments;
   stats.traceMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-  return result;
+  for (size_t r = 1; r < nd; ++r) {
+    const double radius = results[r].stats.receiverRadiusMeters;
+    results[r].stats = stats;
+    results[r].stats.receiverRadiusMeters = radius;
+    results[r].tail = tail;
+  }
+
+  // Each detector's own: its histogram, per-order energies, probes' detections.
+  for (size_t r = 0; r < nd; ++r) {
+    const DetectorSums& t = total.det[r];
+    ReflectionResult& result = results[r];
+    auto& data = result.histogram.data();
+    for (size_t i = 0; i < data.size(); ++i) data[i] = double(t.hist[i]) * unit;
+    for (uint32_t o = 0; o <= maxOrder; ++o)
+      for (int b = 0; b < kNumBands; ++b)
+        result.stats.detectedPerOrder[o][b] = double(t.perOrder[size_t(o) * kNumBands + b]) * unit;
+    if (probeStride > 0 && detectors[r].probesDetected) {
+      result.tail.probeDetected.assign(bins, BandArrayD{});
+      for (size_t i = 0; i < bins; ++i)
+        for (int b = 0; b < kNumBands; ++b) result.tail.probeDetected[i][b] = double(t.probeHist[i * kNumBands + b]) * unit;
+    }
+    for (int b = 0; b < kNumBands; ++b) result.stats.energyLate[b] = double(t.late[b]) * unit;
+    result.stats.shadowRays = t.shadows;
+    result.stats.shadowRaysSkipped = t.shadowsSkipped;
+    result.stats.specularExcluded = t.excluded;
+  }
+  return results;
+}
+
+Status checkMaterials(const RayTracer& tracer, const MaterialTable& materials) {
+  for (uint32_t id : tracer.mesh().materialIds)
+    if (id >= materials.size())
+      return invalidArgument("material id " + std::to_string(id) + " is beyond the " + std::to_string(materials.size()) +
+                             " materials");
+  return Status::ok();
+}
+
+}  // namespace
+
+Result<ReflectionResult> traceReflections(const RayTracer& tracer, const MaterialTable& materials, const Vec3d& source,
+                                          const Vec3d& listener, const ReflectionSettings& settings, ThreadPool& pool) {
+  EARSHOT_RETURN_IF_ERROR(validate(settings));
+  if (!isFinite(source) || !isFinite(listener)) return invalidArgument("source or listener position is not finite");
+  EARSHOT_RETURN_IF_ERROR(checkMaterials(tracer, materials));
+  Detector d;
+  d.position = listener;
+  d.radius = settings.receiverRadiusMeters;
+  d.excluded = settings.excludedSpecular;
+  d.excludedMaxOrder = settings.excludedMaxOrder;
+  auto results = traceCore(tracer, materials, source, {d}, false, settings, pool);
+  return std::move(results[0]);
+}
+
+Result<std::vector<ReflectionResult>> traceReflectionsShared(const RayTracer& tracer, const MaterialTable& materials,
+                                                             const Vec3d& listener,
+                                                             const std::vector<SharedTraceSource>& sources,
+                                                             const ReflectionSettings& settings, ThreadPool& pool) {
+  EARSHOT_RETURN_IF_ERROR(validate(settings));
+  if (!isFinite(listener)) return invalidArgument("listener position is not finite");
+  if (sources.size() > kMaxSharedTraceSources)
+    return invalidArgument(std::to_string(sources.size()) + " sources in one shared trace, over " +
+                           std::to_string(kMaxSharedTraceSources));
+  const double bins = std::ceil(settings.maxTimeSeconds / settings.binSeconds);
+  if (double(sources.size()) * bins > 5e7)
+    return invalidArgument("a shared trace of " + std::to_string(sources.size()) + " sources x " +
+                           std::to_string(size_t(bins)) + " histogram bins is over 5e7 bins");
+  EARSHOT_RETURN_IF_ERROR(checkMaterials(tracer, materials));
+  std::vector<Detector> detectors;
+  for (size_t i = 0; i < sources.size(); ++i) {
+    const SharedTraceSource& s = sources[i];
+    if (!isFinite(s.position)) return invalidArgument("source " + std::to_string(i) + ": position is not finite");
+    if (!(s.receiverRadiusMeters >= 0 && s.receiverRadiusMeters <= 1e3))
+      return invalidArgument("source " + std::to_string(i) + ": receiver radius " +
+                             std::to_string(s.receiverRadiusMeters) + " m is outside [0, 1000]");
+    EARSHOT_RETURN_IF_ERROR(validate(s.directivity));
+    Detector d;
+    d.position = s.position;
+    d.radius = s.receiverRadiusMeters;
+    d.excluded = s.excludedSpecular;
+    d.excludedMaxOrder = s.excludedMaxOrder;
+    d.directivity = s.directivity;
+    detectors.push_back(d);
+  }
+  if (detectors.empty()) return std::vector<ReflectionResult>{};
+  ReflectionSettings rs = settings;
+  rs.convergenceDb = 0;  // one trace serves every source: every ray is traced
+  rs.directivity = Directivity{};
+  return traceCore(tracer, materials, listener, std::move(detectors), true, rs, pool);
 }
 
 }  // namespace earshot

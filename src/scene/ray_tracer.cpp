@@ -124,6 +124,44 @@ bool RayTracer::occluded(const Ray& ray) const {
   return r.tfar < 0.0f;  // Embree sets tfar to -inf on a hit
 }
 
+void RayTracer::occludedMany(const Ray* rays, size_t count, uint8_t* occludedOut) const {
+  // Up to 64 rays per stream call, in a fixed buffer (no allocation).
+  constexpr size_t kChunk = 64;
+  RTCRay stream[kChunk];
+  size_t index[kChunk];
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;  // typically one origin, nearby directions
+  for (size_t start = 0; start < count; start += kChunk) {
+    const size_t end = std::min(count, start + kChunk);
+    size_t n = 0;
+    for (size_t i = start; i < end; ++i) {
+      const Ray& ray = rays[i];
+      if (QueryLog* log = mRecorder.load(std::memory_order_relaxed)) recordQuery(log, ray, true);
+      occludedOut[i] = 0;
+      if (!traceable(ray)) continue;
+      RTCRay& r = stream[n];
+      const Vec3f org(ray.origin - mFrameOrigin);
+      r.org_x = org.x;
+      r.org_y = org.y;
+      r.org_z = org.z;
+      r.tnear = ray.tNear;
+      r.dir_x = ray.direction.x;
+      r.dir_y = ray.direction.y;
+      r.dir_z = ray.direction.z;
+      r.time = 0.0f;
+      r.tfar = ray.tFar;
+      r.mask = 0xFFFFFFFFu;
+      r.id = unsigned(n);
+      r.flags = 0;
+      index[n++] = i;
+    }
+    if (n == 0) continue;
+    rtcOccluded1M(mImpl->root, &ctx, stream, unsigned(n), sizeof(RTCRay));
+    for (size_t k = 0; k < n; ++k) occludedOut[index[k]] = stream[k].tfar < 0.0f ? 1 : 0;
+  }
+}
+
 bool RayTracer::convexAround(const Vec3d& p) const {
   if (mConvexSides.empty()) return false;
   for (size_t i = 0; i < mPlanes.planes.size(); ++i)

@@ -176,6 +176,40 @@ Status validate(const ReflectionSettings& settings);
 Result<ReflectionResult> traceReflections(const RayTracer& tracer, const MaterialTable& materials, const Vec3d& source,
                                           const Vec3d& listener, const ReflectionSettings& settings, ThreadPool& pool);
 
+/** A source of traceReflectionsShared. */
+struct SharedTraceSource {
+  Vec3d position;
+  Directivity directivity;            ///< weighs what reaches the source's sphere, by the direction the sound left it in
+  /** Its image-source paths (sequences from the source, as
+   *  findImageSources gives them): not detected. Not owned. */
+  const PlaneSequenceSet* excludedSpecular = nullptr;
+  uint32_t excludedMaxOrder = 0;
+  double receiverRadiusMeters = 0.0;  ///< its detection sphere; 0: automatic, sized around the source
+};
+
+/** Sources in one shared trace, at most. */
+constexpr size_t kMaxSharedTraceSources = 4096;
+
+/** One trace for many sources (issue 16): rays leave the listener, and each
+ *  source detects them as traceReflections' listener does (next-event
+ *  estimation to it, a sphere around it), by reciprocity: for omni sources
+ *  the energy a path carries from listener to source is what it carries
+ *  from source to listener. Each detection arrives at the listener from its
+ *  ray's first direction (exact, whatever the scattering). Sources cost a
+ *  sphere test per segment and a shadow ray per reflection each, instead of
+ *  a trace each. Per source, the result is traceReflections(source,
+ *  listener)'s in expectation, with these differences: the tail data (energy
+ *  in flight, cut rays, free paths) are the listener's omni emission's,
+ *  shared (a directional source's late level is its pattern's at the late
+ *  field's departure directions, through its detections); convergenceDb
+ *  is not used (every ray is traced); settings.directivity and
+ *  settings.excludedSpecular are ignored (per source here). Results in
+ *  `sources` order, bit-identical for any thread count. */
+Result<std::vector<ReflectionResult>> traceReflectionsShared(const RayTracer& tracer, const MaterialTable& materials,
+                                                             const Vec3d& listener,
+                                                             const std::vector<SharedTraceSource>& sources,
+                                                             const ReflectionSettings& settings, ThreadPool& pool);
+
 /** Direction i of n on a Fibonacci sphere (unit vector). */
 Vec3d fibonacciDirection(uint32_t i, uint32_t n);
 
