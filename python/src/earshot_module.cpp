@@ -193,7 +193,7 @@ std::shared_ptr<SceneData> sceneFromArrays(py::array_t<double, py::array::c_styl
 }
 
 /** What one ir() call asks for, checked. */
-struct IrRequest {
+struct IrOptions {
   OmniIrSettings settings;
   bool binaural = false;
   int ambisonicOrder = 0;  ///< > 0: an ambisonic receiver of this order
@@ -203,13 +203,13 @@ struct IrRequest {
   std::string receiver;
 };
 
-IrRequest makeRequest(const std::string& receiver, const std::array<double, 3>& forward,
+IrOptions makeRequest(const std::string& receiver, const std::array<double, 3>& forward,
                       const std::array<double, 3>& up, const std::string& quality, std::optional<uint32_t> rays,
                       std::optional<uint32_t> bounces, std::optional<uint32_t> ismOrder, std::optional<double> binMs,
                       std::optional<uint32_t> tailProbes, uint64_t seed, double sampleRate,
                       std::optional<double> lengthSeconds, const std::string& air, const std::string& hrtf,
                       double receiverRadius, double convergeDb, bool flutterCones, int order) {
-  IrRequest q;
+  IrOptions q;
   if (receiver != "omni" && receiver != "binaural" && receiver != "ambisonic")
     throw py::value_error("receiver: expected 'omni', 'binaural' or 'ambisonic', got '" + receiver.substr(0, 32) + "'");
   if (receiver != "binaural" && !hrtf.empty()) throw py::value_error("hrtf: an HRTF applies only to receiver='binaural'");
@@ -278,7 +278,7 @@ struct IrOut {
   std::vector<std::string> warnings;
 };
 
-IrOut computeOne(SceneData& scene, const IrRequest& q, const std::array<double, 3>& src,
+IrOut computeOne(SceneData& scene, const IrOptions& q, const std::array<double, 3>& src,
                  const std::array<double, 3>& lis, uint64_t seed, ThreadPool& pool) {
   IrOut out;
   OmniIrSettings s = q.settings;
@@ -316,7 +316,7 @@ IrOut computeOne(SceneData& scene, const IrRequest& q, const std::array<double, 
   return out;
 }
 
-py::dict toPython(IrOut&& o, const IrRequest& q) {
+py::dict toPython(IrOut&& o, const IrOptions& q) {
   if (!o.status.isOk()) raise(o.status);
   const size_t c = o.ir.channelCount(), n = o.ir.frameCount();
   py::array_t<float> samples({py::ssize_t(c), py::ssize_t(n)});
@@ -335,7 +335,7 @@ py::dict toPython(IrOut&& o, const IrRequest& q) {
 
 using P3 = std::array<double, 3>;
 
-py::dict irOne(SceneData& scene, const P3& source, const P3& listener, const IrRequest& q, unsigned threads) {
+py::dict irOne(SceneData& scene, const P3& source, const P3& listener, const IrOptions& q, unsigned threads) {
   checkVec("source", source);
   checkVec("listener", listener);
   IrOut out;
@@ -351,7 +351,7 @@ py::dict irOne(SceneData& scene, const P3& source, const P3& listener, const IrR
  *  (each IR on one thread: IRs are bit-identical whatever the thread count,
  *  and whole IRs in parallel scale better than one IR's stages). Only the
  *  IRs' samples and reports are kept until all are done. */
-py::list irBatch(SceneData& scene, const std::vector<std::pair<P3, P3>>& pairs, const IrRequest& q,
+py::list irBatch(SceneData& scene, const std::vector<std::pair<P3, P3>>& pairs, const IrOptions& q,
                  unsigned threads) {
   for (size_t i = 0; i < pairs.size(); ++i) {
     checkVec(("pairs[" + std::to_string(i) + "] source").c_str(), pairs[i].first);
@@ -624,7 +624,7 @@ PYBIND11_MODULE(_earshot, m) {
               uint64_t seed, double sampleRate, std::optional<double> length, const std::string& air,
               const std::string& hrtf, double receiverRadius, double converge, bool flutterCones, unsigned threads,
               int order) {
-             const IrRequest q = makeRequest(receiver, forward, up, quality, rays, bounces, ismOrder, binMs, tailProbes,
+             const IrOptions q = makeRequest(receiver, forward, up, quality, rays, bounces, ismOrder, binMs, tailProbes,
                                              seed, sampleRate, length, air, hrtf, receiverRadius, converge,
                                              flutterCones, order);
              return irOne(s, source, listener, q, threads);
@@ -640,7 +640,7 @@ PYBIND11_MODULE(_earshot, m) {
               std::optional<uint32_t> tailProbes, uint64_t seed, double sampleRate, std::optional<double> length,
               const std::string& air, const std::string& hrtf, double receiverRadius, double converge,
               bool flutterCones, unsigned threads, int order) {
-             const IrRequest q = makeRequest(receiver, forward, up, quality, rays, bounces, ismOrder, binMs, tailProbes,
+             const IrOptions q = makeRequest(receiver, forward, up, quality, rays, bounces, ismOrder, binMs, tailProbes,
                                              seed, sampleRate, length, air, hrtf, receiverRadius, converge,
                                              flutterCones, order);
              return irBatch(s, pairs, q, threads);

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <optional>
 #include <string>
 
 #include "earshot/analysis/room_acoustics.h"
@@ -92,15 +93,28 @@ Result<OmniIrResult> computeOmniIr(const RayTracer& tracer, const MaterialTable&
   return computeIr(tracer, materials, source, listener, s, pool, nullptr);
 }
 
-Result<OmniIrResult> computeIr(const RayTracer& tracer, const MaterialTable& materials, const Vec3d& source,
-                               const Vec3d& listener, const OmniIrSettings& s, ThreadPool& pool,
-                               const BinauralReceiver* binaural, const AmbisonicReceiver* ambisonic) {
-  const auto t0 = std::chrono::steady_clock::now();
+namespace {
+
+// An IR in the making: computeIr's stages, which computeIrs interleaves
+// with one shared trace.
+struct IrJob {
+  OmniIrResult out;
+  ImageSourceResult ism;
+  IrSynthesisSettings synth;
+  bool hasImageSources = false;
+  std::chrono::steady_clock::time_point start;
+};
+
+// Checks, the direct sound and the image sources.
+Status prepareIr(const RayTracer& tracer, const MaterialTable& materials, const Vec3d& source, const Vec3d& listener,
+                 const OmniIrSettings& s, const BinauralReceiver* binaural, const AmbisonicReceiver* ambisonic,
+                 IrJob& job) {
+  job.start = std::chrono::steady_clock::now();
   if (!isFinite(source) || !isFinite(listener)) return invalidArgument("source or listener position is not finite");
   if (!withinCoordinateRange(source) || !withinCoordinateRange(listener))
     return outOfRange("source or listener position is farther than 1e6 m from the origin on some axis");
-  OmniIrResult out;
-  IrSynthesisSettings synth;
+  OmniIrResult& out = job.out;
+  IrSynthesisSettings& synth = job.synth;
   synth.sampleRateHz = s.sampleRateHz;
   synth.lengthSeconds = s.lengthSeconds;
   synth.seed = s.seed;
@@ -135,8 +149,6 @@ Result<OmniIrResult> computeIr(const RayTracer& tracer, const MaterialTable& mat
     out.skipped.push_back("transmission: nothing between source and listener");
 
   // Early specular reflections.
-  const PlaneSequenceSet* excluded = nullptr;
-  ImageSourceResult ism;
   if (!tracer.empty() && s.imageSourceOrder > 0) {
     t = std::chrono::steady_clock::now();
     ImageSourceSettings is;
@@ -147,9 +159,10 @@ Result<OmniIrResult> computeIr(const RayTracer& tracer, const MaterialTable& mat
     is.candidateRays = std::min<uint32_t>(s.rays, 16384);
     auto r = findImageSources(tracer, materials, source, listener, is);
     if (!r.isOk()) return r.status();
-    ism = std::move(r.value());
+    job.ism = std::move(r.value());
+    job.hasImageSources = true;
     out.timings.imageSourcesMs = msSince(t);
-    out.early = ism.paths;
+    out.early = job.ism.paths;
     if (!s.directivity.isOmni()) {
       // Each path leaves the source along its first segment: the straight
       // line image source -> listener, unfolded through its planes from the
@@ -168,67 +181,164 @@ Result<OmniIrResult> computeIr(const RayTracer& tracer, const MaterialTable& mat
         for (int b = 0; b < kNumBands; ++b) p.bandGain[size_t(b)] *= std::sqrt(d[size_t(b)]);
       }
     }
-    out.imageSourceCandidates = ism.candidates;
-    out.imageSourcesExhaustive = ism.exhaustive;
-    excluded = &ism.found;
+    out.imageSourceCandidates = job.ism.candidates;
+    out.imageSourcesExhaustive = job.ism.exhaustive;
   }
+  return Status::ok();
+}
 
-  // Late reflections.
+bool tracesReflections(const RayTracer& tracer, const OmniIrSettings& s) { return !tracer.empty() && s.bounces > 0; }
+
+ReflectionSettings reflectionSettingsOf(const OmniIrSettings& s, const IrJob& job) {
+  ReflectionSettings rs;
+  rs.directivity = s.directivity;
+  rs.rays = s.rays;
+  rs.bounces = s.bounces;
+  rs.seed = s.seed;
+  rs.speedOfSound = s.speedOfSound;
+  rs.air = s.air;
+  rs.binSeconds = s.binSeconds;
+  rs.receiverRadiusMeters = s.receiverRadiusMeters;
+  rs.tailProbes = s.completeTail ? s.tailProbes : 0;
+  rs.russianRoulette = s.russianRoulette;
+  rs.flutterCones = s.flutterCones;
+  rs.convergenceDb = s.convergenceDb;
+  if (s.lengthSeconds > 0) rs.maxTimeSeconds = s.lengthSeconds;
+  rs.excludedSpecular = job.hasImageSources ? &job.ism.found : nullptr;
+  rs.excludedMaxOrder = job.hasImageSources ? s.imageSourceOrder : 0;
+  return rs;
+}
+
+// Tail completion and synthesis; `traced` null when nothing was traced.
+Status finishIr(IrJob& job, ReflectionResult* traced, const OmniIrSettings& s, const BinauralReceiver* binaural,
+                const AmbisonicReceiver* ambisonic) {
+  OmniIrResult& out = job.out;
   const EnergyHistogram* late = nullptr;
-  if (!tracer.empty() && s.bounces > 0) {
-    ReflectionSettings rs;
-    rs.directivity = s.directivity;
-    rs.rays = s.rays;
-    rs.bounces = s.bounces;
-    rs.seed = s.seed;
-    rs.speedOfSound = s.speedOfSound;
-    rs.air = s.air;
-    rs.binSeconds = s.binSeconds;
-    rs.receiverRadiusMeters = s.receiverRadiusMeters;
-    rs.tailProbes = s.completeTail ? s.tailProbes : 0;
-    rs.russianRoulette = s.russianRoulette;
-    rs.flutterCones = s.flutterCones;
-    rs.convergenceDb = s.convergenceDb;
-    if (s.lengthSeconds > 0) rs.maxTimeSeconds = s.lengthSeconds;
-    rs.excludedSpecular = excluded;
-    rs.excludedMaxOrder = excluded ? s.imageSourceOrder : 0;
-    auto r = traceReflections(tracer, materials, source, listener, rs, pool);
-    if (!r.isOk()) return r.status();
-    out.traceStats = r->stats;
-    if (r->stats.raysTraced < s.rays)
-      out.skipped.push_back("rays: " + std::to_string(s.rays - r->stats.raysTraced) + " of " + std::to_string(s.rays) +
-                            " not traced, the histogram had converged to " + std::to_string(r->stats.estimatedErrorDb) +
+  if (traced) {
+    ReflectionResult& r = *traced;
+    out.traceStats = r.stats;
+    if (r.stats.raysTraced < s.rays)
+      out.skipped.push_back("rays: " + std::to_string(s.rays - r.stats.raysTraced) + " of " + std::to_string(s.rays) +
+                            " not traced, the histogram had converged to " + std::to_string(r.stats.estimatedErrorDb) +
                             " dB");
-    if (r->stats.shadowRaysSkipped > 0 && r->stats.shadowRays == 0)
+    if (r.stats.shadowRaysSkipped > 0 && r.stats.shadowRays == 0)
       out.skipped.push_back("occlusion tests of diffuse reflections: the room is convex around the listener");
-    out.timings.traceMs = r->stats.traceMs;
-    t = std::chrono::steady_clock::now();
+    out.timings.traceMs = r.stats.traceMs;
+    auto t = std::chrono::steady_clock::now();
     if (s.completeTail) {
       TailCompletionSettings ts;
       ts.lengthSeconds = s.lengthSeconds;
       ts.speedOfSound = s.speedOfSound;
       ts.air = s.air;
       for (const SpecularPath& p : out.early) ts.calibrationStartSeconds = std::max(ts.calibrationStartSeconds, p.delaySeconds);
-      auto c = completeTail(r->histogram, r->tail, ts, &out.tail);
+      auto c = completeTail(r.histogram, r.tail, ts, &out.tail);
       if (!c.isOk()) return c.status();
       out.late = std::move(c.value());
       if (!out.tail.extended) out.skipped.push_back("tail completion: no ray reached the bounce limit");
     } else {
-      out.late = std::move(r->histogram);
+      out.late = std::move(r.histogram);
     }
     out.timings.tailMs = msSince(t);
     late = &out.late;
   }
 
-  t = std::chrono::steady_clock::now();
+  auto t = std::chrono::steady_clock::now();
   const std::vector<Arrival> arrivals = arrivalsOf(out, s.includeDirect);
-  auto ir = binaural    ? synthesizeBinauralIr(arrivals, late, synth, *binaural->model, binaural->orientation)
-            : ambisonic ? synthesizeAmbisonicIr(arrivals, late, synth, ambisonic->order, ambisonic->frame)
-                        : synthesizeOmniIr(arrivals, late, synth);
+  auto ir = binaural    ? synthesizeBinauralIr(arrivals, late, job.synth, *binaural->model, binaural->orientation)
+            : ambisonic ? synthesizeAmbisonicIr(arrivals, late, job.synth, ambisonic->order, ambisonic->frame)
+                        : synthesizeOmniIr(arrivals, late, job.synth);
   if (!ir.isOk()) return ir.status();
   out.ir = std::move(ir.value());
   out.timings.synthesisMs = msSince(t);
-  out.timings.totalMs = msSince(t0);
+  out.timings.totalMs = msSince(job.start);
+  return Status::ok();
+}
+
+}  // namespace
+
+Result<OmniIrResult> computeIr(const RayTracer& tracer, const MaterialTable& materials, const Vec3d& source,
+                               const Vec3d& listener, const OmniIrSettings& s, ThreadPool& pool,
+                               const BinauralReceiver* binaural, const AmbisonicReceiver* ambisonic) {
+  IrJob job;
+  EARSHOT_RETURN_IF_ERROR(prepareIr(tracer, materials, source, listener, s, binaural, ambisonic, job));
+  std::optional<Result<ReflectionResult>> traced;
+  if (tracesReflections(tracer, s)) {
+    traced = traceReflections(tracer, materials, source, listener, reflectionSettingsOf(s, job), pool);
+    if (!traced->isOk()) return traced->status();
+  }
+  EARSHOT_RETURN_IF_ERROR(finishIr(job, traced ? &traced->value() : nullptr, s, binaural, ambisonic));
+  return std::move(job.out);
+}
+
+Result<TraceMode> traceModeFromString(const std::string& name) {
+  if (name == "per-source") return TraceMode::kPerSource;
+  if (name == "shared") return TraceMode::kShared;
+  return invalidArgument("trace mode '" + name + "' is not one of per-source, shared");
+}
+
+const char* toString(TraceMode mode) { return mode == TraceMode::kShared ? "shared" : "per-source"; }
+
+Result<std::vector<OmniIrResult>> computeIrs(const RayTracer& tracer, const MaterialTable& materials,
+                                             const Vec3d& listener, const std::vector<IrRequest>& requests,
+                                             const OmniIrSettings& s, TraceMode mode, ThreadPool& pool,
+                                             const BinauralReceiver* binaural, const AmbisonicReceiver* ambisonic) {
+  if (requests.size() > kMaxSharedTraceSources)
+    return invalidArgument(std::to_string(requests.size()) + " sources, over " + std::to_string(kMaxSharedTraceSources));
+  auto settingsOf = [&](const IrRequest& r) {
+    OmniIrSettings rs = s;
+    rs.directivity = r.directivity;
+    rs.includeDirect = r.includeDirect;
+    return rs;
+  };
+  auto named = [](size_t i, const Status& st) {
+    return Status(st.code(), "source " + std::to_string(i) + ": " + st.message());
+  };
+  std::vector<OmniIrResult> out;
+  out.reserve(requests.size());
+  if (mode == TraceMode::kPerSource) {
+    for (size_t i = 0; i < requests.size(); ++i) {
+      auto r = computeIr(tracer, materials, requests[i].source, listener, settingsOf(requests[i]), pool, binaural,
+                         ambisonic);
+      if (!r.isOk()) return named(i, r.status());
+      out.push_back(std::move(r.value()));
+    }
+    return out;
+  }
+  // Shared: every source's checks, direct sound and image sources (one per
+  // thread), one trace from the listener on every thread, then each
+  // source's tail and synthesis (one per thread).
+  std::vector<IrJob> jobs(requests.size());
+  std::vector<Status> status(requests.size());
+  pool.parallelFor(requests.size(), [&](size_t i, unsigned) {
+    status[i] = prepareIr(tracer, materials, requests[i].source, listener, settingsOf(requests[i]), binaural,
+                          ambisonic, jobs[i]);
+  });
+  for (size_t i = 0; i < requests.size(); ++i)
+    if (!status[i].isOk()) return named(i, status[i]);
+  std::vector<ReflectionResult> traced;
+  if (tracesReflections(tracer, s) && !requests.empty()) {
+    std::vector<SharedTraceSource> sources(requests.size());
+    for (size_t i = 0; i < requests.size(); ++i) {
+      const ReflectionSettings rs = reflectionSettingsOf(settingsOf(requests[i]), jobs[i]);
+      sources[i].position = requests[i].source;
+      sources[i].directivity = requests[i].directivity;
+      sources[i].excludedSpecular = rs.excludedSpecular;
+      sources[i].excludedMaxOrder = rs.excludedMaxOrder;
+      sources[i].receiverRadiusMeters = rs.receiverRadiusMeters;
+    }
+    auto r = traceReflectionsShared(tracer, materials, listener, sources, reflectionSettingsOf(s, jobs[0]), pool);
+    if (!r.isOk()) return r.status();
+    traced = std::move(r.value());
+    // The trace's time is shared: each source is charged its part.
+    for (ReflectionResult& t : traced) t.stats.traceMs /= double(traced.size());
+  }
+  pool.parallelFor(requests.size(), [&](size_t i, unsigned) {
+    status[i] = finishIr(jobs[i], traced.empty() ? nullptr : &traced[i], settingsOf(requests[i]), binaural, ambisonic);
+  });
+  for (size_t i = 0; i < requests.size(); ++i) {
+    if (!status[i].isOk()) return named(i, status[i]);
+    out.push_back(std::move(jobs[i].out));
+  }
   return out;
 }
 

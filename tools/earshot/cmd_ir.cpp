@@ -48,6 +48,7 @@ struct IrOptions {
   uint32_t ismOrder = 3;
   uint32_t tailProbes = kEveryRay;
   double convergeDb = 0.0;
+  std::string trace = "per-source";
   bool noFlutterCones = false;
 };
 
@@ -158,9 +159,18 @@ int run(const IrOptions& o, const CLI::App& cmd) {
                  " lies outside the closed volume of " + o.geometry,
              warnings);
   }
-  auto result = computeIr(*tracer, materials, source, listener, settings, pool, binaural.get(), ambisonic.get());
+  const TraceMode traceMode = *traceModeFromString(o.trace);
+  if (traceMode == TraceMode::kShared && o.convergeDb > 0 &&
+      !check(invalidArgument("--converge works with --trace per-source only (a shared trace traces every ray)")))
+    return 2;
+  IrRequest request;
+  request.source = source;
+  request.directivity = settings.directivity;
+  request.includeDirect = settings.includeDirect;
+  auto result = computeIrs(*tracer, materials, listener, {request}, settings, traceMode, pool, binaural.get(),
+                           ambisonic.get());
   if (!check(result.status())) return 2;
-  const OmniIrResult& r = *result;
+  const OmniIrResult& r = result->front();
 
   // The result's own report (shared with the Python package), then what
   // only the command knows.
@@ -232,6 +242,12 @@ const Registrar registrar([](CLI::App& root) {
                "Spread every ray evenly over the sphere; by default, where a pair of parallel walls reflects "
                "specularly, 1/8 of the rays sample directions near their normal densely (unbiased; flutter_axes and "
                "flutter_cone_rays in --json)");
+  cmd->add_option("--trace", o->trace,
+                  "How reflections are traced: per-source (rays leave the source, the listener detects them) or "
+                  "shared (rays leave the listener, the source detects them: the runtime's one trace for many "
+                  "sources; by reciprocity the same energies)")
+      ->check(CLI::IsMember({"per-source", "shared"}))
+      ->capture_default_str();
   cmd->add_option("--converge", o->convergeDb,
                   "Stop tracing once the late histogram's estimated error (every 10 ms window within 20 dB of its "
                   "peak) is below this many dB; rays_traced in --json says how many were (0 = all rays)")

@@ -99,6 +99,37 @@ Result<OmniIrResult> computeIr(const RayTracer& tracer, const MaterialTable& mat
                                const Vec3d& listener, const OmniIrSettings& settings, ThreadPool& pool,
                                const BinauralReceiver* binaural, const AmbisonicReceiver* ambisonic = nullptr);
 
+/** How the late reflections of several sources at one listener are traced
+ *  (issue 16). */
+enum class TraceMode {
+  kPerSource,  ///< a trace from each source (traceReflections)
+  kShared,     ///< one trace from the listener for all of them (traceReflectionsShared)
+};
+/** "per-source" or "shared". */
+Result<TraceMode> traceModeFromString(const std::string& name);
+const char* toString(TraceMode mode);
+
+/** One source of computeIrs: what differs from source to source. */
+struct IrRequest {
+  Vec3d source;
+  Directivity directivity;     ///< instead of the settings' directivity
+  bool includeDirect = true;   ///< instead of the settings' includeDirect
+};
+
+/** The IRs of several sources at one listener, in `requests` order.
+ *  kPerSource: computeIr for each in turn (each traced on all of pool's
+ *  threads): bit-identical to it. kShared: the sources' direct sounds and
+ *  image sources one per thread, one listener-centred trace for all of them
+ *  (traceReflectionsShared) on every thread, then tail completion and
+ *  synthesis one per thread; each result's traceStats.traceMs is the
+ *  shared trace's time over the number of sources. Any error names the
+ *  first source that had one. Results do not depend on the thread count. */
+Result<std::vector<OmniIrResult>> computeIrs(const RayTracer& tracer, const MaterialTable& materials,
+                                             const Vec3d& listener, const std::vector<IrRequest>& requests,
+                                             const OmniIrSettings& settings, TraceMode mode, ThreadPool& pool,
+                                             const BinauralReceiver* binaural = nullptr,
+                                             const AmbisonicReceiver* ambisonic = nullptr);
+
 /** The discrete arrivals a result's IR was synthesised from: the direct sound
  *  (if audible and `includeDirect`) and the image-source paths. */
 std::vector<Arrival> arrivalsOf(const OmniIrResult& result, bool includeDirect);
