@@ -160,6 +160,17 @@ typedef enum earshot_output_format {
   EARSHOT_OUTPUT_AMBISONIC = 1
 } earshot_output_format;
 
+/** How a simulation step traces the reflections of its sources
+ *  (earshot_context_settings). */
+typedef enum earshot_trace_mode {
+  /** One trace from the listener whose paths every source of the step
+   *  detects (reciprocity: the same energies as a trace from each source);
+   *  a step of N sources costs a fraction of N traces. */
+  EARSHOT_TRACE_SHARED = 0,
+  /** A trace from each source, one source per simulation thread. */
+  EARSHOT_TRACE_PER_SOURCE = 1
+} earshot_trace_mode;
+
 typedef struct earshot_context_settings {
   uint32_t struct_size;        /**< sizeof(earshot_context_settings) */
   uint32_t flags;              /**< EARSHOT_CONTEXT_* flags; default 0 */
@@ -209,6 +220,10 @@ typedef struct earshot_context_settings {
   /** EARSHOT_OUTPUT_BINAURAL (default) or EARSHOT_OUTPUT_AMBISONIC (needs
    *  ambisonic_order 1-3). */
   earshot_output_format output_format;
+  /** EARSHOT_TRACE_SHARED (default) or EARSHOT_TRACE_PER_SOURCE. A step
+   *  shares one trace among the sources it simulates: earshot_simulate's
+   *  source_count (0: every source) or the built-in thread's. */
+  earshot_trace_mode trace_mode;
 } earshot_context_settings;
 
 /** Fills `settings` with the defaults above (and struct_size). Any thread. */
@@ -254,6 +269,7 @@ typedef struct earshot_context_info {
   uint32_t ambisonic_order;             /**< the settings': 0 binaural reflections, 1-3 the ambisonic bus */
   earshot_output_format output_format;  /**< the settings' */
   uint32_t output_channels;             /**< channels earshot_process_channels writes: 2 or (order+1)^2 */
+  earshot_trace_mode trace_mode;        /**< the settings' */
 } earshot_context_info;
 
 /** Reads the context's settings and state into *info (info->struct_size

@@ -108,6 +108,9 @@ Result<RenderResult> renderScene(const SceneDescription& scene, const RenderOpti
   es.workerNice = 0;
   es.fadeFrames = kRenderFadeFrames;
   es.ambisonicOrder = options.ambisonicOrder.value_or(ss.ambisonicOrder);
+  auto traceMode = traceModeFromString(options.trace.value_or(ss.trace));
+  if (!traceMode.isOk()) return traceMode.status();
+  es.traceMode = *traceMode;
   auto outChannels = renderOutputChannels(scene, options);
   if (!outChannels.isOk()) return outChannels.status();
   const size_t channels = *outChannels;
@@ -127,6 +130,9 @@ Result<RenderResult> renderScene(const SceneDescription& scene, const RenderOpti
   out.log.push_back(ambisonic ? "reflections: world-frame ambisonics of order " + std::to_string(es.ambisonicOrder) +
                                     ", rotated by the head every block (a head turn needs no simulation)"
                               : std::string("reflections: a binaural IR per source (re-simulated when the head turns)"));
+  out.log.push_back(es.traceMode == TraceMode::kShared
+                        ? std::string("tracing: one listener-centred trace for the sources simulated together")
+                        : std::string("tracing: a trace from each source"));
   out.log.push_back("quality " + preset->name + ": " + std::to_string(es.simulation.rays) + " rays, " +
                     std::to_string(es.simulation.bounces) + " bounces, image sources to order " +
                     std::to_string(es.simulation.imageSourceOrder) + ", seed " + std::to_string(es.simulation.seed));

@@ -42,7 +42,7 @@ const std::vector<std::string> kSourceKeys = {"name", "audio", "position", "forw
 const std::vector<std::string> kKeyframeKeys = {"t", "position", "forward", "up"};
 const std::vector<std::string> kSettingsKeys = {"sample_rate", "quality", "rays", "bounces", "hrtf", "seed",
                                                 "update_rate_hz", "duration", "air", "speed_of_sound",
-                                                "ambisonic_order", "output"};
+                                                "ambisonic_order", "output", "trace"};
 const std::vector<std::string> kAirKeys = {"temperature_c", "humidity_pct", "pressure_kpa"};
 
 std::string fmt(double v) {
@@ -518,6 +518,13 @@ Status SceneReader::readSettings(const json& v, SceneSettings& out) {
     if (*f != "binaural" && *f != "ambisonic")
       return fail("settings.output", "'" + f->substr(0, 32) + "' is not \"binaural\" or \"ambisonic\"");
     out.output = *f;
+  }
+  if (v.contains("trace")) {
+    auto f = text(v["trace"], "settings.trace", "\"shared\" or \"per-source\"");
+    if (!f) return f.status();
+    if (*f != "shared" && *f != "per-source")
+      return fail("settings.trace", "'" + f->substr(0, 32) + "' is not \"shared\" or \"per-source\"");
+    out.trace = *f;
   }
   if (out.output == "ambisonic" && out.ambisonicOrder == 0)
     return fail("settings.output", "ambisonic output needs settings.ambisonic_order 1-3, not 0");

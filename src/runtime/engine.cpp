@@ -613,7 +613,15 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& order) {
   // Several sources: one per worker, each traced single-threaded (synthesis
   // is single-threaded anyway); one source: all workers trace it. Either way
   // each IR is bit-identical (the tracer's result does not depend on threads).
-  if (jobs.size() >= 2 && mPool->threadCount() >= 2) {
+  if (mSettings.traceMode == TraceMode::kShared && !jobs.empty()) {
+    // One trace from the listener for every source of this simulation.
+    std::vector<IrRequest> requests;
+    for (const Job& j : jobs) requests.push_back({j.source, j.settings.directivity, j.settings.includeDirect});
+    auto r = computeIrs(*tracer, *materials, listener, requests, mSettings.simulation, TraceMode::kShared, *mPool,
+                        binauralReceiver, ambisonicReceiver);
+    if (!r.isOk()) return r.status();
+    for (size_t k = 0; k < jobs.size(); ++k) jobs[k].result = std::move((*r)[k]);
+  } else if (jobs.size() >= 2 && mPool->threadCount() >= 2) {
     mPool->parallelFor(jobs.size(), [&](size_t k, unsigned worker) {
       Job& j = jobs[k];
       j.result = computeIr(*tracer, *materials, j.source, listener, j.settings, *mWorkerPools[worker],

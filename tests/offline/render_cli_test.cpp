@@ -78,43 +78,50 @@ std::string vec(double x, double y, double z) {
 // Issue 7: one static source and listener (binaural reflections,
 // ambisonic_order 0: the exact per-arrival path) render to exactly the convolution
 // of the dry signal with `earshot ir`'s IR for the same positions and seed
-// (to 1e-5 of the peak).
+// (to 1e-5 of the peak), with either trace (issue 16): the render's default,
+// shared, is `earshot ir --trace shared`'s; per-source is `earshot ir`'s
+// default.
 TEST(RenderCli, StaticSceneIsTheDrySignalConvolvedWithEarshotIrsIr) {
   TempDir dir("render_static");
   std::vector<float> dry(size_t(0.25 * kFs));
   Pcg32 rng(5, 6);
   for (float& v : dry) v = rng.uniform() - 0.5f;
   writeMono(dir / "dry.wav", dry);
-  std::ofstream(dir / "scene.json") << R"({
-    "geometry": ")" << kSamples << R"(shoebox/shoebox.gltf",
-    "material_map": ")" << kSamples << R"(shoebox/materials_map.json",
-    "listener": {"position": [7, 4, 1.6], "forward": [-1, 0.2, 0], "up": [0, 0, 1]},
-    "sources": [{"name": "noise", "audio": "dry.wav", "position": [2.5, 3, 1.4]}],
-    "settings": {"quality": "draft", "seed": 3, "duration": 1.6, "ambisonic_order": 0}
-  })";
-  auto ir = runEarshot("ir " + kSamples + "shoebox/shoebox.gltf --material-map " + kSamples +
-                       "shoebox/materials_map.json --source 2.5,3,1.4 --listener 7,4,1.6 --forward -1,0.2,0 --up 0,0,1 "
-                       "--quality draft --seed 3 -o " + dir / "ir.wav");
-  ASSERT_EQ(ir.exitCode, 0) << ir.output;
-  auto render = runEarshot("--allow-outside-paths render " + dir / "scene.json" + " -o " + dir / "out.wav --quiet");
-  ASSERT_EQ(render.exitCode, 0) << render.output;
-  const AudioBuffer h = read(dir / "ir.wav"), y = read(dir / "out.wav");
-  ASSERT_EQ(h.channelCount(), 2u);
-  ASSERT_EQ(y.channelCount(), 2u);
-  ASSERT_EQ(y.frameCount(), size_t(1.6 * kFs));
-  double peak = 0, worst = 0;
-  for (int ear = 0; ear < 2; ++ear) {
-    // Direct convolution in double, every 7th output sample (enough to catch any error).
-    for (size_t t = 0; t < y.frameCount(); t += 7) {
-      double acc = 0;
-      const size_t k0 = t >= h.frameCount() ? t - h.frameCount() + 1 : 0;
-      for (size_t k = k0; k <= t && k < dry.size(); ++k) acc += double(dry[k]) * h.channels[ear][t - k];
-      peak = std::max(peak, std::fabs(acc));
-      worst = std::max(worst, std::fabs(acc - y.channels[ear][t]));
+  for (const std::string trace : {"", "per-source"}) {
+    SCOPED_TRACE("trace " + (trace.empty() ? std::string("(default)") : trace));
+    std::ofstream(dir / "scene.json") << R"({
+      "geometry": ")" << kSamples << R"(shoebox/shoebox.gltf",
+      "material_map": ")" << kSamples << R"(shoebox/materials_map.json",
+      "listener": {"position": [7, 4, 1.6], "forward": [-1, 0.2, 0], "up": [0, 0, 1]},
+      "sources": [{"name": "noise", "audio": "dry.wav", "position": [2.5, 3, 1.4]}],
+      "settings": {"quality": "draft", "seed": 3, "duration": 1.6, "ambisonic_order": 0)"
+                                      << (trace.empty() ? "" : R"(, "trace": ")" + trace + "\"") << R"(}
+    })";
+    auto ir = runEarshot("ir " + kSamples + "shoebox/shoebox.gltf --material-map " + kSamples +
+                         "shoebox/materials_map.json --source 2.5,3,1.4 --listener 7,4,1.6 --forward -1,0.2,0 --up "
+                         "0,0,1 --quality draft --seed 3 --trace " + (trace.empty() ? "shared" : trace) + " -o " +
+                         dir / "ir.wav");
+    ASSERT_EQ(ir.exitCode, 0) << ir.output;
+    auto render = runEarshot("--allow-outside-paths render " + dir / "scene.json" + " -o " + dir / "out.wav --quiet");
+    ASSERT_EQ(render.exitCode, 0) << render.output;
+    const AudioBuffer h = read(dir / "ir.wav"), y = read(dir / "out.wav");
+    ASSERT_EQ(h.channelCount(), 2u);
+    ASSERT_EQ(y.channelCount(), 2u);
+    ASSERT_EQ(y.frameCount(), size_t(1.6 * kFs));
+    double peak = 0, worst = 0;
+    for (int ear = 0; ear < 2; ++ear) {
+      // Direct convolution in double, every 7th output sample (enough to catch any error).
+      for (size_t t = 0; t < y.frameCount(); t += 7) {
+        double acc = 0;
+        const size_t k0 = t >= h.frameCount() ? t - h.frameCount() + 1 : 0;
+        for (size_t k = k0; k <= t && k < dry.size(); ++k) acc += double(dry[k]) * h.channels[ear][t - k];
+        peak = std::max(peak, std::fabs(acc));
+        worst = std::max(worst, std::fabs(acc - y.channels[ear][t]));
+      }
     }
+    EXPECT_GT(peak, 1e-3);
+    EXPECT_LE(worst, 1e-5 * peak) << "worst " << worst << " of peak " << peak;
   }
-  EXPECT_GT(peak, 1e-3);
-  EXPECT_LE(worst, 1e-5 * peak) << "worst " << worst << " of peak " << peak;
 }
 
 // Issue 7: a source moving at constant speed past the listener shows the

@@ -34,6 +34,7 @@ struct RenderCliOptions {
   double minTurn = 5.0;
   int ambisonicOrder = 1;
   std::string outputFormat;
+  std::string trace;
   bool quiet = false;
   double normalizeDbfs = 0.0;  // with --normalize
 };
@@ -109,6 +110,7 @@ int run(const RenderCliOptions& o, const CLI::App& cmd) {
   ro.minTurnDegrees = o.minTurn;
   if (cmd.count("--ambisonic-order")) ro.ambisonicOrder = o.ambisonicOrder;
   if (cmd.count("--output-format")) ro.outputFormat = o.outputFormat;
+  if (cmd.count("--trace")) ro.trace = o.trace;
   auto channels = renderOutputChannels(*scene, ro);
   if (!check(channels.status())) return 2;
   Progress progress(o.quiet);
@@ -204,6 +206,10 @@ const Registrar registrar([](CLI::App& root) {
                   "Override the scene's settings.output: binaural (2 channels, the default) or ambisonic "
                   "((order+1)^2 AmbiX channels, ACN order, SN3D, in the listener's frame: x forward, y left, z up)")
       ->check(CLI::IsMember({"binaural", "ambisonic"}));
+  cmd->add_option("--trace", o->trace,
+                  "Override the scene's settings.trace: shared (the default: the sources simulated together share "
+                  "one trace from the listener, by reciprocity the same energies) or per-source (a trace from each)")
+      ->check(CLI::IsMember({"shared", "per-source"}));
   cmd->add_option("--ambisonic-order", o->ambisonicOrder,
                   "Override the scene's settings.ambisonic_order (default 1): 1-3 world-frame ambisonic "
                   "reflections rotated by the head every block, so a head turn needs no simulation; 0 a binaural "

@@ -89,6 +89,10 @@ struct SceneSettings {
    *  SN3D) of ambisonicOrder in the listener's frame, for any ambisonic
    *  player. */
   std::string output = "binaural";
+  /** How the sources' reflections are traced (runtime::EngineSettings::
+   *  traceMode): "shared", one listener-centred trace for every source
+   *  simulated together, or "per-source", a trace from each. */
+  std::string trace = "shared";
 };
 
 /** A parsed scene file. Paths are resolved against the scene file's

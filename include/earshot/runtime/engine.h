@@ -111,6 +111,13 @@ struct EngineSettings {
    *  multiply-adds per source fall from the whole IR's length to this.
    *  0: every source's whole IR. [0, maxIrSeconds). */
   double sharedTailSeconds = 0.15;
+  /** How a simulation of several sources traces their reflections (issue
+   *  16): kShared, one trace from the listener whose paths every source
+   *  detects (traceReflectionsShared: a sphere test per segment and a
+   *  shadow ray per reflection per source instead of a trace each);
+   *  kPerSource, a trace from each source (one source per worker). The two
+   *  give the same energies (the regression suite runs with both). */
+  TraceMode traceMode = TraceMode::kShared;
 };
 
 enum class DirectMode {
