@@ -2,8 +2,9 @@
 # The IR-update figures of issue 16, measured side by side in one run on the
 # machine at hand (docs/performance.md): per scene, the tracer beside the
 # Embree limit of the same queries, the synthesis of a 2 s IR (binaural and
-# omni), and `earshot ir`'s stage times for a binaural IR; then the runtime
-# with 32 moving sources in the furnished room. Usage (from the repository
+# omni), and `earshot ir`'s stage times for a binaural IR; then one shared
+# trace for 32 sources beside a trace from each, and the runtime with 32
+# moving sources in the furnished room, shared trace and per source. Usage (from the repository
 # root, after the build): bash tools/bench_update.sh [build-dir]
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -30,6 +31,11 @@ print("earshot ir (binaural, one-shot process, median of 3): " +
       " ".join(f"{k}_ms={statistics.median(r[k] for r in runs):.1f}" for k in keys))
 PY
 done
-echo "## runtime"
-"$bin" bench runtime samples/furnished_room/furnished_room.glb \
-  --material-map samples/furnished_room/materials_map.json --sources 32 --seconds 10
+echo "## one trace for 32 sources (furnished room)"
+"$bin" bench trace samples/furnished_room/furnished_room.glb \
+  --material-map samples/furnished_room/materials_map.json --listener 5,3.5,1.2 --shared-sources 32 --runs 5
+for trace in shared per-source; do
+  echo "## runtime, trace $trace"
+  "$bin" bench runtime samples/furnished_room/furnished_room.glb \
+    --material-map samples/furnished_room/materials_map.json --sources 32 --seconds 10 --ir-seconds 2 --trace "$trace"
+done

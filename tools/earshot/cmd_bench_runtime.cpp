@@ -38,6 +38,7 @@ struct BenchRuntimeOptions {
   unsigned threads = 0;  // the engine's default: the cores less one
   size_t maxPartition = 0;
   int ambisonicOrder = -1;  // -1: the engine's default
+  std::string trace = "shared";
   double irSeconds = 0.0;   // 0: the engine's default maxIrSeconds
   double turnDegreesPerSecond = 90.0;
   double sharedTail = -1.0;  // < 0: the engine's default
@@ -63,6 +64,7 @@ int run(const BenchRuntimeOptions& o) {
   if (o.ambisonicOrder >= 0) es.ambisonicOrder = o.ambisonicOrder;
   if (o.irSeconds > 0) es.maxIrSeconds = o.irSeconds;
   if (o.sharedTail >= 0) es.sharedTailSeconds = o.sharedTail;
+  es.traceMode = *traceModeFromString(o.trace);
   auto model = loadBinauralModel("", es.sampleRateHz);
   if (!check(model.status())) return 2;
   auto created = runtime::Engine::create(es, *model);
@@ -90,6 +92,7 @@ int run(const BenchRuntimeOptions& o) {
   std::atomic<bool> stop{false};
   std::atomic<uint64_t> updates{0};
   double simCpu = 0;
+  runtime::SimulationStats simTotals;  // summed over the clocked simulations
   std::thread sim([&] {
     lowerThisThreadsPriority(es.workerNice);  // as the engine's workers: below the audio thread
     const double c0 = threadCpuSeconds();
@@ -101,8 +104,14 @@ int run(const BenchRuntimeOptions& o) {
         std::this_thread::sleep_for(std::chrono::milliseconds(1));
         continue;
       }
-      if (!engine.simulate(1).isOk()) break;
-      updates.fetch_add(1);
+      // Shared: every source from one trace; per source: one at a time.
+      if (!engine.simulate(es.traceMode == TraceMode::kShared ? 0u : 1u).isOk()) break;
+      const runtime::SimulationStats st = engine.lastSimulation();
+      updates.fetch_add(st.sourcesSimulated);
+      simTotals.traceMs += st.traceMs;
+      simTotals.synthesisMs += st.synthesisMs;
+      simTotals.prepareMs += st.prepareMs;
+      simTotals.totalMs += st.totalMs;
     }
     simCpu = threadCpuSeconds() - c0;
   });
@@ -165,9 +174,10 @@ int run(const BenchRuntimeOptions& o) {
   const double perSourceHz = double(updates.load()) / wall / o.sources;
   std::sort(irAges.begin(), irAges.end());
   auto ageAt = [&](double q) { return irAges.empty() ? 0.0 : irAges[size_t(q * double(irAges.size() - 1))]; };
-  std::printf("runtime reflections=%s ir_seconds=%.1f shared_tail_s=%.2f head_turn_dps=%.0f\n",
+  std::printf("runtime reflections=%s ir_seconds=%.1f shared_tail_s=%.2f head_turn_dps=%.0f trace=%s\n",
               es.ambisonicOrder > 0 ? ("ambisonic order " + std::to_string(es.ambisonicOrder)).c_str() : "binaural",
-              es.maxIrSeconds, es.ambisonicOrder > 0 ? es.sharedTailSeconds : 0.0, o.turnDegreesPerSecond);
+              es.maxIrSeconds, es.ambisonicOrder > 0 ? es.sharedTailSeconds : 0.0, o.turnDegreesPerSecond,
+              toString(es.traceMode));
   std::printf("runtime scene=%s triangles=%zu sources=%u quality=%s block=%zu max_partition=%zu seconds=%.1f sim_threads=%u "
               "audio_cpu_pct_of_one_core=%.1f worst_block_pct_of_period=%.1f p99_block_pct=%.1f "
               "worst_block_first_second_pct=%.1f "
@@ -179,6 +189,10 @@ int run(const BenchRuntimeOptions& o) {
               double(updates.load()) / wall, perSourceHz, 100.0 * simCpu / wall, 100.0 * gameCpu / wall);
   std::printf("ir_age_s median=%.3f p95=%.3f max=%.3f (per source, sampled every 100 ms after the first second)\n",
               ageAt(0.5), ageAt(0.95), ageAt(1.0));
+  const double perUpdate = updates.load() > 0 ? 1.0 / double(updates.load()) : 0.0;
+  std::printf("sim_ms_per_source_update trace_and_image_sources=%.1f synthesis=%.1f prepare=%.1f wall=%.1f\n",
+              simTotals.traceMs * perUpdate, simTotals.synthesisMs * perUpdate, simTotals.prepareMs * perUpdate,
+              simTotals.totalMs * perUpdate);
   std::printf("audio_thread_priority=%s sim_threads=%u at nice +%d\n", audioPriority.c_str(),
               engine.settings().threads, es.workerNice);
   std::printf("note: sim_thread_cpu_pct counts the simulation thread only; its tracing workers (sim_threads) add "
@@ -190,7 +204,7 @@ const Registrar registrar([](CLI::App& root) {
   auto o = std::make_shared<BenchRuntimeOptions>();
   CLI::App& bench = subcommandGroup(root, "bench", "Measure the speed of earshot's stages");
   CLI::App* cmd = bench.add_subcommand(
-      "runtime", "Middleware load: N moving sources, round-robin reflection updates, real-time 256-frame audio blocks");
+      "runtime", "Middleware load: N moving sources, reflection updates (one shared trace for all, or round robin), real-time 256-frame audio blocks");
   cmd->add_option("geometry", o->geometry, "Scene geometry (glTF)")->required()->check(CLI::ExistingFile);
   cmd->add_option("--material-map", o->materialMap, "JSON object mapping glTF material names to acoustic materials");
   cmd->add_option("--quality", o->quality, "Simulation preset")
@@ -212,6 +226,11 @@ const Registrar registrar([](CLI::App& root) {
                   "Ambisonic reflections: each source's own IR up to this time, one shared tail after it "
                   "(seconds; 0: whole IRs per source; default: the engine's, 0.15)")
       ->check(CLI::Range(0.0, 60.0));
+  cmd->add_option("--trace", o->trace,
+                  "shared: each simulation updates every source from one listener-centred trace (the engine's "
+                  "default); per-source: one source per simulation, traced from it")
+      ->check(CLI::IsMember({"shared", "per-source"}))
+      ->capture_default_str();
   cmd->add_option("--turn-dps", o->turnDegreesPerSecond, "Head turn, degrees per second (0: still)")
       ->check(CLI::Range(0.0, 3600.0))
       ->capture_default_str();

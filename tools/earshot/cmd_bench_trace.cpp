@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 
 #include "command.h"
+#include "earshot/core/math.h"
 #include "earshot/core/thread_pool.h"
 #include "earshot/ir/ir_synthesis.h"
 #include "earshot/materials/material.h"
@@ -30,7 +31,64 @@ struct BenchTraceOptions {
   unsigned threads = 2;
   int runs = 15;
   bool embree = true;
+  unsigned sharedSources = 0;
 };
+
+// `count` sources on a horizontal ring (z up, as the samples) around the
+// scene's centre at 0.6 of its half extents.
+std::vector<Vec3d> ringSources(const RayTracer& tracer, unsigned count) {
+  const Vec3d lo(tracer.boundsMin()), hi(tracer.boundsMax());
+  const Vec3d centre = (lo + hi) * 0.5, half = (hi - lo) * 0.5;
+  std::vector<Vec3d> out;
+  for (unsigned i = 0; i < count; ++i) {
+    const double a = 2 * kPi * (double(i) + 0.5) / double(count);
+    out.push_back({centre.x + 0.6 * half.x * std::cos(a), centre.y + 0.6 * half.y * std::sin(a), centre.z});
+  }
+  return out;
+}
+
+// One shared trace for `sources` beside a trace per source, same run.
+int runShared(const BenchTraceOptions& o, const RayTracer& tracer, const MaterialTable& materials, ThreadPool& pool) {
+  ReflectionSettings s;
+  s.rays = o.rays;
+  s.bounces = o.bounces;
+  const Vec3d lis{o.listener[0], o.listener[1], o.listener[2]};
+  const std::vector<Vec3d> positions = ringSources(tracer, o.sharedSources);
+  std::vector<SharedTraceSource> sources(positions.size());
+  for (size_t i = 0; i < positions.size(); ++i) sources[i].position = positions[i];
+  std::vector<double> sharedMs, perSourceMs;
+  uint64_t sharedSegments = 0, sharedShadows = 0, perSegments = 0, perShadows = 0;
+  const int runs = std::max(1, std::min(o.runs, 5));
+  for (int i = 0; i < runs + 1; ++i) {  // the first run warms up and is dropped
+    s.seed = uint64_t(i + 1);
+    auto t0 = std::chrono::steady_clock::now();
+    auto r = traceReflectionsShared(tracer, materials, lis, sources, s, pool);
+    if (!check(r.status())) return 2;
+    const double shared = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    sharedSegments = r->front().stats.segmentsTraced;
+    sharedShadows = 0;
+    for (const ReflectionResult& x : *r) sharedShadows += x.stats.shadowRays;
+    double per = 0;
+    perSegments = perShadows = 0;
+    for (const Vec3d& p : positions) {
+      auto one = traceReflections(tracer, materials, p, lis, s, pool);
+      if (!check(one.status())) return 2;
+      per += one->stats.traceMs;
+      perSegments += one->stats.segmentsTraced;
+      perShadows += one->stats.shadowRays;
+    }
+    if (i == 0) continue;
+    sharedMs.push_back(shared);
+    perSourceMs.push_back(per);
+  }
+  const double sh = median(sharedMs), per = median(perSourceMs);
+  std::printf("shared_trace sources=%u threads=%u runs=%d shared_ms=%.1f (segments=%llu shadow_rays=%llu) "
+              "per_source_ms=%.1f (segments=%llu shadow_rays=%llu) ratio_per_source_over_shared=%.2f\n",
+              o.sharedSources, pool.threadCount(), runs, sh, (unsigned long long)sharedSegments,
+              (unsigned long long)sharedShadows, per, (unsigned long long)perSegments, (unsigned long long)perShadows,
+              per / sh);
+  return 0;
+}
 
 int run(const BenchTraceOptions& o) {
   std::map<std::string, std::string> map;
@@ -52,6 +110,7 @@ int run(const BenchTraceOptions& o) {
     tracer = std::move(rt.value());
   }
   ThreadPool pool(o.threads);
+  if (o.sharedSources > 0) return runShared(o, *tracer, materials, pool);
   ReflectionSettings s;
   s.rays = o.rays;
   s.bounces = o.bounces;
@@ -130,6 +189,10 @@ const Registrar registrar([](CLI::App& root) {
   cmd->add_option("--bounces", o->bounces, "Bounces")->check(CLI::Range(0u, 100000u))->capture_default_str();
   cmd->add_option("--threads", o->threads, "Threads")->check(CLI::Range(1u, 256u))->capture_default_str();
   cmd->add_option("--runs", o->runs, "Timed runs (median reported)")->check(CLI::Range(1, 10000))->capture_default_str();
+  cmd->add_option("--shared-sources", o->sharedSources,
+                  "Instead: one shared listener-centred trace for this many sources (on a ring at 0.6 of the "
+                  "scene's half extents, z up) beside a trace from each of them, same run (median of up to 5)")
+      ->check(CLI::Range(1u, 4096u));
   cmd->add_flag("!--no-embree-limit", o->embree,
                 "Skip the Embree limit (the same queries replayed through plain Embree calls, every mode)");
   cmd->callback([o] { setExitCode(run(*o)); });
