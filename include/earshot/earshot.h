@@ -163,12 +163,16 @@ typedef enum earshot_output_format {
 /** How a simulation step traces the reflections of its sources
  *  (earshot_context_settings). */
 typedef enum earshot_trace_mode {
+  /** EARSHOT_TRACE_SHARED for a step of 3 sources or more, else
+   *  EARSHOT_TRACE_PER_SOURCE (from 3 the shared trace is measured cheaper
+   *  in every scene tried; docs/performance.md). */
+  EARSHOT_TRACE_AUTO = 0,
   /** One trace from the listener whose paths every source of the step
    *  detects (reciprocity: the same energies as a trace from each source);
-   *  a step of N sources costs a fraction of N traces. */
-  EARSHOT_TRACE_SHARED = 0,
+   *  a step of 32 sources costs about a third of their 32 traces. */
+  EARSHOT_TRACE_SHARED = 1,
   /** A trace from each source, one source per simulation thread. */
-  EARSHOT_TRACE_PER_SOURCE = 1
+  EARSHOT_TRACE_PER_SOURCE = 2
 } earshot_trace_mode;
 
 typedef struct earshot_context_settings {
@@ -220,9 +224,10 @@ typedef struct earshot_context_settings {
   /** EARSHOT_OUTPUT_BINAURAL (default) or EARSHOT_OUTPUT_AMBISONIC (needs
    *  ambisonic_order 1-3). */
   earshot_output_format output_format;
-  /** EARSHOT_TRACE_SHARED (default) or EARSHOT_TRACE_PER_SOURCE. A step
-   *  shares one trace among the sources it simulates: earshot_simulate's
-   *  source_count (0: every source) or the built-in thread's. */
+  /** EARSHOT_TRACE_AUTO (default), EARSHOT_TRACE_SHARED or
+   *  EARSHOT_TRACE_PER_SOURCE. A step shares one trace among the sources it
+   *  simulates: earshot_simulate's source_count (0: every source) or the
+   *  built-in thread's. */
   earshot_trace_mode trace_mode;
 } earshot_context_settings;
 

@@ -68,7 +68,7 @@ std::string checkSettings(const earshot_context_settings& s) {
   if (format == EARSHOT_OUTPUT_AMBISONIC && s.ambisonic_order == 0)
     return "settings->output_format EARSHOT_OUTPUT_AMBISONIC needs settings->ambisonic_order 1-3, not 0";
   const int64_t trace = rawEnum(s.trace_mode);
-  if (trace != EARSHOT_TRACE_SHARED && trace != EARSHOT_TRACE_PER_SOURCE)
+  if (trace != EARSHOT_TRACE_AUTO && trace != EARSHOT_TRACE_SHARED && trace != EARSHOT_TRACE_PER_SOURCE)
     return "settings->trace_mode " + std::to_string(trace) + " is not an earshot_trace_mode";
   return "";
 }
@@ -198,7 +198,7 @@ earshot_status earshot_context_settings_init(earshot_context_settings* s) {
   s->allocator_user_data = nullptr;
   s->ambisonic_order = uint32_t(runtime::EngineSettings{}.ambisonicOrder);
   s->output_format = EARSHOT_OUTPUT_BINAURAL;
-  s->trace_mode = EARSHOT_TRACE_SHARED;
+  s->trace_mode = EARSHOT_TRACE_AUTO;
   return EARSHOT_OK;
 }
 
@@ -257,7 +257,9 @@ earshot_status earshot_context_create(const earshot_context_settings* settings, 
       es.ambisonicOrder = int(settings->ambisonic_order);
       es.output = settings->output_format == EARSHOT_OUTPUT_AMBISONIC ? runtime::OutputFormat::kAmbisonic
                                                                       : runtime::OutputFormat::kBinaural;
-      es.traceMode = settings->trace_mode == EARSHOT_TRACE_PER_SOURCE ? TraceMode::kPerSource : TraceMode::kShared;
+      es.traceMode = settings->trace_mode == EARSHOT_TRACE_PER_SOURCE ? TraceMode::kPerSource
+                     : settings->trace_mode == EARSHOT_TRACE_SHARED   ? TraceMode::kShared
+                                                                      : TraceMode::kAuto;
       auto engine = runtime::Engine::create(es, model);
       if (!engine.isOk()) return fromStatus(&env, kFn, engine.status());
 
@@ -319,7 +321,9 @@ earshot_status earshot_context_get_info(earshot_context* c, earshot_context_info
     i.ambisonic_order = uint32_t(es.ambisonicOrder);
     i.output_format = es.output == runtime::OutputFormat::kAmbisonic ? EARSHOT_OUTPUT_AMBISONIC : EARSHOT_OUTPUT_BINAURAL;
     i.output_channels = uint32_t(c->engine->outputChannels());
-    i.trace_mode = es.traceMode == TraceMode::kPerSource ? EARSHOT_TRACE_PER_SOURCE : EARSHOT_TRACE_SHARED;
+    i.trace_mode = es.traceMode == TraceMode::kPerSource ? EARSHOT_TRACE_PER_SOURCE
+                   : es.traceMode == TraceMode::kShared  ? EARSHOT_TRACE_SHARED
+                                                         : EARSHOT_TRACE_AUTO;
     *info = i;
     return EARSHOT_OK;
   });

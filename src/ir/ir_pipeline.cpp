@@ -273,10 +273,18 @@ Result<OmniIrResult> computeIr(const RayTracer& tracer, const MaterialTable& mat
 Result<TraceMode> traceModeFromString(const std::string& name) {
   if (name == "per-source") return TraceMode::kPerSource;
   if (name == "shared") return TraceMode::kShared;
-  return invalidArgument("trace mode '" + name + "' is not one of per-source, shared");
+  if (name == "auto") return TraceMode::kAuto;
+  return invalidArgument("trace mode '" + name.substr(0, 32) + "' is not one of per-source, shared, auto");
 }
 
-const char* toString(TraceMode mode) { return mode == TraceMode::kShared ? "shared" : "per-source"; }
+const char* toString(TraceMode mode) {
+  return mode == TraceMode::kShared ? "shared" : mode == TraceMode::kAuto ? "auto" : "per-source";
+}
+
+TraceMode effectiveTraceMode(TraceMode mode, size_t sources) {
+  if (mode != TraceMode::kAuto) return mode;
+  return sources >= kAutoSharedTraceSources ? TraceMode::kShared : TraceMode::kPerSource;
+}
 
 Result<std::vector<OmniIrResult>> computeIrs(const RayTracer& tracer, const MaterialTable& materials,
                                              const Vec3d& listener, const std::vector<IrRequest>& requests,
@@ -295,7 +303,7 @@ Result<std::vector<OmniIrResult>> computeIrs(const RayTracer& tracer, const Mate
   };
   std::vector<OmniIrResult> out;
   out.reserve(requests.size());
-  if (mode == TraceMode::kPerSource) {
+  if (effectiveTraceMode(mode, requests.size()) == TraceMode::kPerSource) {
     for (size_t i = 0; i < requests.size(); ++i) {
       auto r = computeIr(tracer, materials, requests[i].source, listener, settingsOf(requests[i]), pool, binaural,
                          ambisonic);

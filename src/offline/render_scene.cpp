@@ -130,8 +130,9 @@ Result<RenderResult> renderScene(const SceneDescription& scene, const RenderOpti
   out.log.push_back(ambisonic ? "reflections: world-frame ambisonics of order " + std::to_string(es.ambisonicOrder) +
                                     ", rotated by the head every block (a head turn needs no simulation)"
                               : std::string("reflections: a binaural IR per source (re-simulated when the head turns)"));
-  out.log.push_back(es.traceMode == TraceMode::kShared
-                        ? std::string("tracing: one listener-centred trace for the sources simulated together")
+  out.log.push_back(es.traceMode == TraceMode::kShared ? std::string("tracing: one listener-centred trace for the sources simulated together")
+                    : es.traceMode == TraceMode::kAuto
+                        ? std::string("tracing: one listener-centred trace for 3 or more sources simulated together, else one from each")
                         : std::string("tracing: a trace from each source"));
   out.log.push_back("quality " + preset->name + ": " + std::to_string(es.simulation.rays) + " rays, " +
                     std::to_string(es.simulation.bounces) + " bounces, image sources to order " +

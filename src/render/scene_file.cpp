@@ -520,10 +520,10 @@ Status SceneReader::readSettings(const json& v, SceneSettings& out) {
     out.output = *f;
   }
   if (v.contains("trace")) {
-    auto f = text(v["trace"], "settings.trace", "\"shared\" or \"per-source\"");
+    auto f = text(v["trace"], "settings.trace", "\"auto\", \"shared\" or \"per-source\"");
     if (!f) return f.status();
-    if (*f != "shared" && *f != "per-source")
-      return fail("settings.trace", "'" + f->substr(0, 32) + "' is not \"shared\" or \"per-source\"");
+    if (*f != "auto" && *f != "shared" && *f != "per-source")
+      return fail("settings.trace", "'" + f->substr(0, 32) + "' is not \"auto\", \"shared\" or \"per-source\"");
     out.trace = *f;
   }
   if (out.output == "ambisonic" && out.ambisonicOrder == 0)

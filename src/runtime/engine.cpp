@@ -613,7 +613,7 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& order) {
   // Several sources: one per worker, each traced single-threaded (synthesis
   // is single-threaded anyway); one source: all workers trace it. Either way
   // each IR is bit-identical (the tracer's result does not depend on threads).
-  if (mSettings.traceMode == TraceMode::kShared && !jobs.empty()) {
+  if (effectiveTraceMode(mSettings.traceMode, jobs.size()) == TraceMode::kShared && !jobs.empty()) {
     // One trace from the listener for every source of this simulation.
     std::vector<IrRequest> requests;
     for (const Job& j : jobs) requests.push_back({j.source, j.settings.directivity, j.settings.includeDirect});

@@ -43,7 +43,7 @@ struct Shoebox {
   earshot_context* context = nullptr;
   earshot_scene* scene = nullptr;
 
-  explicit Shoebox(uint64_t seed = 1, uint32_t ambisonicOrder = 0, earshot_trace_mode trace = EARSHOT_TRACE_SHARED) {
+  explicit Shoebox(uint64_t seed = 1, uint32_t ambisonicOrder = 0, earshot_trace_mode trace = EARSHOT_TRACE_AUTO) {
     earshot_context_settings cs;
     earshot_context_settings_init(&cs);  // the balanced defaults, as `earshot ir`
     cs.max_sources = 2;
@@ -104,8 +104,8 @@ TEST(CapiIr, SourceIrIsEarshotIrsForAStaticSource) {
   EXPECT_EQ(info.includes_direct, 1u);
   EXPECT_EQ(info.simulation, 1u);
   EXPECT_EQ(info.sample_rate_hz, 48000.0);
-  // The context's default trace is the shared one: `earshot ir --trace shared`.
-  expectSame(copyOut(ir), cliIr("binaural", 1, " --trace shared"));
+  // The context's default trace (auto) traces one source from itself.
+  expectSame(copyOut(ir), cliIr("binaural", 1));
 
   // The handle keeps its IR: a later simulation and the source's release do
   // not change it.
@@ -123,29 +123,32 @@ TEST(CapiIr, SourceIrIsEarshotIrsForAStaticSource) {
   earshot_ir_release(ir);
 }
 
-// trace_mode selects the trace: per source, the context's IR is `earshot
-// ir`'s default (a trace from the source); the info reports the mode; a
-// value that is no earshot_trace_mode is refused.
+// trace_mode selects the trace: the context's IR is `earshot ir --trace`'s
+// of that mode; the info reports the mode; a value that is no
+// earshot_trace_mode is refused.
 TEST(CapiIr, TraceModeSelectsTheTrace) {
-  Shoebox box(1, 0, EARSHOT_TRACE_PER_SOURCE);
-  earshot_context_info ci;
-  ci.struct_size = sizeof(ci);
-  ASSERT_EQ(earshot_context_get_info(box.context, &ci), EARSHOT_OK);
-  EXPECT_EQ(ci.trace_mode, EARSHOT_TRACE_PER_SOURCE);
-  earshot_source_settings ss;
-  earshot_source_settings_init(&ss);
-  ss.direct = EARSHOT_DIRECT_IN_IMPULSE_RESPONSE;
-  earshot_source* src = nullptr;
-  ASSERT_EQ(earshot_source_create(box.context, &ss, &src), EARSHOT_OK);
-  ASSERT_EQ(earshot_source_set_position(src, {2, 3.5f, 1.5f}), EARSHOT_OK);
-  ASSERT_EQ(earshot_simulate(box.context, 0), EARSHOT_OK);
-  earshot_ir* ir = nullptr;
-  ASSERT_EQ(earshot_source_get_ir(src, &ir), EARSHOT_OK) << earshot_last_error_message();
-  expectSame(copyOut(ir), cliIr("binaural", 1));
-  earshot_ir_release(ir);
-  earshot_source_release(src);
-
+  for (auto [mode, flag] : {std::pair{EARSHOT_TRACE_SHARED, " --trace shared"},
+                            std::pair{EARSHOT_TRACE_PER_SOURCE, " --trace per-source"}}) {
+    Shoebox box(1, 0, mode);
+    earshot_context_info ci;
+    ci.struct_size = sizeof(ci);
+    ASSERT_EQ(earshot_context_get_info(box.context, &ci), EARSHOT_OK);
+    EXPECT_EQ(ci.trace_mode, mode);
+    earshot_source_settings ss;
+    earshot_source_settings_init(&ss);
+    ss.direct = EARSHOT_DIRECT_IN_IMPULSE_RESPONSE;
+    earshot_source* src = nullptr;
+    ASSERT_EQ(earshot_source_create(box.context, &ss, &src), EARSHOT_OK);
+    ASSERT_EQ(earshot_source_set_position(src, {2, 3.5f, 1.5f}), EARSHOT_OK);
+    ASSERT_EQ(earshot_simulate(box.context, 0), EARSHOT_OK);
+    earshot_ir* ir = nullptr;
+    ASSERT_EQ(earshot_source_get_ir(src, &ir), EARSHOT_OK) << earshot_last_error_message();
+    expectSame(copyOut(ir), cliIr("binaural", 1, flag));
+    earshot_ir_release(ir);
+    earshot_source_release(src);
+  }
   earshot_context_settings cs = earshot::capi::test::fastSettings();
+  EXPECT_EQ(cs.trace_mode, EARSHOT_TRACE_AUTO);
   earshot_context* c = nullptr;
   earshot::capi::test::storeRaw(cs.trace_mode, 5);
   EXPECT_EQ(earshot_context_create(&cs, &c), EARSHOT_ERROR_INVALID_ARGUMENT);

@@ -78,16 +78,16 @@ std::string vec(double x, double y, double z) {
 // Issue 7: one static source and listener (binaural reflections,
 // ambisonic_order 0: the exact per-arrival path) render to exactly the convolution
 // of the dry signal with `earshot ir`'s IR for the same positions and seed
-// (to 1e-5 of the peak), with either trace (issue 16): the render's default,
-// shared, is `earshot ir --trace shared`'s; per-source is `earshot ir`'s
-// default.
+// (to 1e-5 of the peak), with each trace (issue 16): shared is `earshot ir
+// --trace shared`'s, per-source `earshot ir`'s default, and the render's
+// default (auto: one source is traced from itself) too.
 TEST(RenderCli, StaticSceneIsTheDrySignalConvolvedWithEarshotIrsIr) {
   TempDir dir("render_static");
   std::vector<float> dry(size_t(0.25 * kFs));
   Pcg32 rng(5, 6);
   for (float& v : dry) v = rng.uniform() - 0.5f;
   writeMono(dir / "dry.wav", dry);
-  for (const std::string trace : {"", "per-source"}) {
+  for (const std::string trace : {"", "per-source", "shared"}) {
     SCOPED_TRACE("trace " + (trace.empty() ? std::string("(default)") : trace));
     std::ofstream(dir / "scene.json") << R"({
       "geometry": ")" << kSamples << R"(shoebox/shoebox.gltf",
@@ -99,7 +99,7 @@ TEST(RenderCli, StaticSceneIsTheDrySignalConvolvedWithEarshotIrsIr) {
     })";
     auto ir = runEarshot("ir " + kSamples + "shoebox/shoebox.gltf --material-map " + kSamples +
                          "shoebox/materials_map.json --source 2.5,3,1.4 --listener 7,4,1.6 --forward -1,0.2,0 --up "
-                         "0,0,1 --quality draft --seed 3 --trace " + (trace.empty() ? "shared" : trace) + " -o " +
+                         "0,0,1 --quality draft --seed 3 --trace " + (trace.empty() ? "per-source" : trace) + " -o " +
                          dir / "ir.wav");
     ASSERT_EQ(ir.exitCode, 0) << ir.output;
     auto render = runEarshot("--allow-outside-paths render " + dir / "scene.json" + " -o " + dir / "out.wav --quiet");

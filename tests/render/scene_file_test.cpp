@@ -97,6 +97,7 @@ TEST_F(SceneFileTest, MinimalSceneGetsTheDocumentedDefaults) {
   EXPECT_TRUE(s.settings.air.enabled);
   EXPECT_EQ(s.settings.air.temperatureC, 20.0);
   EXPECT_EQ(s.settings.speedOfSound, 343.0);
+  EXPECT_EQ(s.settings.trace, "auto");
 }
 
 TEST_F(SceneFileTest, EveryFieldIsRead) {
@@ -118,7 +119,8 @@ TEST_F(SceneFileTest, EveryFieldIsRead) {
       {"name": "b", "audio": "sub/../sub/b.wav", "path": [{"t": 0.5, "position": [0, 0, 0]}]}],
     "settings": {"sample_rate": 44100, "quality": "high", "rays": 1000, "bounces": 0, "hrtf": "set.sofa",
                  "seed": 18446744073709551615, "update_rate_hz": 12.5, "duration": 9.5,
-                 "air": {"temperature_c": -20, "humidity_pct": 100, "pressure_kpa": 90}, "speed_of_sound": 340}
+                 "air": {"temperature_c": -20, "humidity_pct": 100, "pressure_kpa": 90}, "speed_of_sound": 340,
+                 "trace": "per-source"}
   })", /*strict=*/true);
   ASSERT_TRUE(r.isOk()) << r.status().message();
   const SceneDescription& s = *r;
@@ -148,6 +150,7 @@ TEST_F(SceneFileTest, EveryFieldIsRead) {
   EXPECT_EQ(s.settings.air.temperatureC, -20.0);
   EXPECT_EQ(s.settings.air.humidityPercent, 100.0);
   EXPECT_EQ(s.settings.air.pressureKpa, 90.0);
+  EXPECT_EQ(s.settings.trace, "per-source");
   EXPECT_EQ(s.settings.speedOfSound, 340.0);
   EXPECT_EQ(directivityGain(SourceDirectivity::kCardioid, -1.0), 0.0);
   EXPECT_EQ(directivityGain(SourceDirectivity::kCardioid, 0.0), 0.5);
@@ -326,6 +329,10 @@ TEST_F(SceneFileTest, HugeAndOverflowingNumbersAreRejected) {
              "scene.json: settings.output: 'surround' is not \"binaural\" or \"ambisonic\"");
   EXPECT_HAS(error(scene("", R"("settings": {"output": "ambisonic", "ambisonic_order": 0})")),
              "settings.output: ambisonic output needs settings.ambisonic_order 1-3");
+  // Issue 16's.
+  EXPECT_HAS(error(scene("", R"("settings": {"trace": "listener"})")),
+             "scene.json: settings.trace: 'listener' is not \"auto\", \"shared\" or \"per-source\"");
+  EXPECT_HAS(error(scene("", R"("settings": {"trace": 2})")), "settings.trace");
 }
 
 TEST_F(SceneFileTest, BadOrientationsAreRejected) {

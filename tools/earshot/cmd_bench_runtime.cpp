@@ -227,8 +227,9 @@ const Registrar registrar([](CLI::App& root) {
                   "(seconds; 0: whole IRs per source; default: the engine's, 0.15)")
       ->check(CLI::Range(0.0, 60.0));
   cmd->add_option("--trace", o->trace,
-                  "shared: each simulation updates every source from one listener-centred trace (the engine's "
-                  "default); per-source: one source per simulation, traced from it")
+                  "shared: each simulation updates every source from one listener-centred trace; per-source: one "
+                  "source per simulation, traced from it (the engine's default, auto, is shared for 3 sources or "
+                  "more)")
       ->check(CLI::IsMember({"shared", "per-source"}))
       ->capture_default_str();
   cmd->add_option("--turn-dps", o->turnDegreesPerSecond, "Head turn, degrees per second (0: still)")

@@ -207,9 +207,10 @@ const Registrar registrar([](CLI::App& root) {
                   "((order+1)^2 AmbiX channels, ACN order, SN3D, in the listener's frame: x forward, y left, z up)")
       ->check(CLI::IsMember({"binaural", "ambisonic"}));
   cmd->add_option("--trace", o->trace,
-                  "Override the scene's settings.trace: shared (the default: the sources simulated together share "
-                  "one trace from the listener, by reciprocity the same energies) or per-source (a trace from each)")
-      ->check(CLI::IsMember({"shared", "per-source"}));
+                  "Override the scene's settings.trace: shared (the sources simulated together share one trace "
+                  "from the listener, by reciprocity the same energies), per-source (a trace from each) or auto "
+                  "(the default: shared for 3 sources or more)")
+      ->check(CLI::IsMember({"auto", "shared", "per-source"}));
   cmd->add_option("--ambisonic-order", o->ambisonicOrder,
                   "Override the scene's settings.ambisonic_order (default 1): 1-3 world-frame ambisonic "
                   "reflections rotated by the head every block, so a head turn needs no simulation; 0 a binaural "

@@ -104,8 +104,20 @@ Result<OmniIrResult> computeIr(const RayTracer& tracer, const MaterialTable& mat
 enum class TraceMode {
   kPerSource,  ///< a trace from each source (traceReflections)
   kShared,     ///< one trace from the listener for all of them (traceReflectionsShared)
+  /** kShared for kAutoSharedTraceSources sources or more, else kPerSource. */
+  kAuto,
 };
-/** "per-source" or "shared". */
+/** kAuto's threshold. Measured (`earshot bench trace --shared-sources N`,
+ *  2 threads, balanced): the shared trace of 2 sources costs 0.55x their
+ *  two traces in the shoebox but 1.2x in the furnished room with the
+ *  listener by the furniture, where the listener's small detection sphere
+ *  (0.41 m) gives each trace from a source only 4096 tail probes while the
+ *  sources' larger spheres give the shared trace every ray as one; from 3
+ *  sources it is cheaper there too (0.93x at 3, 0.5x at 8, 0.3x at 32). */
+constexpr size_t kAutoSharedTraceSources = 3;
+/** The mode a computeIrs of `sources` sources uses (kAuto resolved). */
+TraceMode effectiveTraceMode(TraceMode mode, size_t sources);
+/** "per-source", "shared" or "auto". */
 Result<TraceMode> traceModeFromString(const std::string& name);
 const char* toString(TraceMode mode);
 
@@ -116,8 +128,8 @@ struct IrRequest {
   bool includeDirect = true;   ///< instead of the settings' includeDirect
 };
 
-/** The IRs of several sources at one listener, in `requests` order.
- *  kPerSource: computeIr for each in turn (each traced on all of pool's
+/** The IRs of several sources at one listener, in `requests` order (kAuto:
+ *  effectiveTraceMode). kPerSource: computeIr for each in turn (each traced on all of pool's
  *  threads): bit-identical to it. kShared: the sources' direct sounds and
  *  image sources one per thread, one listener-centred trace for all of them
  *  (traceReflectionsShared) on every thread, then tail completion and

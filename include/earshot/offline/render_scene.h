@@ -59,7 +59,7 @@ struct RenderOptions {
   /** Overrides the scene's settings.output ("binaural" or "ambisonic": the
    *  AmbiX channels of the reflections' order in the listener's frame). */
   std::optional<std::string> outputFormat;
-  /** Overrides settings.trace: "shared" or "per-source". */
+  /** Overrides settings.trace: "auto", "shared" or "per-source". */
   std::optional<std::string> trace;
   /** Set: each rendered block goes here (outputChannels() planar channels:
    *  left, right or the AmbiX channels; frames), in order, and

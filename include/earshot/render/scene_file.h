@@ -91,8 +91,9 @@ struct SceneSettings {
   std::string output = "binaural";
   /** How the sources' reflections are traced (runtime::EngineSettings::
    *  traceMode): "shared", one listener-centred trace for every source
-   *  simulated together, or "per-source", a trace from each. */
-  std::string trace = "shared";
+   *  simulated together; "per-source", a trace from each; "auto", shared
+   *  for 3 sources or more. */
+  std::string trace = "auto";
 };
 
 /** A parsed scene file. Paths are resolved against the scene file's

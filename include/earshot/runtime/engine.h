@@ -115,9 +115,11 @@ struct EngineSettings {
    *  16): kShared, one trace from the listener whose paths every source
    *  detects (traceReflectionsShared: a sphere test per segment and a
    *  shadow ray per reflection per source instead of a trace each);
-   *  kPerSource, a trace from each source (one source per worker). The two
-   *  give the same energies (the regression suite runs with both). */
-  TraceMode traceMode = TraceMode::kShared;
+   *  kPerSource, a trace from each source (one source per worker); kAuto
+   *  (the default), shared for a simulation of kAutoSharedTraceSources (3)
+   *  sources or more, where it is measured cheaper. The two give the same
+   *  energies (the regression suite runs with both). */
+  TraceMode traceMode = TraceMode::kAuto;
 };
 
 enum class DirectMode {
