@@ -64,6 +64,8 @@ struct TradeoffOptions {
   std::array<double, 3> forward{0.0, 0.0, -1.0}, up{0.0, 1.0, 0.0};
   std::string hrtf;
   std::string quality = "balanced";
+  // Issue 16: how the sweep's points are traced (the reference: per source).
+  std::string trace = "per-source";
 };
 
 /** Octave bands whose errors are averaged: 250 Hz .. 4 kHz. */
@@ -177,7 +179,7 @@ Result<std::array<double, an::kMetricCount>> errorPerMetric(const std::vector<an
 Result<PointResult> evaluatePoint(const RayTracer& tracer, const MaterialTable& materials, const Vec3d& source,
                                   const Vec3d& listener, const OmniIrSettings& settings, int repeats,
                                   ThreadPool& pool, const std::vector<an::BandMetrics>& reference, double rateHz,
-                                  const std::string& label, int& naCount) {
+                                  const std::string& label, int& naCount, TraceMode trace) {
   PointResult p;
   std::vector<double> seconds;
   std::array<double, an::kMetricCount> sum{};
@@ -185,10 +187,10 @@ Result<PointResult> evaluatePoint(const RayTracer& tracer, const MaterialTable& 
     OmniIrSettings s = settings;
     s.seed = uint64_t(i + 1);
     const auto t0 = std::chrono::steady_clock::now();
-    auto r = computeOmniIr(tracer, materials, source, listener, s, pool);
+    auto r = computeIrs(tracer, materials, listener, {IrRequest{source, s.directivity, s.includeDirect}}, s, trace, pool);
     seconds.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
     if (!r.isOk()) return Status(r.status().code(), label + ": " + r.status().message());
-    auto m = an::analyzeIr(r->ir.channels[0], rateHz);
+    auto m = an::analyzeIr(r->front().ir.channels[0], rateHz);
     if (!m.isOk()) return Status(m.status().code(), "IR at " + label + ": " + m.status().message());
     auto e = errorPerMetric(*m, reference, naCount);
     if (!e.isOk()) return e.status();
@@ -503,7 +505,7 @@ int run(const TradeoffOptions& o) {
   auto evaluate = [&](PointResult p, const OmniIrSettings& settings, const std::string& label) -> bool {
     const int naBefore = naCount;
     auto e = evaluatePoint(*tracer, materials, source, listener, settings, o.repeats, pool, *refMetrics, rateHz,
-                           label, naCount);
+                           label, naCount, *traceModeFromString(o.trace));
     if (!check(e.status())) return false;
     p.secondsMedian = e->secondsMedian;
     p.jnd = e->jnd;
@@ -606,6 +608,12 @@ const Registrar registrar([](CLI::App& root) {
   addVec3Option(*cmd, "--up", o->up, "Listener up vector, with --ambisonic-orders (default 0,1,0)");
   cmd->add_option("--hrtf", o->hrtf, "HRTF set for --ambisonic-orders (default: the shipped KU100 set)")
       ->check(CLI::ExistingFile);
+  cmd->add_option("--trace", o->trace,
+                  "How the sweep's points are traced: per-source (from the source) or shared (from the listener, "
+                  "the source detecting: the runtime's shared trace); the reference run is traced per source")
+      ->check(CLI::IsMember({"per-source", "shared"}))
+      ->excludes(ambOpt)
+      ->capture_default_str();
   cmd->add_option("--quality", o->quality, "Quality preset of the --ambisonic-orders simulation")
       ->check(CLI::IsMember({"draft", "balanced", "high", "reference"}))
       ->capture_default_str();
