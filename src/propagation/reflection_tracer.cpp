@@ -14,6 +14,10 @@
 #include <cstring>
 #include <string>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 #include "earshot/core/math.h"
 #include "earshot/core/random.h"
 #include "earshot/core/thread_pool.h"
@@ -56,11 +60,20 @@ inline void addSat(int64_t& acc, int64_t v) {
   if (__builtin_add_overflow(acc, v, &acc)) acc = v > 0 ? INT64_MAX : INT64_MIN;
 }
 
-// Round to nearest (ties away from zero) by truncation: no libm call.
+// Round to nearest (ties away from zero) by truncation: no libm call. The
+// clamp keeps NaN at +kFixedMax. Branch-free (minsd/maxsd, copysign): the
+// tracer makes ~20 of these per segment.
 inline int64_t toFixed(double v) {
+#if defined(__SSE2__)
+  __m128d x = _mm_set_sd(v * kFixedScale);
+  x = _mm_min_sd(x, _mm_set_sd(kFixedMax));   // x < max ? x : max (NaN -> max)
+  x = _mm_max_sd(x, _mm_set_sd(-kFixedMax));  // x > -max ? x : -max
+  const double s = _mm_cvtsd_f64(x);
+#else
   double s = v * kFixedScale;
   s = std::max(-kFixedMax, std::min(kFixedMax, s));
-  return int64_t(s >= 0 ? s + 0.5 : s - 0.5);
+#endif
+  return int64_t(s + std::copysign(0.5, s));
 }
 
 // exp(-m L) per band from two tables, L = whole metres + centimetres:
@@ -644,14 +657,14 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
     for (uint32_t k = 0; k < n; ++k) reversed[k] = planes[n - 1 - k];
     return dt.excluded->count(reversed) > 0;
   };
-  // Energy in flight over [from, to) bins (air applied at the segment's start).
+  // Energy in flight over [from, to) bins, without air: every ray in flight
+  // at time t has travelled c t, so the air of the bin's centre applies to
+  // all of them alike (integrate, below).
   auto alive = [&](std::vector<int64_t>& diff, float fromLength, float toLength, const float* energy) {
     const size_t b0 = binOf(fromLength), b1 = binOf(toLength);
     if (b0 >= b1) return;
-    float f[kNumBands];
-    air.factors(fromLength, f);
     for (int b = 0; b < kNumBands; ++b) {
-      const int64_t q = toFixed(double(energy[b]) * f[b]);
+      const int64_t q = toFixed(double(energy[b]));
       addSat(diff[b0 * kNumBands + b], q);
       addSat(diff[b1 * kNumBands + b], -q);
     }
@@ -861,27 +874,31 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
           const float pT = m.meanTransmit > 0 ? m.meanTransmit / (m.meanTransmit + m.meanReflect) : 0.0f;
           float maxEnergy = 0;
           if (pT > 0 && rng.uniform() < pT) {
-            for (int b = 0; b < kNumBands; ++b) maxEnergy = std::max(maxEnergy, energy[b] *= m.transmit[b] / pT);
+            const float gain = 1.0f / pT;
+            for (int b = 0; b < kNumBands; ++b) maxEnergy = std::max(maxEnergy, energy[b] *= m.transmit[b] * gain);
             ray.origin = p - (nearEdge ? clearOffset(tracer, p, -n, eps) : offset);  // direction unchanged
             detectSegment = reflected;
             pureSpecular = false;
           } else {
             float specW = 0, total = 0;
+            const float gain = 1.0f / (1.0f - pT);
             for (int b = 0; b < kNumBands; ++b) {
-              energy[b] *= m.reflect[b] / (1.0f - pT);
+              energy[b] *= m.reflect[b] * gain;
               specW += energy[b] * (1.0f - m.scatter[b]);
               total += energy[b];
             }
             const float pSpec = total > 0 ? specW / total : 0.0f;
             if (pSpec > 0 && rng.uniform() < pSpec) {
+              const float specGain = 1.0f / pSpec;
               for (int b = 0; b < kNumBands; ++b)
-                maxEnergy = std::max(maxEnergy, energy[b] *= (1.0f - m.scatter[b]) / pSpec);
+                maxEnergy = std::max(maxEnergy, energy[b] *= (1.0f - m.scatter[b]) * specGain);
               ray.direction = normalize(ray.direction - n * (2.0f * dot(ray.direction, n)));
               detectSegment = true;
               if (order < kMaxImageSourceOrder) planes[order] = tracer.planeOf(hit.triangle);
             } else {
+              const float diffuseGain = 1.0f / (1.0f - pSpec);
               for (int b = 0; b < kNumBands; ++b)
-                maxEnergy = std::max(maxEnergy, energy[b] *= m.scatter[b] / (1.0f - pSpec));
+                maxEnergy = std::max(maxEnergy, energy[b] *= m.scatter[b] * diffuseGain);
               ray.direction = cosineDirection(n, rng);
               detectSegment = false;
               pureSpecular = false;
@@ -981,11 +998,14 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
   auto integrate = [&](const std::vector<int64_t>& diff, std::vector<BandArrayD>& out) {
     out.assign(bins, BandArrayD{});
     int64_t running[kNumBands] = {};
-    for (size_t i = 0; i < bins; ++i)
+    for (size_t i = 0; i < bins; ++i) {
+      float f[kNumBands];
+      air.factors(float((double(i) + 0.5) * settings.binSeconds * settings.speedOfSound), f);
       for (int b = 0; b < kNumBands; ++b) {
         addSat(running[b], diff[i * kNumBands + b]);
-        out[i][b] = double(running[b]) * unit;
+        out[i][b] = double(running[b]) * unit * f[b];
       }
+    }
   };
   integrate(total.aliveDiff, tail.alive);
   if (probeStride > 0) {

@@ -110,7 +110,7 @@ struct CutRay {
 
 /** What tail completion needs from a trace (energies in the histogram's units). */
 struct TailData {
-  std::vector<BandArrayD> alive;      ///< per bin: energy of rays in flight (air applied)
+  std::vector<BandArrayD> alive;      ///< per bin: energy of rays in flight (air of the bin's centre: each has travelled c t)
   std::vector<CutRay> cutRays;        ///< in ray order
   /** Free paths of the later half of the bounces, in log-spaced length bins
    *  (freePathBinCenter): the energy e arriving at a reflection after a free
