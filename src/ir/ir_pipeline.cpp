@@ -323,26 +323,42 @@ Result<std::vector<OmniIrResult>> computeIrs(const RayTracer& tracer, const Mate
   });
   for (size_t i = 0; i < requests.size(); ++i)
     if (!status[i].isOk()) return named(i, status[i]);
-  std::vector<ReflectionResult> traced;
-  if (tracesReflections(tracer, s) && !requests.empty()) {
-    std::vector<SharedTraceSource> sources(requests.size());
-    for (size_t i = 0; i < requests.size(); ++i) {
-      const ReflectionSettings rs = reflectionSettingsOf(settingsOf(requests[i]), jobs[i]);
-      sources[i].position = requests[i].source;
-      sources[i].directivity = requests[i].directivity;
-      sources[i].excludedSpecular = rs.excludedSpecular;
-      sources[i].excludedMaxOrder = rs.excludedMaxOrder;
-      sources[i].receiverRadiusMeters = rs.receiverRadiusMeters;
+  // Sources go through the trace in groups whose sums and results fit
+  // kSharedTraceBudgetBytes: per source, each thread keeps a histogram and
+  // the probes' detections (EnergyHistogram::kStride + kNumBands int64 per
+  // bin), and its result a histogram and the tail data until its IR is made.
+  const double bins = std::ceil((s.lengthSeconds > 0 ? s.lengthSeconds : ReflectionSettings{}.maxTimeSeconds) /
+                                s.binSeconds);
+  const double perSource =
+      bins * (double(pool.threadCount()) * (EnergyHistogram::kStride + kNumBands) * 8.0 + 32.0 * 8.0) +
+      double(s.rays) * (sizeof(CutRay) * 2.0);
+  const size_t group = size_t(std::clamp(std::floor(double(kSharedTraceBudgetBytes) / perSource), 1.0,
+                                         double(kMaxSharedTraceSources)));
+  for (size_t g0 = 0; g0 < requests.size(); g0 += group) {
+    const size_t g1 = std::min(requests.size(), g0 + group);
+    std::vector<ReflectionResult> traced;
+    if (tracesReflections(tracer, s)) {
+      std::vector<SharedTraceSource> sources(g1 - g0);
+      for (size_t i = g0; i < g1; ++i) {
+        const ReflectionSettings rs = reflectionSettingsOf(settingsOf(requests[i]), jobs[i]);
+        SharedTraceSource& src = sources[i - g0];
+        src.position = requests[i].source;
+        src.directivity = requests[i].directivity;
+        src.excludedSpecular = rs.excludedSpecular;
+        src.excludedMaxOrder = rs.excludedMaxOrder;
+        src.receiverRadiusMeters = rs.receiverRadiusMeters;
+      }
+      auto r = traceReflectionsShared(tracer, materials, listener, sources, reflectionSettingsOf(s, jobs[g0]), pool);
+      if (!r.isOk()) return r.status();
+      traced = std::move(r.value());
+      // The trace's time is shared: each source is charged its part.
+      for (ReflectionResult& t : traced) t.stats.traceMs /= double(traced.size());
     }
-    auto r = traceReflectionsShared(tracer, materials, listener, sources, reflectionSettingsOf(s, jobs[0]), pool);
-    if (!r.isOk()) return r.status();
-    traced = std::move(r.value());
-    // The trace's time is shared: each source is charged its part.
-    for (ReflectionResult& t : traced) t.stats.traceMs /= double(traced.size());
+    pool.parallelFor(g1 - g0, [&](size_t k, unsigned) {
+      const size_t i = g0 + k;
+      status[i] = finishIr(jobs[i], traced.empty() ? nullptr : &traced[k], settingsOf(requests[i]), binaural, ambisonic);
+    });
   }
-  pool.parallelFor(requests.size(), [&](size_t i, unsigned) {
-    status[i] = finishIr(jobs[i], traced.empty() ? nullptr : &traced[i], settingsOf(requests[i]), binaural, ambisonic);
-  });
   for (size_t i = 0; i < requests.size(); ++i) {
     if (!status[i].isOk()) return named(i, status[i]);
     out.push_back(std::move(jobs[i].out));

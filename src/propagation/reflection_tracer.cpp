@@ -573,8 +573,11 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
   // Undetected probes (a sphere too small) give only the shape of the energy
   // in flight, a smooth sum: kUndetectedProbes of them do (the default up
   // to b20d7e4); more would cost time for nothing (in the two-room sample,
-  // 3.7 million probe segments against 0.93 million).
-  const uint32_t probes = anyProbeDetector ? settings.tailProbes : std::min(settings.tailProbes, kUndetectedProbes);
+  // 3.7 million probe segments against 0.93 million). A shared trace keeps
+  // every probe whatever its sources' spheres, so that what a source gets
+  // does not depend on which others share the trace.
+  const uint32_t probes = anyProbeDetector || reciprocal ? settings.tailProbes
+                                                         : std::min(settings.tailProbes, kUndetectedProbes);
   const uint32_t probeStride = probes > 0 ? std::max(1u, settings.rays / probes) : 0;
   const uint32_t probeSlots = probeStride > 0 ? settings.rays : 0;
   std::vector<CutRay> probeEnds(probeSlots);

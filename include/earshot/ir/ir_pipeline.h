@@ -128,6 +128,13 @@ struct IrRequest {
   bool includeDirect = true;   ///< instead of the settings' includeDirect
 };
 
+/** computeIrs's shared traces take at most as many sources at once as keep
+ *  their per-thread sums and results within this; the sources beyond go
+ *  through further traces (balanced, 4 s of 1 ms bins, 2 threads: ~80 at a
+ *  time). A source's result does not depend on which others share its
+ *  trace. */
+constexpr size_t kSharedTraceBudgetBytes = size_t(256) << 20;
+
 /** The IRs of several sources at one listener, in `requests` order (kAuto:
  *  effectiveTraceMode). kPerSource: computeIr for each in turn (each traced on all of pool's
  *  threads): bit-identical to it. kShared: the sources' direct sounds and

@@ -202,7 +202,9 @@ constexpr size_t kMaxSharedTraceSources = 4096;
  *  in flight, cut rays, free paths) are the listener's omni emission's,
  *  shared (a directional source's late level is its pattern's at the late
  *  field's departure directions, through its detections); convergenceDb
- *  is not used (every ray is traced); settings.directivity and
+ *  is not used (every ray is traced); every tail probe is kept
+ *  (traceReflections keeps 4096 when its sphere is under 0.5 m), so that a
+ *  source's result does not depend on the others; settings.directivity and
  *  settings.excludedSpecular are ignored (per source here). Results in
  *  `sources` order, bit-identical for any thread count. */
 Result<std::vector<ReflectionResult>> traceReflectionsShared(const RayTracer& tracer, const MaterialTable& materials,

@@ -1,0 +1,105 @@
+// computeIrs (issue 16): several sources at one listener, per source or from
+// shared traces, the same whatever the thread count and however the sources
+// are grouped into traces.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "earshot/core/thread_pool.h"
+#include "earshot/ir/ir_pipeline.h"
+#include "earshot/scene/ray_tracer.h"
+
+namespace earshot {
+namespace {
+
+struct Room {
+  MaterialTable materials;
+  std::unique_ptr<RayTracer> tracer;
+  Room() {
+    Material m;
+    m.name = "wall";
+    m.absorption = filledBands(0.3f);
+    m.scattering = filledBands(0.4f);
+    m.transmission = filledBands(0.0f);
+    TriangleMesh mesh = makeBox({0, 0, 0}, {10, 7, 3}, materials.add(m));
+    mesh.append(makeBox({4.5, 2.0, 0.0}, {4.7, 4.0, 2.0}, 0));  // a partition: shadow rays matter
+    auto rt = RayTracer::create(mesh);
+    EXPECT_TRUE(rt.isOk());
+    tracer = std::move(rt.value());
+  }
+};
+
+std::vector<IrRequest> ringOfSources(size_t n) {
+  std::vector<IrRequest> out;
+  for (size_t i = 0; i < n; ++i) {
+    IrRequest r;
+    const double a = 6.283185307179586 * double(i) / double(n);
+    r.source = {5.0 + 3.5 * std::cos(a), 3.5 + 2.5 * std::sin(a), 0.8 + 0.05 * double(i % 20)};
+    out.push_back(r);
+  }
+  return out;
+}
+
+}  // namespace
+
+// 20 sources with a 30 s histogram: on 2 threads their sums exceed
+// kSharedTraceBudgetBytes and they go through two traces, on 1 thread
+// through one; every IR is the same bit for bit, and the same as the
+// source's shared trace alone.
+TEST(ComputeIrs, SharedTracesGiveTheSameIrsHoweverTheSourcesAreGrouped) {
+  Room room;
+  OmniIrSettings s;
+  s.sampleRateHz = 8000;
+  s.rays = 1000;
+  s.bounces = 6;
+  s.imageSourceOrder = 1;
+  s.lengthSeconds = 30;
+  const std::vector<IrRequest> requests = ringOfSources(20);
+  const Vec3d listener{7.2, 2.6, 1.6};
+  ThreadPool one(1), two(2);
+  auto a = computeIrs(*room.tracer, room.materials, listener, requests, s, TraceMode::kShared, one);
+  auto b = computeIrs(*room.tracer, room.materials, listener, requests, s, TraceMode::kShared, two);
+  ASSERT_TRUE(a.isOk()) << a.status().message();
+  ASSERT_TRUE(b.isOk()) << b.status().message();
+  ASSERT_EQ(a->size(), requests.size());
+  ASSERT_EQ(b->size(), requests.size());
+  for (size_t i = 0; i < requests.size(); ++i) {
+    EXPECT_EQ((*a)[i].ir.channels, (*b)[i].ir.channels) << "source " << i;
+    EXPECT_GT((*a)[i].traceStats.shadowRays, 0u);
+  }
+  for (size_t i : {size_t(0), size_t(13)}) {
+    auto alone = computeIrs(*room.tracer, room.materials, listener, {requests[i]}, s, TraceMode::kShared, two);
+    ASSERT_TRUE(alone.isOk());
+    EXPECT_EQ(alone->front().ir.channels, (*b)[i].ir.channels) << "source " << i;
+  }
+}
+
+// kAuto traces 1 or 2 sources from themselves (computeIr's IRs) and 3 or
+// more from the listener.
+TEST(ComputeIrs, AutoSharesFromThreeSources) {
+  EXPECT_EQ(effectiveTraceMode(TraceMode::kAuto, 2), TraceMode::kPerSource);
+  EXPECT_EQ(effectiveTraceMode(TraceMode::kAuto, 3), TraceMode::kShared);
+  EXPECT_EQ(effectiveTraceMode(TraceMode::kPerSource, 30), TraceMode::kPerSource);
+  EXPECT_EQ(effectiveTraceMode(TraceMode::kShared, 1), TraceMode::kShared);
+  Room room;
+  OmniIrSettings s;
+  s.rays = 1000;
+  s.bounces = 6;
+  ThreadPool pool(2);
+  const std::vector<IrRequest> two = ringOfSources(2);
+  const Vec3d listener{7.2, 2.6, 1.6};
+  auto irs = computeIrs(*room.tracer, room.materials, listener, two, s, TraceMode::kAuto, pool);
+  ASSERT_TRUE(irs.isOk());
+  for (size_t i = 0; i < two.size(); ++i) {
+    auto one = computeIr(*room.tracer, room.materials, two[i].source, listener, s, pool, nullptr);
+    ASSERT_TRUE(one.isOk());
+    EXPECT_EQ((*irs)[i].ir.channels, one->ir.channels);
+  }
+  EXPECT_EQ(toString(TraceMode::kAuto), std::string("auto"));
+  EXPECT_FALSE(traceModeFromString("both").isOk());
+}
+
+}  // namespace earshot
