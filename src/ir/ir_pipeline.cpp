@@ -209,9 +209,10 @@ ReflectionSettings reflectionSettingsOf(const OmniIrSettings& s, const IrJob& jo
   return rs;
 }
 
-// Tail completion and synthesis; `traced` null when nothing was traced.
-Status finishIr(IrJob& job, ReflectionResult* traced, const OmniIrSettings& s, const BinauralReceiver* binaural,
-                const AmbisonicReceiver* ambisonic) {
+// Tail completion and synthesis; `traced` null when nothing was traced
+// (`shared`: by a shared trace, whose detector is the source).
+Status finishIr(IrJob& job, ReflectionResult* traced, bool shared, const OmniIrSettings& s,
+                const BinauralReceiver* binaural, const AmbisonicReceiver* ambisonic) {
   OmniIrResult& out = job.out;
   const EnergyHistogram* late = nullptr;
   if (traced) {
@@ -222,7 +223,8 @@ Status finishIr(IrJob& job, ReflectionResult* traced, const OmniIrSettings& s, c
                             " not traced, the histogram had converged to " + std::to_string(r.stats.estimatedErrorDb) +
                             " dB");
     if (r.stats.shadowRaysSkipped > 0 && r.stats.shadowRays == 0)
-      out.skipped.push_back("occlusion tests of diffuse reflections: the room is convex around the listener");
+      out.skipped.push_back(std::string("occlusion tests of diffuse reflections: the room is convex around the ") +
+                            (shared ? "source" : "listener"));
     out.timings.traceMs = r.stats.traceMs;
     auto t = std::chrono::steady_clock::now();
     if (s.completeTail) {
@@ -266,7 +268,7 @@ Result<OmniIrResult> computeIr(const RayTracer& tracer, const MaterialTable& mat
     traced = traceReflections(tracer, materials, source, listener, reflectionSettingsOf(s, job), pool);
     if (!traced->isOk()) return traced->status();
   }
-  EARSHOT_RETURN_IF_ERROR(finishIr(job, traced ? &traced->value() : nullptr, s, binaural, ambisonic));
+  EARSHOT_RETURN_IF_ERROR(finishIr(job, traced ? &traced->value() : nullptr, false, s, binaural, ambisonic));
   return std::move(job.out);
 }
 
@@ -356,7 +358,8 @@ Result<std::vector<OmniIrResult>> computeIrs(const RayTracer& tracer, const Mate
     }
     pool.parallelFor(g1 - g0, [&](size_t k, unsigned) {
       const size_t i = g0 + k;
-      status[i] = finishIr(jobs[i], traced.empty() ? nullptr : &traced[k], settingsOf(requests[i]), binaural, ambisonic);
+      status[i] =
+          finishIr(jobs[i], traced.empty() ? nullptr : &traced[k], true, settingsOf(requests[i]), binaural, ambisonic);
     });
   }
   for (size_t i = 0; i < requests.size(); ++i) {

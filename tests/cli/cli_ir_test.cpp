@@ -82,6 +82,27 @@ TEST(CliIr, JsonSaysWhatWasSkippedAndWhy) {
   EXPECT_EQ(s["flutter_cone_rays"], 0);  // rounds must each cover the sphere alike
 }
 
+// --trace shared (issue 16): rays from the listener, the source detecting;
+// --json names the trace and what it skipped around the source; with
+// --converge (a per-source option) it is a clear error and writes nothing.
+TEST(CliIr, SharedTraceIsReportedAndRefusesConvergence) {
+  TempDir dir("cli_shared_trace");
+  auto r = runEarshot("ir " + kShoebox + " --material-map " + kShoeboxMap +
+                      " --source 2,3.5,1.5 --listener 7,3.5,1.5 --receiver omni --rays 4096 --trace shared -o " +
+                      dir / "ir.wav --json " + dir / "s.json");
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  const auto s = nlohmann::json::parse(readFile(dir / "s.json"));
+  EXPECT_EQ(s["trace"], "shared");
+  std::string skipped;
+  for (const auto& line : s["skipped"]) skipped += line.get<std::string>() + "\n";
+  EXPECT_NE(skipped.find("convex around the source"), std::string::npos) << skipped;
+  auto bad = runEarshot("ir " + kShoebox + " --material-map " + kShoeboxMap +
+                        " --source 2,3.5,1.5 --listener 7,3.5,1.5 --trace shared --converge 1 -o " + dir / "bad.wav");
+  EXPECT_EQ(bad.exitCode, 2);
+  EXPECT_NE(bad.output.find("--converge works with --trace per-source only"), std::string::npos) << bad.output;
+  EXPECT_FALSE(std::filesystem::exists(dir / "bad.wav"));
+}
+
 // The sample shoebox's walls reflect enough for a flutter along its 10 m
 // axis: 1/8 of the rays sample it, unless told not to.
 TEST(CliIr, FlutterConesAreReportedAndCanBeTurnedOff) {

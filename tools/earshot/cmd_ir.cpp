@@ -178,6 +178,7 @@ int run(const IrOptions& o, const CLI::App& cmd) {
   for (auto& [key, value] : report.items()) stats[key] = std::move(value);
   stats["quality"] = o.quality;
   stats["receiver"] = o.receiver;
+  stats["trace"] = o.trace;
   stats["threads"] = pool.threadCount();
   if (stats["silent"].get<bool>()) warn("the IR is silent: nothing of the source reaches the listener", warnings);
 
