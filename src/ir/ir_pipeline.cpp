@@ -300,8 +300,9 @@ Result<std::vector<OmniIrResult>> computeIrs(const RayTracer& tracer, const Mate
     rs.includeDirect = r.includeDirect;
     return rs;
   };
-  auto named = [](size_t i, const Status& st) {
-    return Status(st.code(), "source " + std::to_string(i) + ": " + st.message());
+  auto named = [&](size_t i, const Status& st) {
+    const std::string& name = requests[i].name;
+    return Status(st.code(), (name.empty() ? "source " + std::to_string(i) : name) + ": " + st.message());
   };
   std::vector<OmniIrResult> out;
   out.reserve(requests.size());

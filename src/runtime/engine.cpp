@@ -616,7 +616,8 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& order) {
   if (effectiveTraceMode(mSettings.traceMode, jobs.size()) == TraceMode::kShared && !jobs.empty()) {
     // One trace from the listener for every source of this simulation.
     std::vector<IrRequest> requests;
-    for (const Job& j : jobs) requests.push_back({j.source, j.settings.directivity, j.settings.includeDirect});
+    for (const Job& j : jobs)
+      requests.push_back({j.source, j.settings.directivity, j.settings.includeDirect, "source " + std::to_string(j.slot)});
     auto r = computeIrs(*tracer, *materials, listener, requests, mSettings.simulation, TraceMode::kShared, *mPool,
                         binauralReceiver, ambisonicReceiver);
     if (!r.isOk()) return r.status();

@@ -176,7 +176,7 @@ TEST(Engine, StaticSourceIsTheDrySignalConvolvedWithTheIr) {
   ThreadPool pool(1);
   BinauralReceiver receiver{model, o};
   OmniIrSettings is = es.simulation;
-  auto irs = computeIrs(*room.tracer, *room.materials, listener, {IrRequest{source, {}, true}}, is, es.traceMode, pool,
+  auto irs = computeIrs(*room.tracer, *room.materials, listener, {IrRequest{source, {}, true, {}}}, is, es.traceMode, pool,
                         &receiver);
   ASSERT_TRUE(irs.isOk());
   const OmniIrResult* ir = &irs->front();

@@ -187,7 +187,7 @@ Result<PointResult> evaluatePoint(const RayTracer& tracer, const MaterialTable& 
     OmniIrSettings s = settings;
     s.seed = uint64_t(i + 1);
     const auto t0 = std::chrono::steady_clock::now();
-    auto r = computeIrs(tracer, materials, listener, {IrRequest{source, s.directivity, s.includeDirect}}, s, trace, pool);
+    auto r = computeIrs(tracer, materials, listener, {IrRequest{source, s.directivity, s.includeDirect, {}}}, s, trace, pool);
     seconds.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
     if (!r.isOk()) return Status(r.status().code(), label + ": " + r.status().message());
     auto m = an::analyzeIr(r->front().ir.channels[0], rateHz);

@@ -126,6 +126,7 @@ struct IrRequest {
   Vec3d source;
   Directivity directivity;     ///< instead of the settings' directivity
   bool includeDirect = true;   ///< instead of the settings' includeDirect
+  std::string name;            ///< in error messages; empty: "source <index in the requests>"
 };
 
 /** computeIrs's shared traces take at most as many sources at once as keep
