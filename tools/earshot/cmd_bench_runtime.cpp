@@ -73,12 +73,9 @@ int run(const BenchRuntimeOptions& o) {
   std::shared_ptr<const RayTracer> tracer = std::move(scene->tracer);
   engine.setScene(tracer, std::make_shared<const MaterialTable>(scene->materials));
   const Vec3f lo = tracer->boundsMin(), hi = tracer->boundsMax();
-  const Vec3d centre = (Vec3d(lo) + Vec3d(hi)) * 0.5, half = (Vec3d(hi) - Vec3d(lo)) * 0.5;
-  // Sources circle the centre inside the bounds; z is the up axis of the samples.
-  auto sourceAt = [&](unsigned i, double t) {
-    const double a = 2 * kPi * (double(i) / o.sources + 0.05 * t);
-    return Vec3d(centre.x + 0.6 * half.x * std::cos(a), centre.y + 0.6 * half.y * std::sin(a), centre.z);
-  };
+  const Vec3d centre = (Vec3d(lo) + Vec3d(hi)) * 0.5;
+  // Sources circle the centre inside the bounds (ringPosition).
+  auto sourceAt = [&](unsigned i, double t) { return ringPosition(*tracer, 2 * kPi * (double(i) / o.sources + 0.05 * t)); };
   std::vector<uint32_t> ids;
   for (unsigned i = 0; i < o.sources; ++i) {
     auto id = engine.addSource({});

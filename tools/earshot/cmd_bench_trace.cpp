@@ -34,16 +34,10 @@ struct BenchTraceOptions {
   unsigned sharedSources = 0;
 };
 
-// `count` sources on a horizontal ring (z up, as the samples) around the
-// scene's centre at 0.6 of its half extents.
+// `count` sources spread over the benchmarks' ring (ringPosition).
 std::vector<Vec3d> ringSources(const RayTracer& tracer, unsigned count) {
-  const Vec3d lo(tracer.boundsMin()), hi(tracer.boundsMax());
-  const Vec3d centre = (lo + hi) * 0.5, half = (hi - lo) * 0.5;
   std::vector<Vec3d> out;
-  for (unsigned i = 0; i < count; ++i) {
-    const double a = 2 * kPi * (double(i) + 0.5) / double(count);
-    out.push_back({centre.x + 0.6 * half.x * std::cos(a), centre.y + 0.6 * half.y * std::sin(a), centre.z});
-  }
+  for (unsigned i = 0; i < count; ++i) out.push_back(ringPosition(tracer, 2 * kPi * (double(i) + 0.5) / double(count)));
   return out;
 }
 

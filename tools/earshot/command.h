@@ -58,6 +58,11 @@ Result<SceneInputs> loadSceneInputs(const std::string& geometryPath, const std::
 /** Median of a non-empty set (benchmarks report medians: shared machines). */
 double median(std::vector<double> values);
 
+/** The benchmarks' source placement: at `angle` (radians) on a horizontal
+ *  ring (z up, as the samples) around the scene's centre, at 0.6 of its
+ *  half extents. */
+Vec3d ringPosition(const RayTracer& tracer, double angle);
+
 /** Parses "X,Y,Z" (three finite numbers) for an option; a CLI11 validator
  *  rejects NaN/Inf and wrong counts with a message naming the option. */
 CLI::Option* addVec3Option(CLI::App& app, const std::string& name, std::array<double, 3>& out,

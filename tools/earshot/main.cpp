@@ -104,6 +104,12 @@ double median(std::vector<double> v) {
   return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
 }
 
+Vec3d ringPosition(const RayTracer& tracer, double angle) {
+  const Vec3d lo(tracer.boundsMin()), hi(tracer.boundsMax());
+  const Vec3d centre = (lo + hi) * 0.5, half = (hi - lo) * 0.5;
+  return {centre.x + 0.6 * half.x * std::cos(angle), centre.y + 0.6 * half.y * std::sin(angle), centre.z};
+}
+
 CLI::Option* addVec3Option(CLI::App& app, const std::string& name, std::array<double, 3>& out,
                            const std::string& description) {
   auto* opt = app.add_option_function<std::string>(
