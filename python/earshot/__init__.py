@@ -32,8 +32,9 @@ __version__ = _earshot.__version__
 BANDS_HZ = tuple(_earshot.bands_hz)
 RECEIVERS = ("omni", "binaural")
 QUALITIES = ("draft", "balanced", "high", "reference")
+TRACE_MODES = ("per-source", "shared", "auto")
 
-__all__ = ["Scene", "IR", "Render", "render", "analysis", "BANDS_HZ", "RECEIVERS", "QUALITIES"]
+__all__ = ["Scene", "IR", "Render", "render", "analysis", "BANDS_HZ", "RECEIVERS", "QUALITIES", "TRACE_MODES"]
 
 _MAX_JSON_FILE_BYTES = 64 << 20
 
@@ -130,7 +131,7 @@ def _materials_args(materials):
 
 
 _IR_ARGS = ("receiver", "forward", "up", "quality", "rays", "bounces", "ism_order", "bin_ms", "tail_probes",
-            "sample_rate", "length", "air", "hrtf", "receiver_radius", "converge", "flutter_cones")
+            "sample_rate", "length", "air", "hrtf", "receiver_radius", "converge", "flutter_cones", "trace")
 
 
 class IR:
@@ -154,7 +155,7 @@ class IR:
         self.time_ms = report.pop("time_ms")
         settings = report.pop("settings")
         params = {"source": list(source), "listener": list(listener), "receiver": raw["receiver"],
-                  "quality": raw["quality"]}
+                  "quality": raw["quality"], "trace": raw["trace"]}
         params.update(settings)
         if raw["receiver"] == "binaural":
             params["forward"] = list(kwargs["forward"])
@@ -292,7 +293,7 @@ class Scene:
     def _kwargs(self, receiver="binaural", order=None, forward=(0.0, 0.0, -1.0), up=(0.0, 1.0, 0.0),
                 quality="balanced", rays=None, bounces=None, ism_order=None, bin_ms=None, tail_probes=None,
                 sample_rate=48000.0, length=None, air="20,50", hrtf=None, receiver_radius=0.0, converge=0.0,
-                flutter_cones=True):
+                flutter_cones=True, trace="per-source"):
         if not isinstance(receiver, str):
             raise TypeError("receiver: expected 'omni', 'binaural' or 'ambisonic'")
         if order is not None and receiver != "ambisonic":
@@ -305,6 +306,8 @@ class Scene:
             order = 0
         if not isinstance(quality, str):
             raise TypeError("quality: expected one of " + ", ".join(QUALITIES))
+        if not isinstance(trace, str):
+            raise TypeError("trace: expected one of " + ", ".join(TRACE_MODES))
         h = ""
         if hrtf is not None:
             h = _path(hrtf)
@@ -318,7 +321,7 @@ class Scene:
                     tail_probes=_optional_uint("tail_probes", tail_probes),
                     sample_rate=_number("sample_rate", sample_rate), length=_number("length", length, True),
                     air=_air(air), hrtf=h, receiver_radius=_number("receiver_radius", receiver_radius),
-                    converge=_number("converge", converge), flutter_cones=bool(flutter_cones))
+                    converge=_number("converge", converge), flutter_cones=bool(flutter_cones), trace=trace)
 
     def ir(self, source, listener, *, seed=1, threads=0, **options):
         """The IR from `source` to `listener` (metres). Options (as `earshot
@@ -330,8 +333,10 @@ class Scene:
         'reference' and any of rays, bounces, ism_order, bin_ms, tail_probes
         over it, sample_rate (Hz), length (s, default from the decay), air
         ('off', 'T,H' or (T, H)), receiver_radius, converge (dB),
-        flutter_cones; seed; threads (0: all cores). The GIL is released
-        while it computes."""
+        flutter_cones, trace ('per-source', the default: rays from the
+        source; 'shared': rays from the listener, by reciprocity the same
+        energies, see ir_batch; 'auto': per source for one pair); seed;
+        threads (0: all cores). The GIL is released while it computes."""
         kw = self._kwargs(**options)
         src, lis = _vec3("source", source), _vec3("listener", listener)
         raw = self._s.ir(src, lis, seed=_seed(seed), threads=_threads(threads), **_engine_args(kw))
@@ -342,7 +347,15 @@ class Scene:
         i gets seed + i, and equals ir(source_i, listener_i, seed=seed + i).
         Runs whole IRs in parallel on `threads` (0: all cores) with the GIL
         released; nothing is loaded again. Returns a list of IR. (Each IR is
-        kept: for very many, call it on chunks, or use earshot.dataset.)"""
+        kept: for very many, call it on chunks, or use earshot.dataset.)
+
+        trace='shared': the pairs with the same listener are traced together,
+        one trace from the listener on all threads for all their sources
+        (far cheaper than a trace each for many sources: docs/performance.md),
+        with seed + the index of the group's first pair; pair k then equals
+        ir(source_k, listener, seed=that seed, trace='shared'). trace='auto':
+        shared for listeners with 3 pairs or more, the others per source.
+        Each IR's params['trace'] says which it got."""
         kw = self._kwargs(**options)
         if isinstance(pairs, _np.ndarray):
             if pairs.ndim != 3 or pairs.shape[1:] != (2, 3):
@@ -409,7 +422,7 @@ def _engine_args(kw):
                 rays=kw["rays"], bounces=kw["bounces"], ismOrder=kw["ism_order"], binMs=kw["bin_ms"],
                 tailProbes=kw["tail_probes"], sampleRate=kw["sample_rate"], length=kw["length"], air=kw["air"],
                 hrtf=kw["hrtf"], receiverRadius=kw["receiver_radius"], converge=kw["converge"],
-                flutterCones=kw["flutter_cones"], order=kw["order"])
+                flutterCones=kw["flutter_cones"], order=kw["order"], trace=kw["trace"])
 
 
 def _seed(seed):

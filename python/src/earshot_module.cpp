@@ -201,6 +201,8 @@ struct IrOptions {
   ListenerOrientation orientation;
   std::string quality;
   std::string receiver;
+  TraceMode trace = TraceMode::kPerSource;
+  std::string traceName = "per-source";
 };
 
 IrOptions makeRequest(const std::string& receiver, const std::array<double, 3>& forward,
@@ -208,8 +210,13 @@ IrOptions makeRequest(const std::string& receiver, const std::array<double, 3>& 
                       std::optional<uint32_t> bounces, std::optional<uint32_t> ismOrder, std::optional<double> binMs,
                       std::optional<uint32_t> tailProbes, uint64_t seed, double sampleRate,
                       std::optional<double> lengthSeconds, const std::string& air, const std::string& hrtf,
-                      double receiverRadius, double convergeDb, bool flutterCones, int order) {
+                      double receiverRadius, double convergeDb, bool flutterCones, int order,
+                      const std::string& trace) {
   IrOptions q;
+  auto mode = traceModeFromString(trace);
+  if (!mode.isOk()) throw py::value_error("trace: expected 'per-source', 'shared' or 'auto', got '" + trace.substr(0, 32) + "'");
+  q.trace = *mode;
+  q.traceName = trace;
   if (receiver != "omni" && receiver != "binaural" && receiver != "ambisonic")
     throw py::value_error("receiver: expected 'omni', 'binaural' or 'ambisonic', got '" + receiver.substr(0, 32) + "'");
   if (receiver != "binaural" && !hrtf.empty()) throw py::value_error("hrtf: an HRTF applies only to receiver='binaural'");
@@ -258,6 +265,8 @@ IrOptions makeRequest(const std::string& receiver, const std::array<double, 3>& 
   s.receiverRadiusMeters = receiverRadius;
   if (!(convergeDb >= 0 && convergeDb <= 20)) throw py::value_error("converge: expected 0 .. 20 dB");
   s.convergenceDb = convergeDb;
+  if (convergeDb > 0 && q.trace != TraceMode::kPerSource)
+    throw py::value_error("converge: works with trace='per-source' only (a shared trace traces every ray)");
   s.flutterCones = flutterCones;
   checkVec("forward", forward);
   checkVec("up", up);
@@ -278,27 +287,25 @@ struct IrOut {
   std::vector<std::string> warnings;
 };
 
-IrOut computeOne(SceneData& scene, const IrOptions& q, const std::array<double, 3>& src,
-                 const std::array<double, 3>& lis, uint64_t seed, ThreadPool& pool) {
-  IrOut out;
+/** The IRs of `sources` at one listener, traced as q.trace says
+ *  (computeIrs: per source, bit-identical to computeIr, or one shared
+ *  listener-centred trace), in `sources` order. */
+std::vector<IrOut> computeGroup(SceneData& scene, const IrOptions& q, const std::vector<std::array<double, 3>>& sources,
+                                const std::array<double, 3>& lis, uint64_t seed, ThreadPool& pool) {
+  std::vector<IrOut> outs(sources.size());
+  auto fail = [&](const Status& st) {
+    for (IrOut& o : outs) o.status = st;
+    return outs;
+  };
   OmniIrSettings s = q.settings;
   s.seed = seed;
   std::unique_ptr<BinauralReceiver> bin;
   if (q.binaural) {
     auto model = scene.hrtf(q.hrtfPath, s.sampleRateHz);
-    if (!model.isOk()) {
-      out.status = model.status();
-      return out;
-    }
+    if (!model.isOk()) return fail(model.status());
     bin = std::make_unique<BinauralReceiver>();
     bin->model = *model;
     bin->orientation = q.orientation;
-  }
-  const Vec3d source = vec(src), listener = vec(lis);
-  if (!scene.tracer->empty() && scene.closed) {
-    for (auto [p, name] : {std::pair{listener, "listener"}, std::pair{source, "source"}})
-      if (enclosureOf(*scene.tracer, true, p) == Enclosure::kOutside)
-        out.warnings.push_back(std::string(name) + " lies outside the closed volume of " + scene.name);
   }
   std::unique_ptr<AmbisonicReceiver> amb;
   if (q.ambisonicOrder > 0) {
@@ -306,14 +313,31 @@ IrOut computeOne(SceneData& scene, const IrOptions& q, const std::array<double, 
     amb->order = q.ambisonicOrder;
     amb->frame.worldToFrame = worldToAmbisonicFrame(q.orientation.forward, q.orientation.up);
   }
-  auto r = computeIr(*scene.tracer, scene.materials, source, listener, s, pool, bin.get(), amb.get());
-  if (!r.isOk()) {
-    out.status = r.status();
-    return out;
+  const Vec3d listener = vec(lis);
+  const bool checkInside = !scene.tracer->empty() && scene.closed;
+  const bool listenerOutside = checkInside && enclosureOf(*scene.tracer, true, listener) == Enclosure::kOutside;
+  std::vector<IrRequest> requests(sources.size());
+  for (size_t k = 0; k < sources.size(); ++k) {
+    requests[k].source = vec(sources[k]);
+    requests[k].directivity = s.directivity;
+    requests[k].includeDirect = s.includeDirect;
+    if (listenerOutside) outs[k].warnings.push_back("listener lies outside the closed volume of " + scene.name);
+    if (checkInside && enclosureOf(*scene.tracer, true, requests[k].source) == Enclosure::kOutside)
+      outs[k].warnings.push_back("source lies outside the closed volume of " + scene.name);
   }
-  out.report = irReportJson(*r, s, !scene.tracer->empty());
-  out.ir = std::move(r->ir);
-  return out;
+  auto r = computeIrs(*scene.tracer, scene.materials, listener, requests, s, q.trace, pool, bin.get(), amb.get());
+  if (!r.isOk()) return fail(r.status());
+  for (size_t k = 0; k < sources.size(); ++k) {
+    OmniIrResult& result = (*r)[k];
+    outs[k].report = irReportJson(result, s, !scene.tracer->empty());
+    outs[k].ir = std::move(result.ir);
+  }
+  return outs;
+}
+
+IrOut computeOne(SceneData& scene, const IrOptions& q, const std::array<double, 3>& src,
+                 const std::array<double, 3>& lis, uint64_t seed, ThreadPool& pool) {
+  return std::move(computeGroup(scene, q, {src}, lis, seed, pool).front());
 }
 
 py::dict toPython(IrOut&& o, const IrOptions& q) {
@@ -330,6 +354,7 @@ py::dict toPython(IrOut&& o, const IrOptions& q) {
   d["warnings"] = o.warnings;
   d["quality"] = q.quality;
   d["receiver"] = q.receiver;
+  d["trace"] = q.traceName;
   return d;
 }
 
@@ -344,35 +369,79 @@ py::dict irOne(SceneData& scene, const P3& source, const P3& listener, const IrO
     ThreadPool pool(threads);
     out = computeOne(scene, q, source, listener, q.settings.seed, pool);
   }
-  return toPython(std::move(out), q);
+  IrOptions named = q;
+  named.traceName = toString(effectiveTraceMode(q.trace, 1));
+  return toPython(std::move(out), named);
 }
 
-/** Pair i with seed + i, pairs handed out one at a time to `threads`
- *  (each IR on one thread: IRs are bit-identical whatever the thread count,
- *  and whole IRs in parallel scale better than one IR's stages). Only the
- *  IRs' samples and reports are kept until all are done. */
+/** Per source (q.trace kPerSource): pair i with seed + i, pairs handed out
+ *  one at a time to `threads` (each IR on one thread: IRs are bit-identical
+ *  whatever the thread count, and whole IRs in parallel scale better than
+ *  one IR's stages). Shared (or auto, for listeners with at least
+ *  kAutoSharedTraceSources pairs): the pairs with the same listener are one
+ *  group, traced together on all threads with seed + the index of the
+ *  group's first pair; auto's smaller groups go per source as above. Only
+ *  the IRs' samples and reports are kept until all are done. */
 py::list irBatch(SceneData& scene, const std::vector<std::pair<P3, P3>>& pairs, const IrOptions& q,
                  unsigned threads) {
   for (size_t i = 0; i < pairs.size(); ++i) {
     checkVec(("pairs[" + std::to_string(i) + "] source").c_str(), pairs[i].first);
     checkVec(("pairs[" + std::to_string(i) + "] listener").c_str(), pairs[i].second);
   }
+  // Groups of pairs by listener, in the order of their first pair.
+  std::vector<std::vector<size_t>> groups;
+  std::vector<size_t> single;  // pairs traced on their own
+  if (q.trace == TraceMode::kPerSource) {
+    for (size_t i = 0; i < pairs.size(); ++i) single.push_back(i);
+  } else {
+    std::map<P3, size_t> groupOf;
+    for (size_t i = 0; i < pairs.size(); ++i) {
+      auto [it, added] = groupOf.try_emplace(pairs[i].second, groups.size());
+      if (added) groups.emplace_back();
+      groups[it->second].push_back(i);
+    }
+    std::vector<std::vector<size_t>> shared;
+    for (auto& g : groups) {
+      if (effectiveTraceMode(q.trace, g.size()) == TraceMode::kShared) shared.push_back(std::move(g));
+      else single.insert(single.end(), g.begin(), g.end());
+    }
+    groups = std::move(shared);
+    std::sort(single.begin(), single.end());
+  }
   std::vector<IrOut> outs(pairs.size());
   {
     py::gil_scoped_release release;
     ThreadPool pool(threads);
-    if (pairs.size() == 1 || pool.threadCount() == 1) {
-      for (size_t k = 0; k < pairs.size(); ++k)
-        outs[k] = computeOne(scene, q, pairs[k].first, pairs[k].second, q.settings.seed + k, pool);
+    IrOptions perSource = q;
+    perSource.trace = TraceMode::kPerSource;
+    if (single.size() == 1 || pool.threadCount() == 1) {
+      for (size_t k : single)
+        outs[k] = computeOne(scene, perSource, pairs[k].first, pairs[k].second, q.settings.seed + k, pool);
     } else {
-      pool.parallelFor(pairs.size(), [&](size_t k, unsigned) {
+      pool.parallelFor(single.size(), [&](size_t j, unsigned) {
         ThreadPool one(1);
-        outs[k] = computeOne(scene, q, pairs[k].first, pairs[k].second, q.settings.seed + k, one);
+        const size_t k = single[j];
+        outs[k] = computeOne(scene, perSource, pairs[k].first, pairs[k].second, q.settings.seed + k, one);
       });
     }
+    for (const auto& g : groups) {
+      std::vector<P3> sources;
+      for (size_t k : g) sources.push_back(pairs[k].first);
+      IrOptions shared = q;
+      shared.trace = TraceMode::kShared;
+      std::vector<IrOut> r = computeGroup(scene, shared, sources, pairs[g.front()].second, q.settings.seed + g.front(), pool);
+      for (size_t j = 0; j < g.size(); ++j) outs[g[j]] = std::move(r[j]);
+    }
   }
+  std::vector<bool> traced(pairs.size(), false);  // in a shared trace
+  for (const auto& g : groups)
+    for (size_t k : g) traced[k] = true;
   py::list results;
-  for (auto& o : outs) results.append(toPython(std::move(o), q));
+  IrOptions named = q;
+  for (size_t k = 0; k < outs.size(); ++k) {
+    named.traceName = toString(traced[k] ? TraceMode::kShared : TraceMode::kPerSource);
+    results.append(toPython(std::move(outs[k]), named));
+  }
   return results;
 }
 
@@ -623,32 +692,32 @@ PYBIND11_MODULE(_earshot, m) {
               std::optional<uint32_t> ismOrder, std::optional<double> binMs, std::optional<uint32_t> tailProbes,
               uint64_t seed, double sampleRate, std::optional<double> length, const std::string& air,
               const std::string& hrtf, double receiverRadius, double converge, bool flutterCones, unsigned threads,
-              int order) {
+              int order, const std::string& trace) {
              const IrOptions q = makeRequest(receiver, forward, up, quality, rays, bounces, ismOrder, binMs, tailProbes,
                                              seed, sampleRate, length, air, hrtf, receiverRadius, converge,
-                                             flutterCones, order);
+                                             flutterCones, order, trace);
              return irOne(s, source, listener, q, threads);
            },
            py::arg("source"), py::arg("listener"), py::arg("receiver"), py::arg("forward"), py::arg("up"), py::arg("quality"), py::arg("rays"),
            py::arg("bounces"), py::arg("ismOrder"), py::arg("binMs"), py::arg("tailProbes"), py::arg("seed"),
            py::arg("sampleRate"), py::arg("length"), py::arg("air"), py::arg("hrtf"), py::arg("receiverRadius"),
-           py::arg("converge"), py::arg("flutterCones"), py::arg("threads"), py::arg("order"))
+           py::arg("converge"), py::arg("flutterCones"), py::arg("threads"), py::arg("order"), py::arg("trace"))
       .def("ir_batch",
            [](SceneData& s, const std::vector<std::pair<P3, P3>>& pairs, const std::string& receiver,
               const P3& forward, const P3& up, const std::string& quality, std::optional<uint32_t> rays,
               std::optional<uint32_t> bounces, std::optional<uint32_t> ismOrder, std::optional<double> binMs,
               std::optional<uint32_t> tailProbes, uint64_t seed, double sampleRate, std::optional<double> length,
               const std::string& air, const std::string& hrtf, double receiverRadius, double converge,
-              bool flutterCones, unsigned threads, int order) {
+              bool flutterCones, unsigned threads, int order, const std::string& trace) {
              const IrOptions q = makeRequest(receiver, forward, up, quality, rays, bounces, ismOrder, binMs, tailProbes,
                                              seed, sampleRate, length, air, hrtf, receiverRadius, converge,
-                                             flutterCones, order);
+                                             flutterCones, order, trace);
              return irBatch(s, pairs, q, threads);
            },
            py::arg("pairs"), py::arg("receiver"), py::arg("forward"), py::arg("up"), py::arg("quality"), py::arg("rays"),
            py::arg("bounces"), py::arg("ismOrder"), py::arg("binMs"), py::arg("tailProbes"), py::arg("seed"),
            py::arg("sampleRate"), py::arg("length"), py::arg("air"), py::arg("hrtf"), py::arg("receiverRadius"),
-           py::arg("converge"), py::arg("flutterCones"), py::arg("threads"), py::arg("order"));
+           py::arg("converge"), py::arg("flutterCones"), py::arg("threads"), py::arg("order"), py::arg("trace"));
 
   m.def("_analyze", &analyze);
   m.def("_binaural", &binaural);

@@ -80,6 +80,48 @@ def test_batch_pair_i_is_ir_with_seed_plus_i(shoebox):
     assert not np.array_equal(batch[0].samples[:, :1000], batch[1].samples[:, :1000])
 
 
+def test_shared_trace_equals_the_cli(tmp_path, shoebox):
+    """trace='shared' (issue 16): `earshot ir --trace shared`'s IR bit for
+    bit; the listener-centred trace gives another realisation than the
+    source's own, so the samples differ, not the energies."""
+    x, _, stats = cli_ir(tmp_path, SHOEBOX, "--material-map", SHOEBOX_MAP, "--source", "2,3.5,1.5",
+                         "--listener", "7,3.5,1.5", "--receiver", "omni", "--seed", 5, "--quality", "draft",
+                         "--trace", "shared")
+    r = shoebox.ir(SRC, LIS, receiver="omni", seed=5, quality="draft", trace="shared", threads=1)
+    assert np.array_equal(r.samples, x)
+    assert r.params["trace"] == stats["trace"] == "shared"
+    own = shoebox.ir(SRC, LIS, receiver="omni", seed=5, quality="draft")
+    assert own.params["trace"] == "per-source"
+    assert not np.array_equal(own.samples, r.samples)
+    assert np.sum(own.samples.astype(np.float64) ** 2) == pytest.approx(np.sum(r.samples.astype(np.float64) ** 2),
+                                                                         rel=0.1)
+    # auto is per source for one pair.
+    assert shoebox.ir(SRC, LIS, receiver="omni", quality="draft", trace="auto").params["trace"] == "per-source"
+
+
+def test_shared_batch_groups_the_pairs_by_listener(shoebox):
+    """ir_batch(trace='shared'): the pairs at one listener are one trace with
+    seed + the index of the group's first pair, and each IR equals that
+    source traced alone the same way (a source's IR does not depend on who
+    shares its trace); auto leaves a listener with fewer than 3 pairs per
+    source."""
+    other = (3.0, 2.0, 1.2)
+    pairs = [((2, 3.5, 1.5), LIS), ((1, 1, 1), other), ((5, 5, 2), LIS), ((8, 1, 2), LIS), ((6, 6, 1), other)]
+    shared = shoebox.ir_batch(pairs, receiver="omni", quality="draft", seed=20, threads=2, trace="shared")
+    assert [r.params["trace"] for r in shared] == ["shared"] * 5
+    for k, first in [(0, 0), (2, 0), (3, 0), (1, 1), (4, 1)]:
+        alone = shoebox.ir(pairs[k][0], pairs[k][1], receiver="omni", quality="draft", seed=20 + first,
+                           trace="shared", threads=1)
+        assert np.array_equal(shared[k].samples, alone.samples), k
+    auto = shoebox.ir_batch(pairs, receiver="omni", quality="draft", seed=20, threads=2, trace="auto")
+    assert [r.params["trace"] for r in auto] == ["shared", "per-source", "shared", "shared", "per-source"]
+    for k in (0, 2, 3):
+        assert np.array_equal(auto[k].samples, shared[k].samples), k
+    for k in (1, 4):
+        own = shoebox.ir(pairs[k][0], pairs[k][1], receiver="omni", quality="draft", seed=20 + k, threads=1)
+        assert np.array_equal(auto[k].samples, own.samples), k
+
+
 def test_batch_accepts_an_array_and_is_thread_count_independent(shoebox):
     pairs = np.array([[[2, 3.5, 1.5], [7, 3.5, 1.5]], [[3, 3, 1], [6, 4, 2]]], dtype=np.float32)
     a = shoebox.ir_batch(pairs, receiver="binaural", quality="draft", threads=1)
@@ -158,6 +200,9 @@ def test_from_arrays_with_material_dicts():
     (dict(hrtf="/nonexistent.sofa"), FileNotFoundError, "nonexistent"),
     (dict(receiver="omni", hrtf="x.sofa"), ValueError, "hrtf"),
     (dict(order=2), ValueError, "order"),
+    (dict(trace="both"), ValueError, "trace"),
+    (dict(trace=1), TypeError, "trace"),
+    (dict(trace="shared", converge=0.5), ValueError, "converge"),
 ])
 def test_bad_arguments_raise(shoebox, kwargs, exc, text):
     args = dict(source=SRC, listener=LIS, quality="draft")
