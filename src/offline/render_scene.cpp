@@ -198,6 +198,32 @@ Result<RenderResult> renderScene(const SceneDescription& scene, const RenderOpti
                           scene.geometryPath);
   }
 
+  // Dry audio, while the HRTF still loads: each file once, however many
+  // sources play it (dry[dryOf[i]] is source i's).
+  std::vector<DryAudio> dry;
+  std::vector<size_t> dryOf;
+  std::vector<double> dryLengths;
+  for (const SceneSource& src : scene.sources) {
+    size_t k = 0;
+    while (k < dryOf.size() && scene.sources[k].audioPath != src.audioPath) ++k;
+    if (k < dryOf.size()) {
+      dryOf.push_back(dryOf[k]);
+      out.log.push_back("source \"" + src.name + "\": the audio of source \"" + scene.sources[k].name + "\"");
+    } else {
+      std::string line;
+      auto d = loadDryAudio(src.audioPath, fs, &line);
+      if (!d.isOk()) return Status(d.status().code(), "source \"" + src.name + "\": " + d.status().message());
+      out.log.push_back("source \"" + src.name + "\": " + line);
+      heldBytes += double(d->samples.size()) * sizeof(float);
+      if (heldBytes > double(budget))
+        return outOfRange("source \"" + src.name + "\": " + src.audioPath + ": the sources' dry audio and convolution "
+                          "state need over the memory limit of " + formatBytes(budget) + " (--max-memory)");
+      dryOf.push_back(dry.size());
+      dry.push_back(std::move(d.value()));
+    }
+    dryLengths.push_back(double(dry[dryOf.back()].samples.size()) / fs);
+  }
+
   // HRTF and engine.
   auto model = modelLoad.get();
   if (!model.isOk()) return model.status();
@@ -207,23 +233,11 @@ Result<RenderResult> renderScene(const SceneDescription& scene, const RenderOpti
   runtime::Engine& engine = **created;
   engine.setScene(sharedTracer, materials);
 
-  // Dry audio and sources.
-  std::vector<DryAudio> dry;
-  std::vector<double> dryLengths;
+  // Sources.
   std::vector<uint32_t> ids;
   std::vector<long long> startFrame;
   const bool listenerStatic = scene.listener.trajectory.isStatic();
   for (const SceneSource& src : scene.sources) {
-    std::string line;
-    auto d = loadDryAudio(src.audioPath, fs, &line);
-    if (!d.isOk()) return Status(d.status().code(), "source \"" + src.name + "\": " + d.status().message());
-    out.log.push_back("source \"" + src.name + "\": " + line);
-    heldBytes += double(d->samples.size()) * sizeof(float);
-    if (heldBytes > double(budget))
-      return outOfRange("source \"" + src.name + "\": " + src.audioPath + ": the sources' dry audio and convolution "
-                        "state need over the memory limit of " + formatBytes(budget) + " (--max-memory)");
-    dryLengths.push_back(double(d->samples.size()) / fs);
-    dry.push_back(std::move(d.value()));
     runtime::SourceSettings s;
     s.gainDb = clampGainDb(src.gainDb);
     s.directivityAlpha = src.directivityAlpha;
@@ -359,7 +373,7 @@ Result<RenderResult> renderScene(const SceneDescription& scene, const RenderOpti
     // Poses at the block's end: the direct sound moves across the block.
     EARSHOT_RETURN_IF_ERROR(setPoses(double(sceneFrame + (long long)block) / fs));
     for (size_t i = 0; i < ids.size(); ++i) {
-      const std::vector<float>& x = dry[i].samples;
+      const std::vector<float>& x = dry[dryOf[i]].samples;
       for (size_t k = 0; k < block; ++k) {
         const long long at = sceneFrame + (long long)k - startFrame[i];
         input[i][k] = at >= 0 && at < (long long)x.size() ? x[size_t(at)] : 0.0f;

@@ -333,6 +333,36 @@ TEST(RenderCli, ThreadCountDoesNotChangeTheOutput) {
   EXPECT_TRUE(readFile(dir / "a.wav") == readFile(dir / "b.wav"));
 }
 
+// Sources that play the same file share one load of it (read and resampled
+// once, while the HRTF loads); the render is the one two copies of the file
+// give, and the log says which source's audio a source plays.
+TEST(RenderCli, SourcesPlayingOneFileLoadItOnce) {
+  TempDir dir("render_shared_audio");
+  std::vector<float> x = sine(250.0, 1.0);
+  for (size_t i = 0; i < x.size(); i += 7) x[i] *= 0.5f;  // not a pure tone
+  AudioBuffer b(1, x.size(), 44100.0);  // resampled to 48 kHz
+  b.channels[0] = x;
+  ASSERT_TRUE(writeWavFloat(dir / "a.wav", b).isOk());
+  ASSERT_TRUE(writeWavFloat(dir / "b.wav", b).isOk());
+  auto scene = [&](const std::string& second) {
+    std::ofstream(dir / "scene.json") << R"({"geometry": ")" << kSamples << R"(shoebox/shoebox.gltf",
+      "material_map": ")" << kSamples << R"(shoebox/materials_map.json",
+      "listener": {"position": [7, 3.5, 1.5], "forward": [-1, 0, 0], "up": [0, 0, 1]},
+      "sources": [{"name": "one", "audio": "a.wav", "position": [2, 2, 1.5]},
+                  {"name": "two", "audio": ")" << second << R"(", "position": [3, 5, 1.2]}],
+      "settings": {"quality": "draft", "duration": 1.2}})";
+  };
+  scene("a.wav");
+  auto shared = runEarshot("--allow-outside-paths render " + dir / "scene.json" + " -o " + dir / "shared.wav");
+  scene("b.wav");
+  auto copies = runEarshot("--allow-outside-paths render " + dir / "scene.json" + " -o " + dir / "copies.wav");
+  ASSERT_EQ(shared.exitCode, 0) << shared.output;
+  ASSERT_EQ(copies.exitCode, 0) << copies.output;
+  EXPECT_NE(shared.output.find("source \"two\": the audio of source \"one\""), std::string::npos) << shared.output;
+  EXPECT_EQ(copies.output.find("the audio of source"), std::string::npos) << copies.output;
+  EXPECT_TRUE(readFile(dir / "shared.wav") == readFile(dir / "copies.wav"));
+}
+
 // --from/--to: a window that starts within the 2 s pre-roll is exactly that
 // part of the full render (the same blocks, updates and reverberation); a
 // window ending before it starts is an error.
