@@ -242,6 +242,50 @@ Status probeSofaFile(const std::string& path, uint64_t maxBytes) {
                     ")");
 }
 
+// One measurement's preparation, both ears: the onsets at the file's rate,
+// then resampling to the engine's and minimum phase. Resampling keeps
+// margins that hold the whole interpolation kernel (its tails before tap 0
+// and after the last tap), so the minimum-phase version, which moves that
+// energy to the front, loses none of it. Scratch for one thread.
+class MeasurementPreparer {
+ public:
+  MeasurementPreparer(std::size_t n, double fsIn, double rate)
+      : mN(n), mFsIn(fsIn), mRate(rate), mLength(std::size_t(std::ceil(double(n) * rate / fsIn))),
+        mMargin(std::size_t(std::ceil(detail::SincKernel::kZeroCrossings / std::min(1.0, 0.95 * rate / fsIn) *
+                                      rate / fsIn))),
+        mPadded(mLength + 2 * mMargin),
+        mEstimator(n, std::min(kOnsetLowpassHz, 0.25 * fsIn) / fsIn),
+        mMinPhase(mPadded),
+        mResampled(2 * mPadded, 0.0f) {}
+  /** HRIR taps per ear at the engine's rate. */
+  std::size_t length() const { return mLength; }
+  /** left: n taps, the right ear's n after them; taps: 2 x length() (left,
+   *  right); onsets: 2, in samples at the file's rate. */
+  void run(const float* left, float* taps, double* onsets) {
+    mEstimator.onsetPair(left, left + mN, &onsets[0], &onsets[1]);
+    for (std::size_t ear = 0; ear < 2; ++ear) {
+      const float* ir = left + ear * mN;
+      float* out = mResampled.data() + ear * mPadded;
+      if (mFsIn == mRate) {
+        // resampleShifted at equal rates and a whole-sample shift copies
+        // exactly (the kernel is 1 at 0 and 0 at the other integers).
+        std::copy(ir, ir + mN, out + mMargin);
+      } else {
+        detail::resampleShifted(ir, mN, mFsIn, mRate, -double(mMargin) * mFsIn / mRate, out, mPadded);
+      }
+    }
+    mMinPhase.computePair(mResampled.data(), mResampled.data() + mPadded, taps, taps + mLength, mLength);
+  }
+
+ private:
+  std::size_t mN;
+  double mFsIn, mRate;
+  std::size_t mLength, mMargin, mPadded;
+  detail::OnsetEstimator mEstimator;
+  detail::MinimumPhase mMinPhase;
+  std::vector<float> mResampled;  // left, right
+};
+
 // Slack (radians) of the coarse tests over the per-cell ones: covers their
 // 1e-6 margins on cosines (at most 1.5e-3 rad) and rounding.
 constexpr double kCoarseMargin = 1e-2;
@@ -367,15 +411,6 @@ Result<std::shared_ptr<const HrtfSet>> HrtfSet::load(const std::string& sofaPath
   set->mTaps.assign(m * 2 * length, 0.0f);
   set->mDelays.resize(m * 2);
 
-  // Resample with margins that hold the whole interpolation kernel (its
-  // tails before tap 0 and after the last tap), so the minimum-phase
-  // version, which moves that energy to the front, loses none of it.
-  const double kernelHalfOut = detail::SincKernel::kZeroCrossings / std::min(1.0, 0.95 * sampleRateHz / fsIn) *
-                               sampleRateHz / fsIn;
-  const std::size_t margin = std::size_t(std::ceil(kernelHalfOut));
-  const std::size_t padded = length + 2 * margin;
-  const double lowpassFraction = std::min(kOnsetLowpassHz, 0.25 * fsIn) / fsIn;
-
   // Per measurement (both ears at once): the onsets at the file's rate, then
   // resampling and minimum phase. Measurements are independent, so threads
   // take blocks of them in turn, each with its own scratch: the results do
@@ -383,29 +418,12 @@ Result<std::shared_ptr<const HrtfSet>> HrtfSet::load(const std::string& sofaPath
   std::vector<double> onset(m * 2);
   std::atomic<std::size_t> nextBlock{0};
   auto prepare = [&]() {
-    detail::OnsetEstimator estimator(n, lowpassFraction);
-    detail::MinimumPhase minPhase(padded);
-    std::vector<float> resampled(2 * padded, 0.0f);  // left, right
+    MeasurementPreparer preparer(n, fsIn, sampleRateHz);
     for (;;) {
       const std::size_t first = nextBlock.fetch_add(kLoadBlock);
       if (first >= m) return;
-      for (std::size_t j = first; j < std::min(m, first + kLoadBlock); ++j) {
-        const float* left = h->DataIR.values + 2 * j * n;
-        estimator.onsetPair(left, left + n, &onset[2 * j], &onset[2 * j + 1]);
-        for (std::size_t ear = 0; ear < 2; ++ear) {
-          const float* ir = left + ear * n;
-          float* out = resampled.data() + ear * padded;
-          if (fsIn == sampleRateHz) {
-            // resampleShifted at equal rates and a whole-sample shift copies
-            // exactly (the kernel is 1 at 0 and 0 at the other integers).
-            std::copy(ir, ir + n, out + margin);
-          } else {
-            detail::resampleShifted(ir, n, fsIn, sampleRateHz, -double(margin) * fsIn / sampleRateHz, out, padded);
-          }
-        }
-        float* taps = set->mTaps.data() + 2 * j * length;
-        minPhase.computePair(resampled.data(), resampled.data() + padded, taps, taps + length, length);
-      }
+      for (std::size_t j = first; j < std::min(m, first + kLoadBlock); ++j)
+        preparer.run(h->DataIR.values + 2 * j * n, set->mTaps.data() + 2 * j * length, &onset[2 * j]);
     }
   };
   const unsigned cores = std::max(1u, std::thread::hardware_concurrency());
