@@ -26,17 +26,14 @@ size_t nextPow2(size_t n) {
   return p;
 }
 
-// Spectrum on the model grid of a minimum-phase HRIR placed `delaySeconds`
-// late (the delay is relative: only the interaural part matters here).
+// Spectrum on the model grid of a minimum-phase HRIR (its delay, which only
+// the interaural cross-spectrum sees, is applied there).
 void gridSpectrum(detail::FftrPtr& fft, std::vector<float>& padded, const float* taps, size_t length,
-                  double delayTimesFsOverGrid, std::vector<kiss_fft_cpx>& scratch,
-                  std::complex<double>* out) {
+                  std::vector<kiss_fft_cpx>& scratch, std::complex<double>* out) {
   std::fill(padded.begin(), padded.end(), 0.0f);
   std::copy(taps, taps + length, padded.begin());
   kiss_fftr(fft.get(), padded.data(), scratch.data());
-  for (size_t k = 0; k < scratch.size(); ++k)
-    out[k] = std::complex<double>(scratch[k].r, scratch[k].i) *
-             std::polar(1.0, -2.0 * kPi * double(k) * delayTimesFsOverGrid);
+  for (size_t k = 0; k < scratch.size(); ++k) out[k] = std::complex<double>(scratch[k].r, scratch[k].i);
 }
 
 // Scratch for minimum-phase reconstruction on the model grid.
@@ -161,8 +158,8 @@ Result<std::shared_ptr<const BinauralModel>> BinauralModel::create(std::shared_p
   BandArrayD diffuseBand[2] = {filledBands(0.0), filledBands(0.0)};
   for (size_t i = 0; i < count; ++i) {
     const hrtf::HrtfMeasurement meas = set->measurement(i);
-    gridSpectrum(fft, padded, meas.left, taps, meas.leftDelaySeconds * fs / double(grid), scratch, h[0].data());
-    gridSpectrum(fft, padded, meas.right, taps, meas.rightDelaySeconds * fs / double(grid), scratch, h[1].data());
+    gridSpectrum(fft, padded, meas.left, taps, scratch, h[0].data());
+    gridSpectrum(fft, padded, meas.right, taps, scratch, h[1].data());
     const double w = m->mMeasurementWeight[i];
     for (int ear = 0; ear < 2; ++ear) {
       double* e = &bandEnergy[(i * 2 + size_t(ear)) * kNumBands];
@@ -175,8 +172,20 @@ Result<std::shared_ptr<const BinauralModel>> BinauralModel::create(std::shared_p
       }
       for (int b = 0; b < kNumBands; ++b) diffuseBand[ear][b] += w * e[b];
     }
-    if (w > 0)
-      for (size_t k = 0; k < gridBins; ++k) m->mCross[k] += w * h[0][k] * std::conj(h[1][k]);
+    if (w > 0) {
+      // The ears' delays as a phase on the cross-spectrum: e^(-2 pi i k d)
+      // for the interaural delay d (grid samples), by a rotating phasor
+      // anchored exactly every 32 bins (one sine and cosine per bin and ear
+      // was most of this function's time).
+      const double d = (meas.leftDelaySeconds - meas.rightDelaySeconds) * fs / double(grid);
+      const std::complex<double> step = std::polar(1.0, -2.0 * kPi * d);
+      std::complex<double> phase = 1.0;
+      for (size_t k = 0; k < gridBins; ++k) {
+        if (k % 32 == 0) phase = std::polar(1.0, -2.0 * kPi * double(k) * d);
+        m->mCross[k] += w * h[0][k] * std::conj(h[1][k]) * phase;
+        phase *= step;
+      }
+    }
   }
   m->mRelativeBandEnergy.resize(bandEnergy.size());
   for (size_t i = 0; i < count; ++i)
