@@ -56,7 +56,9 @@ extern char** environ;
 
 #include "earshot/core/math.h"
 #include "earshot/hrtf/coordinates.h"
+#include "earshot/core/random.h"
 #include "hrir_dsp.h"
+#include "hrtf_cache.h"
 #include "install_layout.h"
 #include "sphere_triangulation.h"
 
@@ -286,6 +288,38 @@ class MeasurementPreparer {
   std::vector<float> mResampled;  // left, right
 };
 
+// Changes with anything in load() that the fingerprint below does not see
+// (how delays are made from onsets, what is kept): a cached set of another
+// version is then prepared again.
+constexpr uint64_t kPreparationVersion = 1;
+
+// The prepared-set cache's guard against stale numerics: a hash of what
+// MeasurementPreparer makes of a fixed test pair at this rate, from this
+// rate and from another (the resampling path). Any change to the onset
+// estimate, resampling or minimum phase changes it.
+uint64_t preparationFingerprint(double rate) {
+  constexpr std::size_t kN = 64;
+  std::vector<float> pair(2 * kN, 0.0f);
+  Pcg32 rng(kPreparationVersion, 0x50F4);
+  for (std::size_t i = 0; i < kN; ++i) {
+    const float decay = float(std::exp(-double(i) / 8.0));
+    pair[i] = (i >= 10 ? decay : 0.0f) * float(rng.uniformDouble() - 0.5);
+    pair[kN + i] = (i >= 14 ? decay : 0.0f) * float(rng.uniformDouble() - 0.5);
+  }
+  pair[10] = 1.0f;
+  pair[kN + 14] = 0.7f;
+  std::vector<double> out;
+  for (double fsIn : {rate, rate == 44100.0 ? 48000.0 : 44100.0}) {
+    MeasurementPreparer preparer(kN, fsIn, rate);
+    std::vector<float> taps(2 * preparer.length());
+    double onsets[2];
+    preparer.run(pair.data(), taps.data(), onsets);
+    out.insert(out.end(), taps.begin(), taps.end());
+    out.insert(out.end(), onsets, onsets + 2);
+  }
+  return detail::hashBytes(out.data(), out.size() * sizeof(double), kPreparationVersion).a;
+}
+
 // Slack (radians) of the coarse tests over the per-cell ones: covers their
 // 1e-6 margins on cosines (at most 1.5e-3 rad) and rounding.
 constexpr double kCoarseMargin = 1e-2;
@@ -308,6 +342,24 @@ Result<std::shared_ptr<const HrtfSet>> HrtfSet::load(const std::string& sofaPath
   if (auto def = defaultHrtfPath(); def.isOk()) {
     std::error_code e1, e2;
     shipped = std::filesystem::equivalent(sofaPath, *def, e1) && !e1 && !e2;
+  }
+  // The prepared-set cache (see the header): a hit skips libmysofa, the
+  // probe and the preparation; these bytes were prepared before.
+  const std::string cacheFolder = detail::preparedCacheFolder();
+  CacheKey cacheKey{};
+  std::string cacheFile;
+  if (!cacheFolder.empty()) {
+    auto bytes = readInputFile(sofaPath, "HRTF file", limits.maxMemoryBytes);
+    if (!bytes) return bytes.status();
+    const detail::Hash128 h = detail::hashBytes(bytes->data(), bytes->size());
+    cacheKey = {h.a, h.b, uint64_t(bytes->size()), preparationFingerprint(sampleRateHz)};
+    cacheFile = cacheFolder + "/" + cacheFileName(cacheKey, sampleRateHz, mode);
+    if (auto cached = readPrepared(cacheFile, cacheKey, sampleRateHz, mode, limits.maxMemoryBytes)) {
+      cached->mPath = sofaPath;
+      cached->buildNearestGrid();
+      if (mode == InterpolationMode::kBarycentric) cached->buildTriangulation();
+      return std::shared_ptr<const HrtfSet>(std::move(cached));
+    }
   }
   if (!shipped) EARSHOT_RETURN_IF_ERROR(probeSofaFile(sofaPath, limits.maxMemoryBytes));
   int err = 0;
@@ -460,6 +512,7 @@ Result<std::shared_ptr<const HrtfSet>> HrtfSet::load(const std::string& sofaPath
   set->mReferenceOnsetSeconds = sum / double(m * 2);
   for (std::size_t i = 0; i < m * 2; ++i)
     set->mDelays[i] = (onset[i] + fileDelay[i]) / fsIn - set->mReferenceOnsetSeconds;
+  if (!cacheFile.empty()) set->writePrepared(cacheFolder, cacheFile, cacheKey);
   return std::shared_ptr<const HrtfSet>(std::move(set));
 }
 

@@ -503,13 +503,22 @@ TEST(HrtfSet, DefaultPathFindsTheShippedSetAndHonoursTheEnvironment) {
 // does on hostile files (hang, crash, run out of memory) or that record
 // their call and run the real probe.
 
+// The probe guards libmysofa's reading of a file; a set from the
+// prepared-set cache is never read by libmysofa (hrtf_cache_test.cpp), so
+// these tests load without the cache.
 struct ProbeFixture {
   std::string dir;
+  std::string cache;
+  bool hadCache = false;
   ProbeFixture() {
     char tmpl[] = "/tmp/earshot_probe_XXXXXX";
     dir = ::mkdtemp(tmpl);
+    if (const char* c = std::getenv("EARSHOT_CACHE_DIR")) cache = c, hadCache = true;
+    setenv("EARSHOT_CACHE_DIR", "off", 1);
   }
   ~ProbeFixture() {
+    if (hadCache) setenv("EARSHOT_CACHE_DIR", cache.c_str(), 1);
+    else unsetenv("EARSHOT_CACHE_DIR");
     unsetenv("EARSHOT_SOFA_PROBE");
     std::system(("rm -rf '" + dir + "'").c_str());
   }
