@@ -27,6 +27,9 @@ using cd = std::complex<double>;
 // Directions x frequency bins the design holds (as float pairs per ear:
 // 128 MB at the limit; the shipped KU100 set needs 1.2 M).
 constexpr size_t kMaxDecoderDesignValues = size_t(8) << 20;
+// Rotating phasors (e^(i k w), one complex multiply per bin) are set exactly
+// every this many bins: their rounding stays near 1e-14.
+constexpr size_t kPhasorAnchor = 32;
 
 // The 2x2 mixing M closest to the identity with M Cx M^H = Cy (Vilkamo et
 // al. 2013, with the identity as prototype): M = Ky P Kx^-1, P = V U^H from
@@ -106,10 +109,16 @@ Result<std::shared_ptr<const AmbisonicDecoder>> AmbisonicDecoder::create(const B
       kiss_fftr(fft.get(), padded.data(), spec.data());
       const double onset = (ear == 0 ? meas.leftDelaySeconds : meas.rightDelaySeconds) * fs;
       onsetFrames(r, ear) = onset;
+      // e^(-2 pi i k (onset + delay) / n) by a rotating phasor, anchored
+      // exactly every kPhasorAnchor bins (a sine and cosine per bin was
+      // most of the design's time).
+      const double w1 = -2.0 * kPi * (onset + double(s.delayFrames)) / double(n);
+      const cd step = std::polar(1.0, w1);
+      cd phase = 1.0;
       for (size_t k = 0; k < bins; ++k) {
-        const cd v(spec[k].r, spec[k].i);
-        const double w0 = -2.0 * kPi * double(k) / double(n);
-        full[ear](r, Eigen::Index(k)) = std::complex<float>(v * std::polar(1.0, w0 * (onset + double(s.delayFrames))));
+        if (k % kPhasorAnchor == 0) phase = std::polar(1.0, w1 * double(k));
+        full[ear](r, Eigen::Index(k)) = std::complex<float>(cd(spec[k].r, spec[k].i) * phase);
+        phase *= step;
       }
     }
   }
@@ -123,14 +132,22 @@ Result<std::shared_ptr<const AmbisonicDecoder>> AmbisonicDecoder::create(const B
   Eigen::MatrixXcd d(channels, 2), hk(m, 2);
   Eigen::VectorXcd aligned(m);
   const double lo = s.alignedAboveHz / std::sqrt(2.0), hi = s.alignedAboveHz * std::sqrt(2.0);
+  // The onsets' phases e^(2 pi i k onset / n), per direction and ear, as
+  // rotating phasors (anchored as above).
+  Eigen::MatrixXcd onsetPhase(m, 2), onsetStep(m, 2);
+  for (Eigen::Index r = 0; r < m; ++r)
+    for (int ear = 0; ear < 2; ++ear) onsetStep(r, ear) = std::polar(1.0, 2.0 * kPi * onsetFrames(r, ear) / double(n));
   for (size_t k = 0; k < bins; ++k) {
+    if (k % kPhasorAnchor == 0)
+      for (Eigen::Index r = 0; r < m; ++r)
+        for (int ear = 0; ear < 2; ++ear)
+          onsetPhase(r, ear) = std::polar(1.0, 2.0 * kPi * double(k) * onsetFrames(r, ear) / double(n));
     const double f = double(k) * fs / double(n);
     const double t = f <= lo ? 0.0 : f >= hi ? 1.0 : 0.5 - 0.5 * std::cos(kPi * std::log(f / lo) / std::log(hi / lo));
     for (int ear = 0; ear < 2; ++ear) {
       hk.col(ear) = full[ear].col(Eigen::Index(k)).cast<cd>();
       if (t > 0) {  // the time-aligned HRTFs: the onset's phase taken out
-        const double w0 = 2.0 * kPi * double(k) / double(n);
-        for (Eigen::Index r = 0; r < m; ++r) aligned(r) = hk(r, ear) * std::polar(1.0, w0 * onsetFrames(r, ear));
+        for (Eigen::Index r = 0; r < m; ++r) aligned(r) = hk(r, ear) * onsetPhase(r, ear);
         d.col(ear) = (1.0 - t) * (pinv * hk.col(ear)) + t * (pinv * aligned);
       } else {
         d.col(ear) = pinv * hk.col(ear);
@@ -143,6 +160,7 @@ Result<std::shared_ptr<const AmbisonicDecoder>> AmbisonicDecoder::create(const B
     } else {
       decoders[k] = d;
     }
+    onsetPhase = onsetPhase.cwiseProduct(onsetStep);
   }
 
   // FIRs: inverse transforms, the last eighth faded out.
