@@ -82,15 +82,26 @@ Result<AudioBuffer> synthesizeAmbisonicIr(const std::vector<Arrival>& arrivals, 
     anyBand = anyBand || !env[size_t(b)].empty();
   }
   if (!anyBand) return out;
-  auto lateOf = [&](uint64_t stream, std::vector<float>& late) {
-    const auto noise = plan.finishedBandNoise(settings.seed, stream, {}, 0);
+  // Every channel's late noise, fetched from channel `first` on: the sources
+  // of one simulation, synthesised side by side, start at different
+  // channels and so make different noises at the same time
+  // (finishedBandNoise waits for one that another thread is making).
+  std::vector<std::shared_ptr<const std::vector<std::vector<float>>>> noises{size_t(channels)};
+  const int first = int(settings.noiseKey % uint64_t(channels));
+  for (int i = 0; i < channels; ++i) {
+    const int c = (first + i) % channels;
+    noises[size_t(c)] =
+        plan.finishedBandNoise(settings.seed, c == 0 ? detail::kLateNoiseStream : channelNoiseStream(c), {}, 0);
+  }
+  auto lateOf = [&](int c, std::vector<float>& late) {
+    const auto& noise = noises[size_t(c)];
     const size_t offset = detail::noiseOffset(settings.seed, settings.noiseKey, (*noise)[0].size());
     late.assign(length, 0.0f);
     for (int b = 0; b < kNumBands; ++b)
       if (!env[size_t(b)].empty()) plan.addEnvelopedNoise((*noise)[size_t(b)], offset, env[size_t(b)], late.data());
   };
   std::vector<float> lateW;
-  lateOf(detail::kLateNoiseStream, lateW);
+  lateOf(0, lateW);
   for (size_t i = 0; i < length; ++i) out.channels[0][i] += lateW[i];
 
   // Per histogram bin: direction and directional fraction -> each channel's
@@ -118,7 +129,7 @@ Result<AudioBuffer> synthesizeAmbisonicIr(const std::vector<Arrival>& arrivals, 
     }
     binsToSamples(coherentBins, binSamples, coherent);
     binsToSamples(independentBins, binSamples, independent);
-    lateOf(channelNoiseStream(c), lateC);
+    lateOf(c, lateC);
     float* o = out.channels[size_t(c)].data();
     for (size_t i = 0; i < length; ++i) o[i] += coherent[i] * lateW[i] + independent[i] * lateC[i];
   }

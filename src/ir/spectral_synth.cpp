@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <condition_variable>
 #include <mutex>
 #include <string>
 #include <tuple>
@@ -442,75 +443,116 @@ std::shared_ptr<const std::vector<std::vector<float>>> SpectralSynth::finishedBa
 std::vector<std::shared_ptr<const std::vector<std::vector<float>>>> SpectralSynth::finishedBandNoises(
     uint64_t seed, uint64_t stream, const std::vector<std::pair<GridFilter, uint64_t>>& filters) const {
   using Bands = std::vector<std::vector<float>>;
-  struct Cached {
+  struct Key {
     uint64_t seed = 0, stream = 0, filterKey = 0;
     size_t n = 0;
     double fs = 0;
+    bool operator==(const Key& o) const {
+      return seed == o.seed && stream == o.stream && filterKey == o.filterKey && n == o.n && fs == o.fs;
+    }
+  };
+  struct Cached {
+    Key key;
+    size_t n = 0;  // samples per band (trimNoiseCache)
     std::shared_ptr<const Bands> bands;
   };
   static std::mutex mutex;
   static std::vector<Cached> cache;
+  // Noises another thread is making: a thread that needs one waits for it
+  // instead of making it too (the sources of one simulation start their
+  // synthesis together and need the same noises), and makes the others.
+  static std::vector<Key> making;
+  static std::condition_variable made;
   const size_t n = noisePeriod(mLength);
+  auto keyOf = [&](size_t f) { return Key{seed, stream, filters[f].second, n, mFs}; };
   std::vector<std::shared_ptr<const Bands>> out(filters.size());
-  std::vector<size_t> missing;
-  {
-    std::lock_guard<std::mutex> lock(mutex);
+  std::unique_lock<std::mutex> lock(mutex);
+  for (;;) {
+    std::vector<size_t> missing;
+    bool othersMaking = false;
     for (size_t f = 0; f < filters.size(); ++f) {
+      if (out[f]) continue;
+      const Key key = keyOf(f);
       for (const Cached& c : cache)
-        if (c.seed == seed && c.stream == stream && c.filterKey == filters[f].second && c.n == n && c.fs == mFs) {
+        if (c.key == key) {
           out[f] = c.bands;
           break;
         }
-      if (!out[f]) missing.push_back(f);
+      if (out[f]) continue;
+      if (std::find(making.begin(), making.end(), key) != making.end()) othersMaking = true;
+      else missing.push_back(f);
     }
+    if (missing.empty()) {
+      if (!othersMaking) return out;
+      made.wait(lock);
+      continue;
+    }
+    for (size_t f : missing) making.push_back(keyOf(f));
+    lock.unlock();
+    std::vector<std::shared_ptr<Bands>> bands;
+    try {
+      bands = makeFinishedBandNoises(seed, stream, filters, missing);
+    } catch (...) {
+      lock.lock();
+      for (size_t f : missing) making.erase(std::find(making.begin(), making.end(), keyOf(f)));
+      made.notify_all();
+      throw;
+    }
+    lock.lock();
+    for (size_t k = 0; k < missing.size(); ++k) {
+      out[missing[k]] = bands[k];
+      cache.insert(cache.begin(), Cached{keyOf(missing[k]), n, bands[k]});
+      making.erase(std::find(making.begin(), making.end(), keyOf(missing[k])));
+    }
+    trimNoiseCache(cache, size_t(128) << 20, 48);
+    made.notify_all();
   }
-  if (missing.empty()) return out;
+}
+
+std::vector<std::shared_ptr<std::vector<std::vector<float>>>> SpectralSynth::makeFinishedBandNoises(
+    uint64_t seed, uint64_t stream, const std::vector<std::pair<GridFilter, uint64_t>>& filters,
+    const std::vector<size_t>& missing) const {
+  using Bands = std::vector<std::vector<float>>;
+  const size_t n = noisePeriod(mLength);
   const auto levelled = levelledBandNoise(seed, stream);
   const Plan forward = realPlan(n, false), inverse = realPlan(n, true);
   std::vector<std::shared_ptr<Bands>> made;
   for (size_t k = 0; k < missing.size(); ++k) made.push_back(std::make_shared<Bands>(kNumBands, std::vector<float>(n, 0.0f)));
-  if (forward && inverse) {  // else (allocation failed): silence rather than a crash
-    const size_t bins = n / 2 + 1;
-    // The second sqrt(W_band) and each h on this period's bins (h linear
-    // between its grid points); one forward FFT per band serves every filter.
-    const auto weights = sqrtNoiseWeights(n, mFs);
-    std::vector<std::vector<std::complex<float>>> response(missing.size());
-    for (size_t f = 0; f < missing.size(); ++f) {
-      const GridFilter& h = filters[missing[f]].first;
-      if (!h.values) continue;
-      response[f].resize(bins);
-      const size_t last = h.gridSize / 2;
-      for (size_t k = 0; k < bins; ++k) {
-        const double pos = double(k) * double(h.gridSize) / double(n);
-        const size_t i0 = std::min(size_t(pos), last);
-        const size_t i = i0 == last ? last - 1 : i0;
-        const float fr = i0 == last ? 1.0f : float(pos - double(i0));
-        response[f][k] = h.values[i] * (1.0f - fr) + h.values[i + 1] * fr;
-      }
-    }
-    std::vector<kiss_fft_cpx> spectrum(bins), filtered(bins);
-    const float scale = 1.0f / float(n);  // KissFFT's inverse is unnormalised
-    for (int b = 0; b < kNumBands; ++b) {
-      kiss_fftr(forward.get(), (*levelled)[size_t(b)].data(), spectrum.data());
-      for (size_t f = 0; f < missing.size(); ++f) {
-        for (size_t k = 0; k < bins; ++k) {
-          const float g = (*weights)[k][size_t(b)] * scale;
-          std::complex<float> x(spectrum[k].r * g, spectrum[k].i * g);
-          if (!response[f].empty()) x *= response[f][k];
-          filtered[k] = {x.real(), x.imag()};
-        }
-        if (n % 2 == 0) filtered[bins - 1].i = 0.0f;
-        kiss_fftri(inverse.get(), filtered.data(), (*made[f])[size_t(b)].data());
-      }
-    }
-  }
-  std::lock_guard<std::mutex> lock(mutex);
+  if (!forward || !inverse) return made;  // allocation failed: silence rather than a crash
+  const size_t bins = n / 2 + 1;
+  // The second sqrt(W_band) and each h on this period's bins (h linear
+  // between its grid points); one forward FFT per band serves every filter.
+  const auto weights = sqrtNoiseWeights(n, mFs);
+  std::vector<std::vector<std::complex<float>>> response(missing.size());
   for (size_t f = 0; f < missing.size(); ++f) {
-    out[missing[f]] = made[f];
-    cache.insert(cache.begin(), Cached{seed, stream, filters[missing[f]].second, n, mFs, made[f]});
+    const GridFilter& h = filters[missing[f]].first;
+    if (!h.values) continue;
+    response[f].resize(bins);
+    const size_t last = h.gridSize / 2;
+    for (size_t k = 0; k < bins; ++k) {
+      const double pos = double(k) * double(h.gridSize) / double(n);
+      const size_t i0 = std::min(size_t(pos), last);
+      const size_t i = i0 == last ? last - 1 : i0;
+      const float fr = i0 == last ? 1.0f : float(pos - double(i0));
+      response[f][k] = h.values[i] * (1.0f - fr) + h.values[i + 1] * fr;
+    }
   }
-  trimNoiseCache(cache, size_t(128) << 20, 48);
-  return out;
+  std::vector<kiss_fft_cpx> spectrum(bins), filtered(bins);
+  const float scale = 1.0f / float(n);  // KissFFT's inverse is unnormalised
+  for (int b = 0; b < kNumBands; ++b) {
+    kiss_fftr(forward.get(), (*levelled)[size_t(b)].data(), spectrum.data());
+    for (size_t f = 0; f < missing.size(); ++f) {
+      for (size_t k = 0; k < bins; ++k) {
+        const float g = (*weights)[k][size_t(b)] * scale;
+        std::complex<float> x(spectrum[k].r * g, spectrum[k].i * g);
+        if (!response[f].empty()) x *= response[f][k];
+        filtered[k] = {x.real(), x.imag()};
+      }
+      if (n % 2 == 0) filtered[bins - 1].i = 0.0f;
+      kiss_fftri(inverse.get(), filtered.data(), (*made[f])[size_t(b)].data());
+    }
+  }
+  return made;
 }
 
 void SpectralSynth::inverse(const Spectrum& spectrum, std::vector<float>& out) {

@@ -96,6 +96,14 @@ class SpectralSynth {
   std::vector<std::shared_ptr<const std::vector<std::vector<float>>>> finishedBandNoises(
       uint64_t seed, uint64_t stream, const std::vector<std::pair<GridFilter, uint64_t>>& filters) const;
 
+ private:
+  // finishedBandNoises' work for filters[missing[k]], k in order (no cache).
+  std::vector<std::shared_ptr<std::vector<std::vector<float>>>> makeFinishedBandNoises(
+      uint64_t seed, uint64_t stream, const std::vector<std::pair<GridFilter, uint64_t>>& filters,
+      const std::vector<size_t>& missing) const;
+
+ public:
+
   /** out[i] += noise[(i + offset) mod noise.size()] * env[i] for i < length():
    *  a finishedBandNoise band under its bandEnvelope, added into the IR. The
    *  noise is periodic, so any offset reads a stationary stretch of it. */

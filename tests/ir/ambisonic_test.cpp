@@ -2,9 +2,11 @@
 // late field's channel energies and correlations, frames.
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <cmath>
 #include <memory>
 #include <random>
+#include <thread>
 
 #include "../propagation/shoebox_fixture.h"
 #include "earshot/core/math.h"
@@ -167,6 +169,47 @@ TEST(AmbisonicIr, ListenerFrameIsTheRotatedWorldFrame) {
       peak = std::max(peak, std::fabs(double(b->channels[size_t(c)][i])));
     }
   EXPECT_LT(worst, 1e-4 * peak);
+}
+
+// Sources synthesised side by side (a simulation's threads) need the same
+// late noises at the same moment: a thread waits for a noise another is
+// making rather than making it too, and the sources start at different
+// channels. Whatever the interleaving, each IR is the one it is alone (a
+// seed no other test uses, so the noises are made here, concurrently).
+TEST(AmbisonicIr, SourcesSynthesisedTogetherAreTheIrsTheyAreAlone) {
+  EnergyHistogram h(0.001, 600);
+  for (size_t b = 0; b < 600; ++b) {
+    const double e = 1e-3 * std::exp(-double(b) * 0.001 / 0.2);
+    h.add(b, filledBands(e * 0.6), normalize(Vec3d(0.3, -0.5, 0.2)));
+    h.add(b, filledBands(e * 0.4), normalize(Vec3d(-0.3, 0.5, -0.2)));
+  }
+  const std::vector<Arrival> arrivals = {Arrival{0.004, 0.5, filledBands(1.0), Vec3d(1, 0, 0)}};
+  auto synth = [&](uint64_t key) {
+    IrSynthesisSettings s;
+    s.seed = 0x5EED0F7E57ULL;
+    s.noiseKey = key;
+    auto ir = synthesizeAmbisonicIr(arrivals, &h, s, 2, AmbisonicFrame{});
+    EXPECT_TRUE(ir.isOk());
+    return ir.isOk() ? std::move(ir.value()) : AudioBuffer();
+  };
+  constexpr int kThreads = 6;
+  std::vector<AudioBuffer> together(kThreads);
+  std::atomic<int> ready{0};
+  std::vector<std::thread> threads;
+  for (int t = 0; t < kThreads; ++t)
+    threads.emplace_back([&, t] {
+      ready.fetch_add(1);
+      while (ready.load() < kThreads) std::this_thread::yield();
+      together[size_t(t)] = synth(uint64_t(t) * 7 + 1);
+    });
+  for (auto& t : threads) t.join();
+  for (int t = 0; t < kThreads; ++t) {
+    const AudioBuffer alone = synth(uint64_t(t) * 7 + 1);
+    ASSERT_EQ(alone.channelCount(), 9u);
+    for (size_t c = 0; c < 9; ++c) EXPECT_EQ(together[size_t(t)].channels[c], alone.channels[c]) << t << " " << c;
+  }
+  // The sources differ (their noise offsets), the channels are independent.
+  EXPECT_NE(together[0].channels[4], together[1].channels[4]);
 }
 
 TEST(AmbisonicIr, RefusesBadOrdersAndFrames) {
