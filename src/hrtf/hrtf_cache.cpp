@@ -8,83 +8,18 @@
 // key, the rate and mode, the file's rate and reference onset, M and the
 // HRIR length, then directions (3M float), file angles (3M float), taps
 // (2 M length float), delays (2M double), and a 128-bit hash of all the
-// bytes before it. A reader checks every size against the file's before
-// allocating, every value for finiteness and every direction for unit
-// length; anything else is a miss.
-#include "hrtf_cache.h"
-
+// bytes before it (earshot/io/disk_cache.h). A reader checks every size
+// against the file's before allocating, every value for finiteness and
+// every direction for unit length; anything else is a miss.
 #include <algorithm>
 #include <cmath>
-#include <cstdlib>
 #include <cstring>
-#include <filesystem>
-#include <fstream>
 #include <vector>
 
 #include "earshot/hrtf/hrtf_set.h"
-#include "earshot/io/atomic_file.h"
+#include "earshot/io/disk_cache.h"
 
 namespace earshot::hrtf {
-
-namespace detail {
-
-namespace {
-
-inline uint64_t rotl(uint64_t x, int r) { return (x << r) | (x >> (64 - r)); }
-
-inline uint64_t fmix(uint64_t k) {
-  k ^= k >> 33;
-  k *= 0xff51afd7ed558ccdULL;
-  k ^= k >> 33;
-  k *= 0xc4ceb9fe1a85ec53ULL;
-  k ^= k >> 33;
-  return k;
-}
-
-}  // namespace
-
-Hash128 hashBytes(const void* data, std::size_t size, uint64_t seed) {
-  constexpr uint64_t c1 = 0x87c37b91114253d5ULL, c2 = 0x4cf5ad432745937fULL;
-  const auto* p = static_cast<const unsigned char*>(data);
-  uint64_t h1 = seed ^ 0x9e3779b97f4a7c15ULL, h2 = seed ^ 0x6a09e667f3bcc909ULL;
-  std::size_t i = 0;
-  auto mix = [&](uint64_t w) {
-    h1 ^= rotl(w * c1, 31) * c2;
-    h1 = rotl(h1, 27) * 5 + 0x52dce729;
-    h2 ^= rotl(w * c2, 33) * c1;
-    h2 = rotl(h2, 31) * 5 + 0x38495ab5;
-  };
-  for (; i + 8 <= size; i += 8) {
-    uint64_t w;
-    std::memcpy(&w, p + i, 8);
-    mix(w);
-  }
-  uint64_t last = 0;
-  std::memcpy(&last, p + i, size - i);
-  mix(last ^ (uint64_t(size - i) << 56));
-  h1 ^= size;
-  h2 ^= size;
-  h1 += h2;
-  h2 += h1;
-  h1 = fmix(h1);
-  h2 = fmix(h2);
-  h1 += h2;
-  h2 += h1;
-  return {h1, h2};
-}
-
-std::string preparedCacheFolder() {
-  if (const char* e = std::getenv("EARSHOT_CACHE_DIR")) {
-    const std::string v = e;
-    if (v.empty() || v == "off") return "";
-    return v;
-  }
-  if (const char* x = std::getenv("XDG_CACHE_HOME"); x && x[0] == '/') return std::string(x) + "/earshot";
-  if (const char* h = std::getenv("HOME"); h && h[0] == '/') return std::string(h) + "/.cache/earshot";
-  return "";
-}
-
-}  // namespace detail
 
 namespace {
 
@@ -127,24 +62,15 @@ std::string HrtfSet::cacheFileName(const CacheKey& key, double sampleRateHz, Int
     double rate;
     uint64_t mode;
   } what{key, sampleRateHz, uint64_t(mode)};
-  const detail::Hash128 h = detail::hashBytes(&what, sizeof what);
-  char name[64];
-  std::snprintf(name, sizeof name, "hrtf-%016llx%016llx.bin", (unsigned long long)h.a, (unsigned long long)h.b);
-  return name;
+  return cacheEntryName("hrtf-", &what, sizeof what);
 }
 
 std::shared_ptr<HrtfSet> HrtfSet::readPrepared(const std::string& file, const CacheKey& key, double sampleRateHz,
                                                InterpolationMode mode, uint64_t maxBytes) {
-  std::error_code ec;
-  // A regular file only (a FIFO would block the read), no larger than a
-  // set may be.
-  if (!std::filesystem::is_regular_file(file, ec) || ec) return nullptr;
-  const uint64_t size = std::filesystem::file_size(file, ec);
-  if (ec || size < sizeof(Header) + 16 || size > maxBytes) return nullptr;
-  std::ifstream in(file, std::ios::binary);
-  if (!in) return nullptr;
-  std::string bytes(size, '\0');
-  if (!in.read(bytes.data(), std::streamsize(size))) return nullptr;
+  const std::optional<std::string> entry = readCacheEntry(file, maxBytes);
+  if (!entry || entry->size() < sizeof(Header)) return nullptr;
+  const std::string& bytes = *entry;
+  const uint64_t size = bytes.size();
   Header h;
   std::memcpy(&h, bytes.data(), sizeof h);
   if (std::memcmp(h.magic, kMagic, 8) != 0 || h.version != kFormatVersion || h.endian != kEndianWord) return nullptr;
@@ -153,11 +79,7 @@ std::shared_ptr<HrtfSet> HrtfSet::readPrepared(const std::string& file, const Ca
   if (h.rate != sampleRateHz || h.mode != uint32_t(mode)) return nullptr;
   if (h.measurements < 1 || h.measurements > kMaxMeasurements || h.length < 1 || h.length > HrirPair::kMaxTaps)
     return nullptr;
-  if (size != sizeof(Header) + payloadBytes(h.measurements, h.length) + 16) return nullptr;
-  const detail::Hash128 sum = detail::hashBytes(bytes.data(), size - 16);
-  uint64_t stored[2];
-  std::memcpy(stored, bytes.data() + size - 16, 16);
-  if (stored[0] != sum.a || stored[1] != sum.b) return nullptr;
+  if (size != sizeof(Header) + payloadBytes(h.measurements, h.length)) return nullptr;
   if (!(std::isfinite(h.fileRate) && h.fileRate > 0) || !std::isfinite(h.referenceOnset)) return nullptr;
 
   auto set = std::shared_ptr<HrtfSet>(new HrtfSet());
@@ -195,11 +117,7 @@ std::shared_ptr<HrtfSet> HrtfSet::readPrepared(const std::string& file, const Ca
   return set;
 }
 
-void HrtfSet::writePrepared(const std::string& folder, const std::string& file, const CacheKey& key) const {
-  namespace fs = std::filesystem;
-  std::error_code ec;
-  fs::create_directories(folder, ec);
-  if (ec) return;
+void HrtfSet::writePrepared(const std::string& folder, const std::string& name, const CacheKey& key) const {
   Header h{};
   std::memcpy(h.magic, kMagic, 8);
   h.version = kFormatVersion;
@@ -212,7 +130,7 @@ void HrtfSet::writePrepared(const std::string& folder, const std::string& file, 
   h.measurements = mDirections.size();
   h.length = mLength;
   std::string bytes;
-  bytes.reserve(sizeof h + payloadBytes(h.measurements, h.length) + 16);
+  bytes.reserve(sizeof h + payloadBytes(h.measurements, h.length));
   append(bytes, &h, 1);
   std::vector<float> xyz;
   xyz.reserve(3 * mDirections.size());
@@ -223,28 +141,7 @@ void HrtfSet::writePrepared(const std::string& folder, const std::string& file, 
   append(bytes, xyz.data(), xyz.size());
   append(bytes, mTaps.data(), mTaps.size());
   append(bytes, mDelays.data(), mDelays.size());
-  const detail::Hash128 sum = detail::hashBytes(bytes.data(), bytes.size());
-  const uint64_t stored[2] = {sum.a, sum.b};
-  append(bytes, stored, 2);
-  const Status written = writeFileAtomically(file, [&](const std::string& tmp) {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    out.write(bytes.data(), std::streamsize(bytes.size()));
-    out.close();
-    return out ? Status::ok() : ioError(tmp + ": cannot write");
-  });
-  if (!written.isOk()) return;
-  // Keep the newest kMaxCachedSets entries.
-  std::vector<std::pair<fs::file_time_type, fs::path>> entries;
-  for (fs::directory_iterator it(folder, ec), end; !ec && it != end; it.increment(ec)) {
-    const std::string name = it->path().filename().string();
-    if (name.rfind("hrtf-", 0) != 0 || name.size() != 41 || name.substr(37) != ".bin") continue;
-    std::error_code e;
-    const auto t = fs::last_write_time(it->path(), e);
-    if (!e) entries.emplace_back(t, it->path());
-  }
-  if (entries.size() <= kMaxCachedSets) return;
-  std::sort(entries.begin(), entries.end());
-  for (std::size_t i = 0; i + kMaxCachedSets < entries.size(); ++i) fs::remove(entries[i].second, ec);
+  writeCacheEntry(folder, name, bytes, "hrtf-", kMaxCachedSets);
 }
 
 }  // namespace earshot::hrtf

@@ -57,8 +57,8 @@ extern char** environ;
 #include "earshot/core/math.h"
 #include "earshot/hrtf/coordinates.h"
 #include "earshot/core/random.h"
+#include "earshot/io/disk_cache.h"
 #include "hrir_dsp.h"
-#include "hrtf_cache.h"
 #include "install_layout.h"
 #include "sphere_triangulation.h"
 
@@ -317,7 +317,7 @@ uint64_t preparationFingerprint(double rate) {
     out.insert(out.end(), taps.begin(), taps.end());
     out.insert(out.end(), onsets, onsets + 2);
   }
-  return detail::hashBytes(out.data(), out.size() * sizeof(double), kPreparationVersion).a;
+  return hashBytes(out.data(), out.size() * sizeof(double), kPreparationVersion).a;
 }
 
 // Slack (radians) of the coarse tests over the per-cell ones: covers their
@@ -345,16 +345,16 @@ Result<std::shared_ptr<const HrtfSet>> HrtfSet::load(const std::string& sofaPath
   }
   // The prepared-set cache (see the header): a hit skips libmysofa, the
   // probe and the preparation; these bytes were prepared before.
-  const std::string cacheFolder = detail::preparedCacheFolder();
+  const std::string folder = cacheFolder();
   CacheKey cacheKey{};
-  std::string cacheFile;
-  if (!cacheFolder.empty()) {
+  std::string cacheName;
+  if (!folder.empty()) {
     auto bytes = readInputFile(sofaPath, "HRTF file", limits.maxMemoryBytes);
     if (!bytes) return bytes.status();
-    const detail::Hash128 h = detail::hashBytes(bytes->data(), bytes->size());
+    const Hash128 h = hashBytes(bytes->data(), bytes->size());
     cacheKey = {h.a, h.b, uint64_t(bytes->size()), preparationFingerprint(sampleRateHz)};
-    cacheFile = cacheFolder + "/" + cacheFileName(cacheKey, sampleRateHz, mode);
-    if (auto cached = readPrepared(cacheFile, cacheKey, sampleRateHz, mode, limits.maxMemoryBytes)) {
+    cacheName = cacheFileName(cacheKey, sampleRateHz, mode);
+    if (auto cached = readPrepared(folder + "/" + cacheName, cacheKey, sampleRateHz, mode, limits.maxMemoryBytes)) {
       cached->mPath = sofaPath;
       cached->buildNearestGrid();
       if (mode == InterpolationMode::kBarycentric) cached->buildTriangulation();
@@ -512,7 +512,7 @@ Result<std::shared_ptr<const HrtfSet>> HrtfSet::load(const std::string& sofaPath
   set->mReferenceOnsetSeconds = sum / double(m * 2);
   for (std::size_t i = 0; i < m * 2; ++i)
     set->mDelays[i] = (onset[i] + fileDelay[i]) / fsIn - set->mReferenceOnsetSeconds;
-  if (!cacheFile.empty()) set->writePrepared(cacheFolder, cacheFile, cacheKey);
+  if (!cacheName.empty()) set->writePrepared(folder, cacheName, cacheKey);
   return std::shared_ptr<const HrtfSet>(std::move(set));
 }
 

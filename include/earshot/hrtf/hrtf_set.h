@@ -176,7 +176,7 @@ class HrtfSet {
   static std::shared_ptr<HrtfSet> readPrepared(const std::string& file, const CacheKey& key, double sampleRateHz,
                                                InterpolationMode mode, uint64_t maxBytes);
   /** Best effort: errors are ignored (the cache only saves time). */
-  void writePrepared(const std::string& folder, const std::string& file, const CacheKey& key) const;
+  void writePrepared(const std::string& folder, const std::string& name, const CacheKey& key) const;
   void buildTriangulation();
   void buildNearestGrid();
 
