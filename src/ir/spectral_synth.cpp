@@ -4,14 +4,17 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cmath>
 #include <condition_variable>
+#include <cstring>
 #include <mutex>
 #include <string>
 #include <tuple>
 
 #include "earshot/core/math.h"
 #include "earshot/core/random.h"
+#include "earshot/io/disk_cache.h"
 #include "earshot/ir/band_filter_bank.h"
 
 namespace earshot::detail {
@@ -440,6 +443,51 @@ std::shared_ptr<const std::vector<std::vector<float>>> SpectralSynth::finishedBa
   return finishedBandNoises(seed, stream, {{h, filterKey}})[0];
 }
 
+namespace {
+
+// The late noises' disk cache (earshot/io/disk_cache.h): a finished noise
+// (one (seed, stream, period, rate, filter)) costs 22 FFTs of its period
+// (~45 ms for 2 s IRs), which a one-shot `earshot ir` or render pays again
+// for every noise it reads; from the cache folder it is a file read. An
+// entry is used only if its key (the filter by a hash of its values, the
+// noise's numerics by a fingerprint of the code on a short period) and its
+// size are the expected ones and its checksum and values hold. A process
+// adds at most kNoiseCacheWritesPerProcess entries (a dataset whose every
+// IR has its own seed would otherwise write a noise per IR); the folder
+// keeps the newest kNoiseCacheEntries.
+constexpr int kNoiseCacheWritesPerProcess = 8;
+constexpr size_t kNoiseCacheEntries = 16;
+constexpr char kNoiseMagic[8] = {'E', 'A', 'R', 'S', 'N', 'O', 'I', 'S'};
+constexpr uint32_t kNoiseFormatVersion = 1;
+
+struct NoiseEntryKey {
+  char magic[8];
+  uint32_t version = kNoiseFormatVersion, bands = kNumBands;
+  uint64_t seed = 0, stream = 0, filterA = 0, filterB = 0, n = 0;
+  double fs = 0;
+  uint64_t fingerprint = 0;
+};
+static_assert(sizeof(NoiseEntryKey) == 8 + 8 + 40 + 8 + 8, "no padding in the noise entry key");
+
+std::atomic<int> gNoiseCacheWrites{0};
+
+}  // namespace
+
+uint64_t SpectralSynth::noiseFingerprint() {
+  // The whole chain on a short period: any change to the white noise, the
+  // band weights, the levelling or the second filtering changes it.
+  static const uint64_t fingerprint = [] {
+    auto plan = create(1000, 48000.0, 0);
+    if (!plan.isOk()) return uint64_t(0);
+    const std::vector<std::pair<GridFilter, uint64_t>> identity = {{GridFilter{}, 0}};
+    const auto made = plan->makeFinishedBandNoises(0xF1F0, 1, identity, {0});
+    std::vector<float> all;
+    for (const auto& band : *made[0]) all.insert(all.end(), band.begin(), band.end());
+    return hashBytes(all.data(), all.size() * sizeof(float), kNoiseFormatVersion).a;
+  }();
+  return fingerprint;
+}
+
 std::vector<std::shared_ptr<const std::vector<std::vector<float>>>> SpectralSynth::finishedBandNoises(
     uint64_t seed, uint64_t stream, const std::vector<std::pair<GridFilter, uint64_t>>& filters) const {
   using Bands = std::vector<std::vector<float>>;
@@ -491,7 +539,7 @@ std::vector<std::shared_ptr<const std::vector<std::vector<float>>>> SpectralSynt
     lock.unlock();
     std::vector<std::shared_ptr<Bands>> bands;
     try {
-      bands = makeFinishedBandNoises(seed, stream, filters, missing);
+      bands = cachedOrMadeBandNoises(seed, stream, filters, missing);
     } catch (...) {
       lock.lock();
       for (size_t f : missing) making.erase(std::find(making.begin(), making.end(), keyOf(f)));
@@ -507,6 +555,64 @@ std::vector<std::shared_ptr<const std::vector<std::vector<float>>>> SpectralSynt
     trimNoiseCache(cache, size_t(128) << 20, 48);
     made.notify_all();
   }
+}
+
+std::vector<std::shared_ptr<std::vector<std::vector<float>>>> SpectralSynth::cachedOrMadeBandNoises(
+    uint64_t seed, uint64_t stream, const std::vector<std::pair<GridFilter, uint64_t>>& filters,
+    const std::vector<size_t>& missing) const {
+  using Bands = std::vector<std::vector<float>>;
+  const std::string folder = cacheFolder();
+  if (folder.empty()) return makeFinishedBandNoises(seed, stream, filters, missing);
+  const size_t n = noisePeriod(mLength);
+  const uint64_t payload = uint64_t(kNumBands) * n * sizeof(float);
+  std::vector<std::shared_ptr<Bands>> out(missing.size());
+  std::vector<NoiseEntryKey> keys(missing.size());
+  std::vector<std::string> names(missing.size());
+  std::vector<size_t> toMake, toMakeAt;
+  for (size_t k = 0; k < missing.size(); ++k) {
+    NoiseEntryKey& key = keys[k];
+    std::memcpy(key.magic, kNoiseMagic, 8);
+    key.seed = seed;
+    key.stream = stream;
+    const GridFilter& h = filters[missing[k]].first;
+    if (h.values) {
+      const Hash128 fh = hashBytes(h.values, (h.gridSize / 2 + 1) * sizeof(std::complex<float>), h.gridSize);
+      key.filterA = fh.a;
+      key.filterB = fh.b;
+    }
+    key.n = n;
+    key.fs = mFs;
+    key.fingerprint = noiseFingerprint();
+    names[k] = cacheEntryName("noise-", &key, sizeof key);
+    const auto entry = readCacheEntry(folder + "/" + names[k], sizeof key + payload + 16);
+    bool ok = entry && entry->size() == sizeof key + payload && std::memcmp(entry->data(), &key, sizeof key) == 0;
+    if (ok) {
+      auto bands = std::make_shared<Bands>(kNumBands, std::vector<float>(n));
+      const char* p = entry->data() + sizeof key;
+      for (auto& band : *bands) {
+        std::memcpy(band.data(), p, n * sizeof(float));
+        p += n * sizeof(float);
+        for (float v : band) ok = ok && std::isfinite(v);
+      }
+      if (ok) out[k] = std::move(bands);
+    }
+    if (!out[k]) {
+      toMake.push_back(missing[k]);
+      toMakeAt.push_back(k);
+    }
+  }
+  if (toMake.empty()) return out;
+  const auto made = makeFinishedBandNoises(seed, stream, filters, toMake);
+  for (size_t j = 0; j < toMake.size(); ++j) {
+    const size_t k = toMakeAt[j];
+    out[k] = made[j];
+    if (gNoiseCacheWrites.fetch_add(1) >= kNoiseCacheWritesPerProcess) continue;
+    std::string bytes(reinterpret_cast<const char*>(&keys[k]), sizeof keys[k]);
+    bytes.reserve(sizeof keys[k] + payload);
+    for (const auto& band : *made[j]) bytes.append(reinterpret_cast<const char*>(band.data()), n * sizeof(float));
+    writeCacheEntry(folder, names[k], bytes, "noise-", kNoiseCacheEntries);
+  }
+  return out;
 }
 
 std::vector<std::shared_ptr<std::vector<std::vector<float>>>> SpectralSynth::makeFinishedBandNoises(

@@ -97,6 +97,14 @@ class SpectralSynth {
       uint64_t seed, uint64_t stream, const std::vector<std::pair<GridFilter, uint64_t>>& filters) const;
 
  private:
+  // What the code makes of a fixed short noise, hashed: part of the disk
+  // cache's key, so that entries of other numerics are never read.
+  static uint64_t noiseFingerprint();
+  // finishedBandNoises' work for filters[missing[k]], k in order, from the
+  // disk cache where it holds them (see the .cpp), else made (and written).
+  std::vector<std::shared_ptr<std::vector<std::vector<float>>>> cachedOrMadeBandNoises(
+      uint64_t seed, uint64_t stream, const std::vector<std::pair<GridFilter, uint64_t>>& filters,
+      const std::vector<size_t>& missing) const;
   // finishedBandNoises' work for filters[missing[k]], k in order (no cache).
   std::vector<std::shared_ptr<std::vector<std::vector<float>>>> makeFinishedBandNoises(
       uint64_t seed, uint64_t stream, const std::vector<std::pair<GridFilter, uint64_t>>& filters,

@@ -1,6 +1,11 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -105,6 +110,65 @@ TEST(CliIr, SharedTraceIsReportedAndRefusesConvergence) {
 
 // The sample shoebox's walls reflect enough for a flutter along its 10 m
 // axis: 1/8 of the rays sample it, unless told not to.
+// The cache folder (earshot/io/disk_cache.h): a one-shot `earshot ir`
+// keeps the HRTF set and late noises it prepared there, and the next one
+// reads them: bit for bit the same IR. Damaged entries are made again;
+// "off" writes nothing; one process adds at most 8 noises.
+TEST(CliIr, CacheFolderGivesTheSameIrsAndSurvivesDamage) {
+  namespace fs = std::filesystem;
+  TempDir dir("cli_cache");
+  const std::string cache = dir / "cache";
+  const char* previous = std::getenv("EARSHOT_CACHE_DIR");
+  const std::string saved = previous ? previous : "";
+  setenv("EARSHOT_CACHE_DIR", cache.c_str(), 1);
+  auto entries = [&](const std::string& prefix) {
+    std::vector<fs::path> out;
+    std::error_code ec;
+    for (fs::directory_iterator it(cache, ec), end; !ec && it != end; it.increment(ec))
+      if (it->path().filename().string().rfind(prefix, 0) == 0) out.push_back(it->path());
+    return out;
+  };
+  const std::string common = "ir " + kShoebox + " --material-map " + kShoeboxMap +
+                             " --source 2,3.5,1.5 --listener 7,3.5,1.5 --quality draft --seed 41 ";
+  auto run = [&](const std::string& extra, const std::string& out) {
+    auto r = runEarshot(common + extra + " -o " + dir / out);
+    EXPECT_EQ(r.exitCode, 0) << r.output;
+    return readFile(dir / out);
+  };
+  const std::string fresh = run("--receiver binaural", "a.wav");
+  ASSERT_FALSE(fresh.empty());
+  EXPECT_EQ(entries("hrtf-").size(), 1u);
+  const auto noises = entries("noise-");
+  EXPECT_GE(noises.size(), 1u);
+  EXPECT_EQ(run("--receiver binaural", "b.wav"), fresh);
+  // Damage every noise entry (one byte in the samples): made again, the
+  // same IR, the entries rewritten whole.
+  std::vector<std::string> original;
+  for (const auto& e : noises) {
+    original.push_back(readFile(e));
+    std::fstream f(e, std::ios::in | std::ios::out | std::ios::binary);
+    f.seekp(std::streamoff(original.back().size() / 2));
+    f.write("\x7f\x7f", 2);
+    f.close();
+    EXPECT_NE(readFile(e), original.back());
+  }
+  EXPECT_EQ(run("--receiver binaural", "c.wav"), fresh);
+  for (size_t i = 0; i < noises.size(); ++i) EXPECT_TRUE(readFile(noises[i]) == original[i]) << noises[i];
+  EXPECT_EQ(run("--receiver binaural", "d.wav"), fresh);
+  // An order-3 ambisonic IR reads 16 noises: at most 8 are written.
+  const size_t before = entries("noise-").size();
+  const std::string amb = run("--receiver ambisonic --order 3", "e.wav");
+  EXPECT_EQ(entries("noise-").size(), before + 8);
+  EXPECT_EQ(run("--receiver ambisonic --order 3", "f.wav"), amb);
+  // No cache: nothing written, the same IR.
+  fs::remove_all(cache);
+  setenv("EARSHOT_CACHE_DIR", "off", 1);
+  EXPECT_EQ(run("--receiver binaural", "g.wav"), fresh);
+  EXPECT_FALSE(fs::exists(cache));
+  if (previous) setenv("EARSHOT_CACHE_DIR", saved.c_str(), 1);
+  else unsetenv("EARSHOT_CACHE_DIR");
+}
+
 TEST(CliIr, FlutterConesAreReportedAndCanBeTurnedOff) {
   TempDir dir("cli_flutter");
   for (const std::string flag : {"", " --no-flutter-cones"}) {
