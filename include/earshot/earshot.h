@@ -236,7 +236,9 @@ EARSHOT_API earshot_status earshot_context_settings_init(earshot_context_setting
 
 /** Creates a context in a few milliseconds and about a megabyte: the shared
  *  buffers and worker threads only. The HRTF loads on a background thread
- *  (~0.5-0.7 s for the default set); a slot's state (~1.5 MB at 3 s IRs)
+ *  (~0.5-0.7 s for the default set the first time on a machine, ~0.1 s
+ *  once earshot's cache folder holds it: $EARSHOT_CACHE_DIR, else
+ *  ~/.cache/earshot, "off" for none; README); a slot's state (~1.5 MB at 3 s IRs)
  *  is allocated when a source first uses it (earshot_source_create) and kept
  *  for the slot's later sources. `earshot bench context` measures all three.
  *  A missing or unreadable HRTF file is refused here; a file that fails to
