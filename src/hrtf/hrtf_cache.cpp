@@ -11,7 +11,6 @@
 // bytes before it (earshot/io/disk_cache.h). A reader checks every size
 // against the file's before allocating, every value for finiteness and
 // every direction for unit length; anything else is a miss.
-#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <vector>

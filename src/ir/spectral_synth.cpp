@@ -606,7 +606,11 @@ std::vector<std::shared_ptr<std::vector<std::vector<float>>>> SpectralSynth::cac
   for (size_t j = 0; j < toMake.size(); ++j) {
     const size_t k = toMakeAt[j];
     out[k] = made[j];
-    if (gNoiseCacheWrites.fetch_add(1) >= kNoiseCacheWritesPerProcess) continue;
+    // Silence means an FFT plan could not be allocated: never kept.
+    bool audible = false;
+    for (const auto& band : *made[j])
+      for (size_t i = 0; i < band.size() && !audible; ++i) audible = band[i] != 0.0f;
+    if (!audible || gNoiseCacheWrites.fetch_add(1) >= kNoiseCacheWritesPerProcess) continue;
     std::string bytes(reinterpret_cast<const char*>(&keys[k]), sizeof keys[k]);
     bytes.reserve(sizeof keys[k] + payload);
     for (const auto& band : *made[j]) bytes.append(reinterpret_cast<const char*>(band.data()), n * sizeof(float));
