@@ -2,7 +2,8 @@
 # The IR-update figures of issue 16, measured side by side in one run on the
 # machine at hand (docs/performance.md): per scene, the tracer beside the
 # Embree limit of the same queries, the synthesis of a 2 s IR (binaural and
-# omni), and `earshot ir`'s stage times for a binaural IR; then one shared
+# omni), and `earshot ir`'s stage times for a binaural IR (a first run's,
+# without the cache folder, and with it warm); then one shared
 # trace for 32 sources beside a trace from each, and the runtime with 32
 # moving sources in the furnished room, shared trace and per source. Usage (from the repository
 # root, after the build): bash tools/bench_update.sh [build-dir]
@@ -19,17 +20,30 @@ for scene in shoebox/shoebox.gltf furnished_room/furnished_room.glb; do
   echo "## $scene"
   "$bin" bench trace "samples/$scene" --material-map "$map" --runs 9
   "$bin" bench synth "samples/$scene" --material-map "$map" --runs 9
-  for i in 1 2 3; do
-    "$bin" ir "samples/$scene" --material-map "$map" --source 2,3.5,1.5 --listener 5,3,1.6 \
-      --receiver binaural -o "$tmp/ir$i.wav" --json "$tmp/ir$i.json" >/dev/null 2>&1
-  done
-  /usr/bin/python3 - "$tmp" <<'PY'
+  # One-shot processes, without the cache folder (what a first run pays:
+  # the HRTF set's preparation, the late noises) and with it warm.
+  for cache in off warm; do
+    if [ "$cache" = off ]; then dir_cache=off; else dir_cache="$tmp/cache"; fi
+    if [ "$cache" = warm ]; then
+      EARSHOT_CACHE_DIR="$dir_cache" "$bin" ir "samples/$scene" --material-map "$map" --source 2,3.5,1.5 \
+        --listener 5,3,1.6 --receiver binaural -o "$tmp/warm.wav" >/dev/null 2>&1
+    fi
+    for i in 1 2 3; do
+      TIMEFORMAT=%R
+      { time EARSHOT_CACHE_DIR="$dir_cache" "$bin" ir "samples/$scene" --material-map "$map" --source 2,3.5,1.5 \
+          --listener 5,3,1.6 --receiver binaural -o "$tmp/ir$i.wav" --json "$tmp/ir$i.json" >/dev/null 2>&1; } \
+        2> "$tmp/wall$i"
+    done
+    /usr/bin/python3 - "$tmp" "$cache" <<'PY'
 import json, statistics, sys
 runs = [json.load(open(f"{sys.argv[1]}/ir{i}.json"))["time_ms"] for i in (1, 2, 3)]
+walls = [float(open(f"{sys.argv[1]}/wall{i}").read()) for i in (1, 2, 3)]
 keys = ["trace", "early_reflections", "tail", "synthesis", "pipeline"]
-print("earshot ir (binaural, one-shot process, median of 3): " +
-      " ".join(f"{k}_ms={statistics.median(r[k] for r in runs):.1f}" for k in keys))
+print(f"earshot ir (binaural, one-shot process, cache {sys.argv[2]}, median of 3): " +
+      " ".join(f"{k}_ms={statistics.median(r[k] for r in runs):.1f}" for k in keys) +
+      f" process_s={statistics.median(walls):.2f}")
 PY
+  done
 done
 echo "## one trace for 32 sources (furnished room)"
 "$bin" bench trace samples/furnished_room/furnished_room.glb \
