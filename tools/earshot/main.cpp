@@ -146,6 +146,13 @@ int main(int argc, char** argv) {
   CLI::App app{"earshot: CPU audio propagation for VR spatial audio (impulse responses, rendering, analysis)"};
   app.require_subcommand(1);
   app.set_version_flag("--version", "earshot " EARSHOT_VERSION_STRING);
+  app.footer(
+      "Environment:\n"
+      "  EARSHOT_CACHE_DIR   folder for prepared HRTF sets and late noises that later runs read instead of\n"
+      "                      computing again ('off': none; default $XDG_CACHE_HOME/earshot or ~/.cache/earshot)\n"
+      "  EARSHOT_HRTF_DIR    folder of the default HRTF set (default: share/earshot/hrtf next to the installed\n"
+      "                      library, else the source tree's hrtf/)\n"
+      "  EARSHOT_SOFA_PROBE  the program that reads a SOFA file earshot does not ship before it is loaded");
   // Limits on what input files may make earshot do (README "Untrusted
   // input"); given before or after the subcommand.
   app.fallthrough();
