@@ -1,14 +1,19 @@
 // libFuzzer target: HrtfSet::load (libmysofa HDF5/SOFA parse, convention and
 // size checks, resampling, minimum-phase split) on arbitrary bytes through a
-// temp file; accepted sets are looked up in a few directions.
+// temp file; accepted sets are looked up in a few directions. Without the
+// cache folder: every input goes through libmysofa and the preparation, and
+// no accepted input is written to the user's cache.
 #include <cmath>
 #include <cstdint>
+#include <cstdlib>
 #include <memory>
 
 #include "earshot/hrtf/hrtf_set.h"
 #include "fuzz_temp_file.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+  static const int noCache = setenv("EARSHOT_CACHE_DIR", "off", 1);
+  (void)noCache;
   static earshot::fuzz::TempFile file("in.sofa");
   static auto pair = std::make_unique<earshot::hrtf::HrirPair>();  // 32 KB: not on the stack
   const std::string& path = file.write(data, size);
