@@ -1,6 +1,7 @@
 #include "earshot/io/disk_cache.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -124,6 +125,56 @@ bool writeCacheEntry(const std::string& folder, const std::string& name, const s
     for (std::size_t i = 0; i + keep < entries.size(); ++i) fs::remove(entries[i].second, ec);
   }
   return true;
+}
+
+namespace {
+
+bool isHex32(const std::string& s, std::size_t at) {
+  if (s.size() < at + 32) return false;
+  for (std::size_t i = at; i < at + 32; ++i)
+    if (!std::isxdigit(static_cast<unsigned char>(s[i])) || std::isupper(static_cast<unsigned char>(s[i])))
+      return false;
+  return true;
+}
+
+// "hrtf" / "noise" for an entry, "partial" for a write's leftover
+// (entry name + ".tmp-<pid>-<number>"), "" for anything else.
+std::string kindOf(const std::string& name) {
+  for (const char* kind : {"hrtf", "noise"}) {
+    const std::string prefix = std::string(kind) + "-";
+    if (name.rfind(prefix, 0) != 0 || !isHex32(name, prefix.size())) continue;
+    const std::string rest = name.substr(prefix.size() + 32);
+    if (rest == ".bin") return kind;
+    if (rest.rfind(".bin.tmp-", 0) == 0 && rest.size() > 9) return "partial";
+  }
+  return "";
+}
+
+}  // namespace
+
+std::vector<CacheFile> listCacheFiles(const std::string& folder) {
+  namespace fs = std::filesystem;
+  std::vector<CacheFile> out;
+  std::error_code ec;
+  for (fs::directory_iterator it(folder, ec), end; !ec && it != end; it.increment(ec)) {
+    std::error_code e;
+    if (!it->is_regular_file(e) || e) continue;
+    const std::string kind = kindOf(it->path().filename().string());
+    if (kind.empty()) continue;
+    const uint64_t bytes = it->file_size(e);
+    out.push_back({it->path().string(), kind, e ? 0 : bytes});
+  }
+  std::sort(out.begin(), out.end(), [](const CacheFile& a, const CacheFile& b) { return a.path < b.path; });
+  return out;
+}
+
+std::size_t clearCacheFiles(const std::string& folder) {
+  std::size_t removed = 0;
+  for (const CacheFile& f : listCacheFiles(folder)) {
+    std::error_code ec;
+    if (std::filesystem::remove(f.path, ec) && !ec) ++removed;
+  }
+  return removed;
 }
 
 }  // namespace earshot

@@ -113,7 +113,8 @@ TEST(CliIr, SharedTraceIsReportedAndRefusesConvergence) {
 // The cache folder (earshot/io/disk_cache.h): a one-shot `earshot ir`
 // keeps the HRTF set and late noises it prepared there, and the next one
 // reads them: bit for bit the same IR. Damaged entries are made again;
-// "off" writes nothing; one process adds at most 8 noises.
+// "off" writes nothing; one process adds at most 8 noises; `earshot cache`
+// lists and clears earshot's files only.
 TEST(CliIr, CacheFolderGivesTheSameIrsAndSurvivesDamage) {
   namespace fs = std::filesystem;
   TempDir dir("cli_cache");
@@ -160,11 +161,30 @@ TEST(CliIr, CacheFolderGivesTheSameIrsAndSurvivesDamage) {
   const std::string amb = run("--receiver ambisonic --order 3", "e.wav");
   EXPECT_EQ(entries("noise-").size(), before + 8);
   EXPECT_EQ(run("--receiver ambisonic --order 3", "f.wav"), amb);
+  // `earshot cache` says what is there; --clear removes earshot's files
+  // (entries, an interrupted write's leftover) and nothing else.
+  std::ofstream(cache + "/notes.txt") << "mine";
+  const std::string partial = noises.front().string() + ".tmp-1-2";
+  std::ofstream(partial) << "half";
+  auto listing = runEarshot("cache");
+  EXPECT_EQ(listing.exitCode, 0) << listing.output;
+  // entries("noise-") counts the leftover too (it is named after its entry).
+  EXPECT_NE(listing.output.find(cache + ": " + std::to_string(entries("noise-").size() + 1) + " files"),
+            std::string::npos) << listing.output;
+  EXPECT_NE(listing.output.find("hrtf     1,"), std::string::npos) << listing.output;
+  EXPECT_NE(listing.output.find("partial  1,"), std::string::npos) << listing.output;
+  auto cleared = runEarshot("cache --clear");
+  EXPECT_EQ(cleared.exitCode, 0) << cleared.output;
+  EXPECT_TRUE(entries("noise-").empty());
+  EXPECT_TRUE(entries("hrtf-").empty());
+  EXPECT_FALSE(fs::exists(partial));
+  EXPECT_TRUE(fs::exists(cache + "/notes.txt"));
   // No cache: nothing written, the same IR.
   fs::remove_all(cache);
   setenv("EARSHOT_CACHE_DIR", "off", 1);
   EXPECT_EQ(run("--receiver binaural", "g.wav"), fresh);
   EXPECT_FALSE(fs::exists(cache));
+  EXPECT_NE(runEarshot("cache").output.find("no cache folder"), std::string::npos);
   if (previous) setenv("EARSHOT_CACHE_DIR", saved.c_str(), 1);
   else unsetenv("EARSHOT_CACHE_DIR");
 }

@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <vector>
 
 namespace earshot {
 
@@ -36,5 +37,18 @@ std::optional<std::string> readCacheEntry(const std::string& path, uint64_t maxB
  *  `prefix`*.bin of the folder. Best effort: false if anything failed. */
 bool writeCacheEntry(const std::string& folder, const std::string& name, const std::string& bytes,
                      const std::string& prefix, std::size_t keep);
+
+/** One file of the cache folder that earshot wrote: an entry
+ *  (`kind`-<32 hex digits>.bin, kind "hrtf" or "noise") or a temporary file
+ *  an interrupted write left (kind "partial"). */
+struct CacheFile {
+  std::string path, kind;
+  uint64_t bytes = 0;
+};
+/** earshot's files in `folder` (nothing else in it), sorted by name. */
+std::vector<CacheFile> listCacheFiles(const std::string& folder);
+/** Removes earshot's files from `folder` (not the folder nor any other
+ *  file); returns how many went. */
+std::size_t clearCacheFiles(const std::string& folder);
 
 }  // namespace earshot

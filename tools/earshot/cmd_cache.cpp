@@ -1,0 +1,58 @@
+// `earshot cache`: where the cache folder is and what it holds (prepared
+// HRTF sets, late noises: README "The cache folder"); --clear empties it of
+// earshot's files.
+#include <cstdio>
+#include <map>
+#include <memory>
+#include <string>
+
+#include "command.h"
+#include "earshot/io/disk_cache.h"
+#include "earshot/io/input_file.h"
+
+namespace earshot::cli {
+namespace {
+
+struct CacheOptions {
+  bool clear = false;
+};
+
+void runCache(const CacheOptions& o) {
+  const std::string folder = cacheFolder();
+  if (folder.empty()) {
+    std::printf("no cache folder (EARSHOT_CACHE_DIR is \"off\" or empty, or no HOME): nothing is kept\n");
+    return;
+  }
+  const auto files = listCacheFiles(folder);
+  if (o.clear) {
+    const size_t removed = clearCacheFiles(folder);
+    std::printf("%s: removed %zu file%s\n", folder.c_str(), removed, removed == 1 ? "" : "s");
+    if (removed != files.size()) printError(folder + ": " + std::to_string(files.size() - removed) + " files could not be removed");
+    return;
+  }
+  std::map<std::string, std::pair<size_t, uint64_t>> byKind;
+  uint64_t total = 0;
+  for (const auto& f : files) {
+    auto& k = byKind[f.kind];
+    ++k.first;
+    k.second += f.bytes;
+    total += f.bytes;
+  }
+  std::printf("%s: %zu file%s, %s\n", folder.c_str(), files.size(), files.size() == 1 ? "" : "s",
+              formatBytes(total).c_str());
+  for (const auto& [kind, count] : byKind)
+    std::printf("  %-8s %zu, %s\n", kind.c_str(), count.first, formatBytes(count.second).c_str());
+}
+
+const Registrar registrar([](CLI::App& root) {
+  auto o = std::make_shared<CacheOptions>();
+  CLI::App* cmd = root.add_subcommand(
+      "cache", "Where the cache folder is and what it holds: HRTF sets and late noises prepared by earlier runs "
+               "(EARSHOT_CACHE_DIR, else ~/.cache/earshot; 'off' for none)");
+  cmd->add_flag("--clear", o->clear, "Remove earshot's files from it (entries and leftovers of interrupted writes; "
+                                     "other files stay). Later runs prepare them again");
+  cmd->callback([o] { runCache(*o); });
+});
+
+}  // namespace
+}  // namespace earshot::cli
