@@ -77,6 +77,33 @@ std::string cacheEntryName(const std::string& prefix, const void* key, std::size
   return prefix + hex + ".bin";
 }
 
+namespace {
+
+bool isHex32(const std::string& s, std::size_t at) {
+  if (s.size() < at + 32) return false;
+  for (std::size_t i = at; i < at + 32; ++i)
+    if (!std::isxdigit(static_cast<unsigned char>(s[i])) || std::isupper(static_cast<unsigned char>(s[i])))
+      return false;
+  return true;
+}
+
+// The kind of a file earshot wrote: "<kind>-<32 lowercase hex digits>.bin"
+// (kind: lowercase letters, the prefix of cacheEntryName) gives its kind,
+// that name + ".tmp-..." (a write's leftover) "partial", anything else "".
+std::string kindOf(const std::string& name) {
+  const std::size_t dash = name.find('-');
+  if (dash == 0 || dash == std::string::npos) return "";
+  for (std::size_t i = 0; i < dash; ++i)
+    if (!std::islower(static_cast<unsigned char>(name[i]))) return "";
+  if (!isHex32(name, dash + 1)) return "";
+  const std::string rest = name.substr(dash + 33);
+  if (rest == ".bin") return name.substr(0, dash);
+  if (rest.rfind(".bin.tmp-", 0) == 0 && rest.size() > 9) return "partial";
+  return "";
+}
+
+}  // namespace
+
 std::optional<std::string> readCacheEntry(const std::string& path, uint64_t maxBytes) {
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec) || ec) return std::nullopt;
@@ -110,12 +137,10 @@ bool writeCacheEntry(const std::string& folder, const std::string& name, const s
     return out ? Status::ok() : ioError(tmp + ": cannot write");
   });
   if (!written.isOk()) return false;
-  // Keep the newest `keep` entries of this kind (prefix, 32 hex digits, .bin).
+  // Keep the newest `keep` entries of this kind.
   std::vector<std::pair<fs::file_time_type, fs::path>> entries;
-  const std::size_t nameLength = prefix.size() + 32 + 4;
   for (fs::directory_iterator it(folder, ec), end; !ec && it != end; it.increment(ec)) {
-    const std::string n = it->path().filename().string();
-    if (n.size() != nameLength || n.rfind(prefix, 0) != 0 || n.substr(nameLength - 4) != ".bin") continue;
+    if (kindOf(it->path().filename().string()) + "-" != prefix) continue;
     std::error_code e;
     const auto t = fs::last_write_time(it->path(), e);
     if (!e) entries.emplace_back(t, it->path());
@@ -126,31 +151,6 @@ bool writeCacheEntry(const std::string& folder, const std::string& name, const s
   }
   return true;
 }
-
-namespace {
-
-bool isHex32(const std::string& s, std::size_t at) {
-  if (s.size() < at + 32) return false;
-  for (std::size_t i = at; i < at + 32; ++i)
-    if (!std::isxdigit(static_cast<unsigned char>(s[i])) || std::isupper(static_cast<unsigned char>(s[i])))
-      return false;
-  return true;
-}
-
-// "hrtf" / "noise" for an entry, "partial" for a write's leftover
-// (entry name + ".tmp-<pid>-<number>"), "" for anything else.
-std::string kindOf(const std::string& name) {
-  for (const char* kind : {"hrtf", "noise"}) {
-    const std::string prefix = std::string(kind) + "-";
-    if (name.rfind(prefix, 0) != 0 || !isHex32(name, prefix.size())) continue;
-    const std::string rest = name.substr(prefix.size() + 32);
-    if (rest == ".bin") return kind;
-    if (rest.rfind(".bin.tmp-", 0) == 0 && rest.size() > 9) return "partial";
-  }
-  return "";
-}
-
-}  // namespace
 
 std::vector<CacheFile> listCacheFiles(const std::string& folder) {
   namespace fs = std::filesystem;

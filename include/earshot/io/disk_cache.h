@@ -24,7 +24,8 @@ Hash128 hashBytes(const void* data, std::size_t size, uint64_t seed = 0);
  *  only), else "". */
 std::string cacheFolder();
 
-/** `prefix` + 32 hex digits of the hash of `key` + ".bin". */
+/** `prefix` (lowercase letters and a '-', e.g. "hrtf-") + 32 hex digits of
+ *  the hash of `key` + ".bin". */
 std::string cacheEntryName(const std::string& prefix, const void* key, std::size_t keyBytes);
 
 /** The entry's bytes without its checksum, if `path` is a regular file (a
@@ -39,8 +40,8 @@ bool writeCacheEntry(const std::string& folder, const std::string& name, const s
                      const std::string& prefix, std::size_t keep);
 
 /** One file of the cache folder that earshot wrote: an entry
- *  (`kind`-<32 hex digits>.bin, kind "hrtf" or "noise") or a temporary file
- *  an interrupted write left (kind "partial"). */
+ *  (`kind`-<32 hex digits>.bin: "hrtf", "noise") or a temporary file an
+ *  interrupted write left (kind "partial"). */
 struct CacheFile {
   std::string path, kind;
   uint64_t bytes = 0;
