@@ -202,7 +202,6 @@ struct IrOptions {
   std::string quality;
   std::string receiver;
   TraceMode trace = TraceMode::kPerSource;
-  std::string traceName = "per-source";
 };
 
 IrOptions makeRequest(const std::string& receiver, const std::array<double, 3>& forward,
@@ -216,7 +215,6 @@ IrOptions makeRequest(const std::string& receiver, const std::array<double, 3>& 
   auto mode = traceModeFromString(trace);
   if (!mode.isOk()) throw py::value_error("trace: expected 'per-source', 'shared' or 'auto', got '" + trace.substr(0, 32) + "'");
   q.trace = *mode;
-  q.traceName = trace;
   if (receiver != "omni" && receiver != "binaural" && receiver != "ambisonic")
     throw py::value_error("receiver: expected 'omni', 'binaural' or 'ambisonic', got '" + receiver.substr(0, 32) + "'");
   if (receiver != "binaural" && !hrtf.empty()) throw py::value_error("hrtf: an HRTF applies only to receiver='binaural'");
@@ -340,7 +338,8 @@ IrOut computeOne(SceneData& scene, const IrOptions& q, const std::array<double, 
   return std::move(computeGroup(scene, q, {src}, lis, seed, pool).front());
 }
 
-py::dict toPython(IrOut&& o, const IrOptions& q) {
+/** `traced`: the trace the IR got (kAuto resolved). */
+py::dict toPython(IrOut&& o, const IrOptions& q, TraceMode traced) {
   if (!o.status.isOk()) raise(o.status);
   const size_t c = o.ir.channelCount(), n = o.ir.frameCount();
   py::array_t<float> samples({py::ssize_t(c), py::ssize_t(n)});
@@ -354,7 +353,7 @@ py::dict toPython(IrOut&& o, const IrOptions& q) {
   d["warnings"] = o.warnings;
   d["quality"] = q.quality;
   d["receiver"] = q.receiver;
-  d["trace"] = q.traceName;
+  d["trace"] = toString(traced);
   return d;
 }
 
@@ -369,9 +368,7 @@ py::dict irOne(SceneData& scene, const P3& source, const P3& listener, const IrO
     ThreadPool pool(threads);
     out = computeOne(scene, q, source, listener, q.settings.seed, pool);
   }
-  IrOptions named = q;
-  named.traceName = toString(effectiveTraceMode(q.trace, 1));
-  return toPython(std::move(out), named);
+  return toPython(std::move(out), q, effectiveTraceMode(q.trace, 1));
 }
 
 /** Per source (q.trace kPerSource): pair i with seed + i, pairs handed out
@@ -437,11 +434,8 @@ py::list irBatch(SceneData& scene, const std::vector<std::pair<P3, P3>>& pairs, 
   for (const auto& g : groups)
     for (size_t k : g) traced[k] = true;
   py::list results;
-  IrOptions named = q;
-  for (size_t k = 0; k < outs.size(); ++k) {
-    named.traceName = toString(traced[k] ? TraceMode::kShared : TraceMode::kPerSource);
-    results.append(toPython(std::move(outs[k]), named));
-  }
+  for (size_t k = 0; k < outs.size(); ++k)
+    results.append(toPython(std::move(outs[k]), q, traced[k] ? TraceMode::kShared : TraceMode::kPerSource));
   return results;
 }
 
