@@ -257,12 +257,18 @@ struct ConvolutionMixer::Impl {
     std::fill(lv.diffTouched.begin(), lv.diffTouched.end(), 0);
   }
 
-  // Forward FFT of source `si`'s newest 2P input frames (delayed by the
-  // level's input delay) into the next delay-line slot.
-  void forward(LevelState& lv, size_t si) {
+  // Forward FFT of source `si`'s 2P input frames that end where the level's
+  // block began (delayed by the level's input delay) into the next
+  // delay-line slot. `phase` is the step of the block the task runs in: a
+  // forward FFT scheduled after the block's first step must not see the
+  // frames that arrived since (with several sources they are spread over
+  // the block's steps; reading the newest frames instead shifted every
+  // later source's input by phase * N frames in levels after the first).
+  void forward(LevelState& lv, size_t si, size_t phase) {
     const size_t li = &lv - levels.data();
     const size_t nfft = 2 * lv.p;
-    const int64_t end = static_cast<int64_t>(written) - static_cast<int64_t>(lv.desc.inputDelayFrames);
+    const int64_t end = static_cast<int64_t>(written) - static_cast<int64_t>(phase * n) -
+                        static_cast<int64_t>(lv.desc.inputDelayFrames);
     const int64_t start = end - static_cast<int64_t>(nfft);
     if (!sources[si]) return;
     Source& s = *sources[si];
@@ -295,7 +301,7 @@ struct ConvolutionMixer::Impl {
       // Steady state: the partitions of this range in register-tiled
       // passes over the accumulators (both ears at once when binaural).
       const size_t kEnd = std::min(k1, cur->activePartitions(li));
-      for (size_t kb = k0; kb < kEnd; kb += kBatch) {
+      for (size_t kb = std::max(k0, cur->firstActivePartition(li)); kb < kEnd; kb += kBatch) {
         const size_t cnt = std::min(kBatch, kEnd - kb);
         const float* xs[kBatch];
         for (size_t j = 0; j < cnt; ++j) {
@@ -400,7 +406,7 @@ struct ConvolutionMixer::Impl {
       for (size_t t = lv.phaseTask[phase]; t < lv.phaseTask[phase + 1]; ++t) {
         const Task& task = lv.tasks[t];
         switch (task.kind) {
-          case Task::kForward: forward(lv, task.a); break;
+          case Task::kForward: forward(lv, task.a, phase); break;
           case Task::kMac: accumulate(lv, task.source, task.a, task.a1, task.k0, task.k1); break;
           case Task::kInverse: finishChannel(lv, task.a); break;
         }
@@ -514,10 +520,10 @@ ConvolutionMixer::~ConvolutionMixer() = default;
 
 Result<std::unique_ptr<ConvolutionMixer>> ConvolutionMixer::create(const ConvolverSettings& settings,
                                                                    size_t sourceCount) {
-  auto layout = PartitionLayout::create(settings);
-  if (!layout) return layout.status();
   if (sourceCount < 1 || sourceCount > 4096)
     return invalidArgument("convolution mixer: sourceCount=" + std::to_string(sourceCount) + " must be in [1, 4096]");
+  auto layout = PartitionLayout::create(settings, sourceCount);
+  if (!layout) return layout.status();
   if (settings.fadeFrames > (size_t{1} << 20))
     return invalidArgument("convolver fadeFrames=" + std::to_string(settings.fadeFrames) + " must be <= 2^20");
   try {

@@ -5,6 +5,7 @@
 
 #include <kiss_fftr.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
@@ -63,6 +64,21 @@ Result<std::shared_ptr<const PreparedIr>> PreparedIr::create(const std::vector<s
     if (frames > lv.offsetFrames)
       active = std::min(lv.partitionCount, (frames - lv.offsetFrames + lv.partitionFrames - 1) / lv.partitionFrames);
     out->mActive.push_back(active);
+    // Leading silent partitions (all channels zero over the partition).
+    size_t first = 0;
+    for (; first < active; ++first) {
+      const size_t start = lv.offsetFrames + first * lv.partitionFrames;
+      const size_t end = std::min(frames, start + lv.partitionFrames);
+      bool silent = true;
+      for (size_t c = 0; c < channels.size() && silent; ++c)
+        for (size_t t = start; t < end; ++t)
+          if (channels[c][t] != 0.0f) {
+            silent = false;
+            break;
+          }
+      if (!silent) break;
+    }
+    out->mFirstActive.push_back(first);
   }
   size_t bytes = ((total * sizeof(float) + 63) / 64) * 64;
   out->mData = static_cast<float*>(std::aligned_alloc(64, bytes ? bytes : 64));
@@ -79,7 +95,7 @@ Result<std::shared_ptr<const PreparedIr>> PreparedIr::create(const std::vector<s
     std::vector<float> time(nfft, 0.0f);
     std::vector<kiss_fft_cpx> freq(p + 1);
     for (size_t c = 0; c < channels.size(); ++c) {
-      for (size_t k = 0; k < out->mActive[l]; ++k) {
+      for (size_t k = out->mFirstActive[l]; k < out->mActive[l]; ++k) {
         std::fill(time.begin(), time.end(), 0.0f);
         size_t start = lv.offsetFrames + k * p;
         size_t n = std::min(p, frames - start);

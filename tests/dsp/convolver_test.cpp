@@ -311,6 +311,73 @@ TEST(ConvolutionMixer, EqualsSumOfConvolvers) {
   EXPECT_LE(worst, 1e-5 * peak);
 }
 
+// Several sources in a layout of more than one level, as the engine's
+// ambisonic bus (short 4-channel IRs, many sources: the layout's levels are
+// 256 and 1024 frames), each IR starting with silence of its own length (a
+// reflection arrives after the sound's travel time): the mixer is the direct
+// convolution to 1e-5 of the peak (as ConvolverMatchesDirect). Guards two
+// things: each IR's leading silent partitions are skipped, exactly; and a
+// source whose forward FFT runs in a later step of a level's block reads the
+// frames that ended at the block's start (it read the newest ones, which
+// shifted the output of every source but the first in levels after the
+// first: an error of the output's own size).
+TEST(ConvolutionMixer, SourcesInLaterLevelsAndLeadingSilenceAreExact) {
+  const size_t sources = 8, channels = 4, irLen = 7682, block = 256, warmUp = 8192, signal = 6000;
+  const size_t frames = warmUp + signal;
+  ConvolverSettings s;
+  s.latencyFrames = block;
+  s.maxIrFrames = irLen;
+  s.channels = channels;
+  auto mixer = ConvolutionMixer::create(s, sources);
+  ASSERT_TRUE(mixer.isOk());
+  ConvolutionMixer& m = **mixer;
+  ASSERT_EQ(m.layout().levels().size(), 2u);
+  const PartitionLevel& l0 = m.layout().levels()[0];
+  std::vector<std::vector<float>> inputs;
+  std::vector<std::vector<double>> want(channels, std::vector<double>(frames, 0.0));
+  for (size_t src = 0; src < sources; ++src) {
+    // Silence of 0 to ~3500 frames (into the second level for some), one
+    // channel silent 300 frames longer.
+    const size_t silent = (src * 997) % 3600;
+    std::vector<std::vector<float>> ir;
+    for (size_t c = 0; c < channels; ++c) {
+      std::vector<float> ch = decayingNoise(irLen, 100 + 7 * src + c);
+      std::fill(ch.begin(), ch.begin() + long(silent + (c == 2 ? 300 : 0)), 0.0f);
+      ir.push_back(std::move(ch));
+    }
+    auto prepared = prepare(ir, m.layout());
+    EXPECT_EQ(prepared->firstActivePartition(0), std::min(l0.partitionCount, silent / l0.partitionFrames))
+        << "source " << src;
+    ASSERT_TRUE(m.setIr(src, prepared).isOk());
+    // Silence first, so that every level has taken up the IR (fading in
+    // from none) before the signal starts.
+    std::vector<float> x = decayingNoise(signal, 300 + src, 0.0);
+    for (size_t c = 0; c < channels; ++c) {
+      auto y = directConvolve(x, ir[c], signal);
+      for (size_t t = 0; t < signal; ++t) want[c][warmUp + t] += y[t];
+    }
+    x.insert(x.begin(), warmUp, 0.0f);
+    inputs.push_back(std::move(x));
+  }
+  std::vector<std::vector<float>> out(channels, std::vector<float>(frames));
+  std::vector<const float*> ins(sources);
+  std::vector<float*> outs(channels);
+  for (size_t pos = 0; pos < frames; pos += block) {
+    const size_t b = std::min(block, frames - pos);
+    for (size_t src = 0; src < sources; ++src) ins[src] = inputs[src].data() + pos;
+    for (size_t c = 0; c < channels; ++c) outs[c] = out[c].data() + pos;
+    m.process(ins.data(), outs.data(), b);
+  }
+  double peak = 0, worst = 0;
+  for (size_t c = 0; c < channels; ++c)
+    for (size_t t = block; t < frames; ++t) {
+      peak = std::max(peak, std::fabs(want[c][t - block]));
+      worst = std::max(worst, std::fabs(want[c][t - block] - out[c][t]));
+    }
+  EXPECT_GT(peak, 1.0);
+  EXPECT_LE(worst, 1e-5 * peak);
+}
+
 // After loud noise, silence through an IR whose tail decays to 1e-40
 // (subnormal territory) leaves no subnormal number anywhere in the state:
 // process() flushes denormals. It also restores the caller's FP mode.

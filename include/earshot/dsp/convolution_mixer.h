@@ -25,7 +25,7 @@ namespace earshot {
 class ConvolutionMixer {
  public:
   /** Builds a mixer of `sourceCount` sources (in [1, 4096]) with the layout
-   *  PartitionLayout::create(settings). Every source starts with no IR
+   *  PartitionLayout::create(settings, sourceCount). Every source starts with no IR
    *  (silence) and no state: a source's input history and spectra (about
    *  4 x maxIrFrames floats) are allocated by reserveSource() or its first
    *  setIr(), so that creating a mixer of many slots costs only the shared

@@ -63,9 +63,11 @@ class PartitionLayout {
 
   /** Chooses the cheapest layout (by an operation-count model of KissFFT and
    *  the multiply-accumulate) for the settings' latency, maximum IR length,
-   *  channel count and maximum partition. Fails with a message naming the
-   *  field when a setting is out of range. Any thread; allocates. */
-  static Result<PartitionLayout> create(const ConvolverSettings& settings);
+   *  channel count and maximum partition, per source of a mixer of `sources`
+   *  sources (which share the inverse FFTs; 1 for a lone convolver). Fails
+   *  with a message naming the field when a setting or `sources` (in
+   *  [1, 4096]) is out of range. Any thread; allocates. */
+  static Result<PartitionLayout> create(const ConvolverSettings& settings, size_t sources = 1);
 
   size_t latencyFrames() const { return mLatency; }
   /** IR taps the layout holds (>= maxIrFrames). */

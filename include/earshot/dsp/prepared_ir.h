@@ -36,6 +36,10 @@ class PreparedIr {
   size_t binStride(size_t level) const { return mStride[level]; }
   /** Number of non-empty partitions of `level` (trailing empty ones skipped). */
   size_t activePartitions(size_t level) const { return mActive[level]; }
+  /** First partition of `level` with a non-zero tap in any channel (the
+   *  ones before it are silent: a reflection IR starts with the sound's
+   *  travel time); activePartitions(level) when all are silent. */
+  size_t firstActivePartition(size_t level) const { return mFirstActive[level]; }
   /** Real parts of partition `k` of `level`, channel `channel`; the imaginary
    *  parts follow at + binStride(level). */
   const float* spectrum(size_t level, size_t channel, size_t k) const;
@@ -49,7 +53,7 @@ class PreparedIr {
   PartitionLayout mLayout;
   size_t mChannels = 0;
   size_t mIrFrames = 0;
-  std::vector<size_t> mStride, mActive, mLevelOffset;  // per level
+  std::vector<size_t> mStride, mActive, mFirstActive, mLevelOffset;  // per level
   float* mData = nullptr;                              // owned, 64-byte aligned
 };
 
