@@ -100,7 +100,6 @@ class DirectVoice {
   Params paramsFor(const DirectTarget& t, Vec3f& headDirection, bool centre = false) const;
   void processChunk(const float* input, float* left, float* right, size_t frames, const Params& from,
                     const Params& to, size_t offset, size_t total, bool crossfade);
-  double readDelayed(double position) const;
   // The shelves for `to` (air, transmission around the 1 kHz band).
   void setShelves(const Params& to);
   // `frames` of input (nullptr: silence) through the shelves into the delay
@@ -111,7 +110,7 @@ class DirectVoice {
   const SincTable* mSincTable = nullptr;
   std::shared_ptr<const hrtf::HrtfSet> mHrtf;
   BandArrayD mAirDbPerMeter{};
-  std::vector<float> mRing;     // delay line, power-of-two size
+  std::vector<float> mRing;     // delay line: a power of two (mRingMask + 1), then 8 floats mirroring its start
   size_t mRingMask = 0;
   size_t mWrite = 0;            // total samples written
   double mMaxDelay = 0;         // samples
