@@ -109,42 +109,63 @@ void firInto(const float* __restrict h, size_t taps, const float* __restrict x, 
 }
 #pragma GCC diagnostic pop
 
-// The delayed, gain-ramped reads of a chunk: out[i] = g_i * x(base + i -
-// d_i), x read by the 8-tap windowed sinc at its fractional position, with
-// d_i and g_i ramping linearly from (d0, g0) to (d0 + dd, g0 + dg) at i =
-// total - offset - 1 (as DirectVoice::processChunk's crossfade). The ring
-// has kTaps guard floats after its end that mirror its start, so the 8 taps
-// of a read are contiguous; the phase's taps are interpolated and multiplied
-// with them as one 8-float vector (a scalar loop of dependent adds was a
-// fifth of the audio thread with 32 sources).
+// The delayed, gain-ramped reads of a chunk for one or two outputs (the
+// ears, or the head centre): out_e[i] = g_i * x(base + i - d_e,i), x read by
+// the 8-tap windowed sinc at its fractional position, with d_e,i and g_i
+// ramping linearly from (d0, g0) to (d0 + dd, g0 + dg) at i = total - offset
+// - 1 (as DirectVoice::processChunk's crossfade). The ring has kTaps guard
+// floats after its end that mirror its start, so the 8 taps of a read are
+// contiguous; a phase's taps are interpolated and multiplied with them as
+// one 8-float vector, and the two outputs' sums reduced together (a scalar
+// loop of dependent adds per ear was a fifth of the audio thread with 32
+// sources).
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wpsabi"
 struct DelayRamp {
-  double d0, dd, g0, dg;
+  double d0[2], dd[2], g0, dg;
   size_t offset, total;
 };
+typedef int FirI8 __attribute__((vector_size(32)));
+static inline void sincProduct(const float* __restrict ring, size_t mask, const float* __restrict table,
+                               double position, FirV8& product) {
+  const double fl = std::floor(position);
+  const double p = (position - fl) * kPhases;
+  const int phase = std::min(int(p), kPhases - 1);
+  const float f = float(p - phase);
+  // Taps at fl - 3 .. fl + 4; fl may be negative before the line fills
+  // (the ring reads zeros there): wrap it through a signed integer.
+  const size_t start = size_t(int64_t(fl) - 3) & mask;
+  FirV8 ta, tb, x;
+  std::memcpy(&ta, table + size_t(phase) * kTaps, sizeof ta);
+  std::memcpy(&tb, table + size_t(phase + 1) * kTaps, sizeof tb);
+  std::memcpy(&x, ring + start, sizeof x);
+  product = (ta + f * (tb - ta)) * x;
+}
 EARSHOT_FIR_CLONES
 void delayedReads(const float* __restrict ring, size_t mask, const float* __restrict table, size_t base,
-                  const DelayRamp& r, float* __restrict out, size_t frames) {
+                  const DelayRamp& r, float* __restrict out0, float* __restrict out1, size_t frames) {
   const double total = double(r.total);
   for (size_t i = 0; i < frames; ++i) {
     const double a = double(r.offset + i + 1) / total;
-    const double position = double(base + i) - (r.d0 + r.dd * a);
+    const double now = double(base + i);
     const double g = r.g0 + r.dg * a;
-    const double fl = std::floor(position);
-    const double p = (position - fl) * kPhases;
-    const int phase = std::min(int(p), kPhases - 1);
-    const float f = float(p - phase);
-    // Taps at fl - 3 .. fl + 4; fl may be negative before the line fills
-    // (the ring reads zeros there): wrap it through a signed integer.
-    const size_t start = size_t(int64_t(fl) - 3) & mask;
-    FirV8 ta, tb, x;
-    std::memcpy(&ta, table + size_t(phase) * kTaps, sizeof ta);
-    std::memcpy(&tb, table + size_t(phase + 1) * kTaps, sizeof tb);
-    std::memcpy(&x, ring + start, sizeof x);
-    const FirV8 prod = (ta + f * (tb - ta)) * x;
-    const float y = ((prod[0] + prod[4]) + (prod[1] + prod[5])) + ((prod[2] + prod[6]) + (prod[3] + prod[7]));
-    out[i] = float(g * y);
+    FirV8 p0, p1;
+    sincProduct(ring, mask, table, now - (r.d0[0] + r.dd[0] * a), p0);
+    if (!out1) {
+      out0[i] = float(g * double(((p0[0] + p0[4]) + (p0[1] + p0[5])) + ((p0[2] + p0[6]) + (p0[3] + p0[7]))));
+      continue;
+    }
+    sincProduct(ring, mask, table, now - (r.d0[1] + r.dd[1] * a), p1);
+    // Both sums at once: halves side by side, then pairs, then neighbours.
+    FirV8 u = __builtin_shuffle(p0, p1, FirI8{0, 1, 2, 3, 8, 9, 10, 11}) +
+              __builtin_shuffle(p0, p1, FirI8{4, 5, 6, 7, 12, 13, 14, 15});
+    u += __builtin_shuffle(u, FirI8{2, 3, 0, 1, 6, 7, 4, 5});
+    u += __builtin_shuffle(u, FirI8{1, 0, 3, 2, 5, 4, 7, 6});
+    out0[i] = float(g * double(u[0]));
+    out1[i] = float(g * double(u[4]));
   }
 }
+#pragma GCC diagnostic pop
 
 // Shelf corners, Hz.
 constexpr double kLowShelfHz = 250.0, kHighShelfHz = 4000.0;
@@ -281,10 +302,16 @@ void DirectVoice::processChunk(const float* input, float* left, float* right, si
   const size_t base = pushInput(input, frames);
   const size_t taps = mTaps[0].size();
   float* out[2] = {left, right};
+  const DelayRamp ramp{{from.delay[0], from.delay[1]},
+                       {to.delay[0] - from.delay[0], to.delay[1] - from.delay[1]},
+                       from.gain,
+                       to.gain - from.gain,
+                       offset,
+                       total};
+  delayedReads(mRing.data(), mRingMask, &mSincTable->taps[0][0], base, ramp, mHistory[0].data() + taps - 1,
+               mHistory[1].data() + taps - 1, frames);
   for (int e = 0; e < 2; ++e) {
     float* hist = mHistory[e].data();
-    const DelayRamp ramp{from.delay[e], to.delay[e] - from.delay[e], from.gain, to.gain - from.gain, offset, total};
-    delayedReads(mRing.data(), mRingMask, &mSincTable->taps[0][0], base, ramp, hist + taps - 1, frames);
     auto fir = [&](const float* h, float* y) { firInto(h, taps, hist, y, frames); };
     float* y = mScratch.data();
     fir(mTaps[e].data(), y);
@@ -351,9 +378,9 @@ void DirectVoice::processAmbisonic(const float* input, float* const* out, int or
   for (size_t off = 0; off < frames; off += kChunk) {
     const size_t n = std::min(kChunk, frames - off);
     const size_t base = pushInput(input ? input + off : nullptr, n);
-    const DelayRamp ramp{mCurrent.delay[0], to.delay[0] - mCurrent.delay[0], mCurrent.gain, to.gain - mCurrent.gain,
-                         off, frames};
-    delayedReads(mRing.data(), mRingMask, &mSincTable->taps[0][0], base, ramp, y, n);
+    const DelayRamp ramp{{mCurrent.delay[0], 0.0}, {to.delay[0] - mCurrent.delay[0], 0.0}, mCurrent.gain,
+                         to.gain - mCurrent.gain, off, frames};
+    delayedReads(mRing.data(), mRingMask, &mSincTable->taps[0][0], base, ramp, y, nullptr, n);
     for (int c = 0; c < channels; ++c) {
       const float from = mHarmonics[c], step = (sh[c] - from) / float(frames);
       float* o = out[c] + off;
