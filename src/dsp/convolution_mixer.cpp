@@ -111,6 +111,7 @@ struct ConvolutionMixer::Impl {
   AlignedFloats ramp;       // sin^2 fade-in gain, `fade` values
   AlignedFloats outBlock;   // [channel][n]: output for the current N frames
   AlignedFloats timeBuf;    // 2 * maxP
+  AlignedFloats fadeCur, fadePrev;  // compact IRs while fading: a partition's spectrum in floats
   std::vector<kiss_fft_cpx> cpxBuf;
   size_t fill = 0;          // frames of the current step already taken
   uint64_t written = 0;     // input frames completed into steps
@@ -309,6 +310,16 @@ struct ConvolutionMixer::Impl {
           const size_t slot = sl.head >= kk ? sl.head - kk : sl.head + lv.k - kk;
           xs[j] = sl.fdl.data() + slot * 2 * st;
         }
+        if (cur->compact()) {
+          const uint16_t* hh[kBatch];
+          for (size_t c = c0; c < c1; ++c) {
+            for (size_t j = 0; j < cnt; ++j) hh[j] = cur->halfSpectrum(li, c, kb + j);
+            float* mr = lv.accMain.data() + c * 2 * st;
+            dsp_detail::complexMacBatchHalf(mr, mr + st, xs, hh, cnt, st, st, cur->spectrumScale(li, c));
+            lv.mainTouched[c] = 1;
+          }
+          continue;
+        }
         const float* hs[kBatch];
         const float* hs1[kBatch];
         size_t c = c0;
@@ -333,6 +344,14 @@ struct ConvolutionMixer::Impl {
     }
   }
 
+  // Partition k's spectrum in floats: the IR's own, or (compact IRs) its
+  // halves converted into `scratch` (2 * stride floats).
+  static const float* spectrumOf(const PreparedIr& ir, size_t li, size_t c, size_t k, float* scratch) {
+    if (!ir.compact()) return ir.spectrum(li, c, k);
+    dsp_detail::halvesToFloats(ir.halfSpectrum(li, c, k), scratch, 2 * ir.binStride(li), ir.spectrumScale(li, c));
+    return scratch;
+  }
+
   // One source and channel while the level fades (or has no current IR):
   // main += X * H_cur, diff += X * (H_prev - H_cur).
   void accumulateFading(LevelState& lv, SourceLevel& sl, size_t c, size_t k0, size_t k1) {
@@ -350,13 +369,13 @@ struct ConvolutionMixer::Impl {
       if (!hasCur && !hasPrev) continue;
       const size_t slot = sl.head >= kk ? sl.head - kk : sl.head + lv.k - kk;
       const float* xr = sl.fdl.data() + slot * 2 * st;
-      const float* hc = hasCur ? cur->spectrum(li, c, kk) : nullptr;
+      const float* hc = hasCur ? spectrumOf(*cur, li, c, kk, fadeCur.data()) : nullptr;
       if (hasCur) {
         dsp_detail::complexMac(mr, mr + st, xr, xr + st, hc, hc + st, st);
         lv.mainTouched[c] = 1;
       }
       if (!sl.fading) continue;
-      const float* hp = hasPrev ? prev->spectrum(li, c, kk) : nullptr;
+      const float* hp = hasPrev ? spectrumOf(*prev, li, c, kk, fadePrev.data()) : nullptr;
       if (hasPrev && hasCur) {
         dsp_detail::complexMacDiff(dr, dr + st, xr, xr + st, hp, hp + st, hc, hc + st, st);
       } else if (hasPrev) {
@@ -567,6 +586,10 @@ Result<std::unique_ptr<ConvolutionMixer>> ConvolutionMixer::create(const Convolv
       impl->levels.push_back(std::move(lv));
     }
     impl->timeBuf.resize(2 * maxP);
+    if (layout->compactSpectra()) {
+      impl->fadeCur.resize(2 * padBins(maxP + 1));
+      impl->fadePrev.resize(2 * padBins(maxP + 1));
+    }
     impl->cpxBuf.resize(maxP + 1);
     impl->historyFrames = layout->historyFrames();
     impl->owned.resize(sourceCount);

@@ -27,3 +27,29 @@ void complexMacDiff(float* ar, float* ai, const float* xr, const float* xi, cons
                     const float* cr, const float* ci, size_t count);
 
 }  // namespace earshot::dsp_detail
+
+#include <cstdint>
+
+namespace earshot::dsp_detail {
+
+/** IEEE 754 binary16 from float, rounded to nearest even (overflow to inf,
+ *  which PreparedIr's per-channel scale rules out). */
+uint16_t floatToHalf(float v);
+/** float from IEEE 754 binary16 (exact). */
+float halfToFloat(uint16_t h);
+
+/** complexMacBatch with the H spectra in binary16 (count re, then at
+ *  + stride count im halves per partition), all under one `scale`:
+ *  (ar, ai) += scale * sum_j X_j * H_j. AVX2+F16C where the CPU has them
+ *  (chosen once), else a portable loop. */
+void complexMacBatchHalf(float* ar, float* ai, const float* const* x, const uint16_t* const* h, size_t parts,
+                         size_t stride, size_t count, float scale);
+/** The portable loop complexMacBatchHalf falls back to (tested against
+ *  the AVX2 + F16C version where the CPU has it). */
+void complexMacBatchHalfPortable(float* ar, float* ai, const float* const* x, const uint16_t* const* h,
+                                 size_t parts, size_t stride, size_t count, float scale);
+/** `count` halves to floats times `scale` (a partition's spectrum for the
+ *  float kernels while an IR fades). */
+void halvesToFloats(const uint16_t* h, float* out, size_t count, float scale);
+
+}  // namespace earshot::dsp_detail

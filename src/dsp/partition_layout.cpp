@@ -145,6 +145,7 @@ Result<PartitionLayout> PartitionLayout::create(const ConvolverSettings& s, size
   PartitionLayout out;
   out.mLatency = s.latencyFrames;
   out.mLevels = best;
+  out.mCompact = s.compactSpectra;
   out.mCapacity = 0;
   out.mHistory = 0;
   for (const auto& lv : best) {
@@ -159,7 +160,9 @@ Result<PartitionLayout> PartitionLayout::create(const ConvolverSettings& s, size
 }
 
 bool PartitionLayout::operator==(const PartitionLayout& o) const {
-  if (mLatency != o.mLatency || mCapacity != o.mCapacity || mLevels.size() != o.mLevels.size()) return false;
+  if (mLatency != o.mLatency || mCapacity != o.mCapacity || mLevels.size() != o.mLevels.size() ||
+      mCompact != o.mCompact)
+    return false;
   for (size_t i = 0; i < mLevels.size(); ++i) {
     const auto& a = mLevels[i];
     const auto& b = o.mLevels[i];

@@ -12,17 +12,28 @@
 #include <string>
 
 #include "aligned_floats.h"
+#include "mac_kernels.h"
 
 namespace earshot {
 
 using dsp_detail::padBins;
 
-PreparedIr::~PreparedIr() { std::free(mData); }
+PreparedIr::~PreparedIr() {
+  std::free(mData);
+  std::free(mHalf);
+}
 
 const float* PreparedIr::spectrum(size_t level, size_t channel, size_t k) const {
+  if (!mData) return nullptr;
   const PartitionLevel& lv = mLayout.levels()[level];
   size_t stride = mStride[level];
   return mData + mLevelOffset[level] + (channel * lv.partitionCount + k) * 2 * stride;
+}
+
+const uint16_t* PreparedIr::halfSpectrum(size_t level, size_t channel, size_t k) const {
+  if (!mHalf) return nullptr;
+  const PartitionLevel& lv = mLayout.levels()[level];
+  return mHalf + mLevelOffset[level] + (channel * lv.partitionCount + k) * 2 * mStride[level];
 }
 
 Result<std::shared_ptr<const PreparedIr>> PreparedIr::create(const AudioBuffer& ir, const PartitionLayout& layout) {
@@ -110,6 +121,29 @@ Result<std::shared_ptr<const PreparedIr>> PreparedIr::create(const std::vector<s
       }
     }
     kiss_fftr_free(cfg);
+  }
+  if (layout.compactSpectra()) {
+    // Each level's channel under a power of two that puts its largest value
+    // at <= 2^14 (binary16 holds up to 65504, and values 2^-24 of that scale
+    // still count), then rounded to binary16; the floats are dropped.
+    const size_t halfBytes = ((total * sizeof(uint16_t) + 63) / 64) * 64;
+    out->mHalf = static_cast<uint16_t*>(std::aligned_alloc(64, halfBytes ? halfBytes : 64));
+    if (!out->mHalf) return outOfRange("prepared IR: cannot allocate " + std::to_string(halfBytes) + " bytes");
+    std::memset(out->mHalf, 0, halfBytes ? halfBytes : 64);
+    out->mScale.assign(levels.size() * channels.size(), 1.0f);
+    for (size_t l = 0; l < levels.size(); ++l)
+      for (size_t c = 0; c < channels.size(); ++c) {
+        const size_t n = levels[l].partitionCount * 2 * out->mStride[l];
+        const float* v = out->spectrum(l, c, 0);
+        float peak = 0.0f;
+        for (size_t i = 0; i < n; ++i) peak = std::max(peak, std::fabs(v[i]));
+        const float scale = peak > 0.0f ? std::ldexp(1.0f, std::ilogb(peak) - 13) : 1.0f;  // peak / scale < 2^14
+        out->mScale[l * channels.size() + c] = scale;
+        uint16_t* h = const_cast<uint16_t*>(out->halfSpectrum(l, c, 0));
+        for (size_t i = 0; i < n; ++i) h[i] = dsp_detail::floatToHalf(v[i] / scale);
+      }
+    std::free(out->mData);
+    out->mData = nullptr;
   }
   return std::shared_ptr<const PreparedIr>(std::move(out));
 }

@@ -347,6 +347,7 @@ Result<std::unique_ptr<Engine>> Engine::create(const EngineSettings& s, Binaural
   cs.channels = s.ambisonicOrder > 0 ? size_t(ambisonicChannels(s.ambisonicOrder)) : 2;
   cs.fadeFrames = s.fadeFrames;
   cs.maxPartitionFrames = s.maxPartitionFrames;
+  cs.compactSpectra = s.ambisonicOrder > 0 && s.compactAmbisonicSpectra;
   auto mixer = ConvolutionMixer::create(cs, s.maxSources);
   if (!mixer.isOk()) return Status(mixer.status().code(), "engine: " + mixer.status().message());
   e->mMixer = std::move(mixer.value());

@@ -14,6 +14,7 @@
 #endif
 
 #include "test_signals.h"
+#include "mac_kernels.h"
 
 namespace earshot {
 namespace {
@@ -378,6 +379,161 @@ TEST(ConvolutionMixer, SourcesInLaterLevelsAndLeadingSilenceAreExact) {
   EXPECT_LE(worst, 1e-5 * peak);
 }
 
+// binary16 conversions: every half converts to a float and back to itself
+// (NaNs stay NaNs); a float converts to the nearest half, ties to even.
+TEST(CompactSpectra, HalfConversionsAreExactAndRoundToNearest) {
+  for (uint32_t h = 0; h < 65536; ++h) {
+    const float f = dsp_detail::halfToFloat(uint16_t(h));
+    if (std::isnan(f)) {
+      EXPECT_TRUE(std::isnan(dsp_detail::halfToFloat(dsp_detail::floatToHalf(f)))) << h;
+      continue;
+    }
+    ASSERT_EQ(dsp_detail::floatToHalf(f), uint16_t(h)) << h;
+  }
+  EXPECT_EQ(dsp_detail::halfToFloat(dsp_detail::floatToHalf(65504.0f)), 65504.0f);
+  EXPECT_TRUE(std::isinf(dsp_detail::halfToFloat(dsp_detail::floatToHalf(65520.0f))));
+  EXPECT_EQ(dsp_detail::floatToHalf(1e-9f), 0u);
+  Pcg32 rng(3, 4);
+  for (int i = 0; i < 200000; ++i) {
+    // Log-uniform magnitudes over the subnormal and normal range (below 2^15.9,
+    // where rounding to 65504 or infinity is checked above), both signs.
+    const float v = float((rng.next() & 1 ? -1.0 : 1.0) * std::exp2(-26.0 + 41.9 * rng.uniformDouble()));
+    const uint16_t h = dsp_detail::floatToHalf(v);
+    const double got = dsp_detail::halfToFloat(h);
+    // No other half is nearer (the neighbours one step either way).
+    for (int step : {-1, 1}) {
+      const uint16_t n = uint16_t(h + step);
+      if (((n ^ h) & 0x8000u) || (n & 0x7C00u) == 0x7C00u) continue;
+      const double other = dsp_detail::halfToFloat(n);
+      const double dGot = std::fabs(got - double(v)), dOther = std::fabs(other - double(v));
+      ASSERT_TRUE(dGot < dOther || (dGot == dOther && (h & 1u) == 0))
+          << v << " -> " << h << " (" << got << "), neighbour " << n << " (" << other << ")";
+    }
+  }
+}
+
+// The binary16 multiply-accumulate (AVX2 + F16C where the CPU has it, as
+// here) equals its portable loop to float rounding: 5 partitions of 264
+// bins (a 32-bin tile and an 8-bin tail), random spectra and a scale.
+TEST(CompactSpectra, MultiplyAccumulateEqualsThePortableLoop) {
+  const size_t parts = 5, count = 264, stride = 264;
+  Pcg32 rng(8, 9);
+  std::vector<std::vector<float>> x(parts, std::vector<float>(2 * stride));
+  std::vector<std::vector<uint16_t>> h(parts, std::vector<uint16_t>(2 * stride));
+  std::vector<const float*> xs;
+  std::vector<const uint16_t*> hs;
+  for (size_t j = 0; j < parts; ++j) {
+    for (auto& v : x[j]) v = float(rng.uniformDouble() * 2 - 1);
+    for (auto& v : h[j]) v = dsp_detail::floatToHalf(float(rng.uniformDouble() * 2 - 1));
+    xs.push_back(x[j].data());
+    hs.push_back(h[j].data());
+  }
+  std::vector<float> a(2 * stride, 0.25f), b(2 * stride, 0.25f);
+  dsp_detail::complexMacBatchHalf(a.data(), a.data() + stride, xs.data(), hs.data(), parts, stride, count, 0.125f);
+  dsp_detail::complexMacBatchHalfPortable(b.data(), b.data() + stride, xs.data(), hs.data(), parts, stride, count,
+                                          0.125f);
+  double worst = 0, sum = 0;
+  for (size_t i = 0; i < 2 * stride; ++i) {
+    worst = std::max(worst, std::fabs(double(a[i]) - b[i]));
+    sum += std::fabs(double(b[i]) - 0.25);
+  }
+  EXPECT_GT(sum, 10.0);  // the products were added
+  EXPECT_LE(worst, 1e-6);
+}
+
+// The ambisonic bus stores its IR spectra as binary16 (compactSpectra):
+// 8 sources of 4-channel IRs with leading silence, one of them swapped
+// mid-stream (the fading path converts the halves), against the direct
+// convolution. Bound: each value keeps 11 significant bits (<= 2^-11
+// relative, uniform rounding error 2^-11 / sqrt(3) rms), and the output's
+// error is a sum of such errors weighted like the output itself, so its
+// energy is ~-71 dB of the output's; asserted below -60 dB, and the largest
+// error below 2e-3 of the peak. The float mixer on the same input stays at
+// float precision (1e-5 of the peak), so the difference is the storage.
+TEST(ConvolutionMixer, CompactSpectraErrorIsSmallAndBounded) {
+  const size_t sources = 8, channels = 4, irLen = 7682, block = 256, warmUp = 8192, signal = 6000;
+  const size_t frames = warmUp + signal;
+  for (bool compact : {false, true}) {
+    ConvolverSettings s;
+    s.latencyFrames = block;
+    s.maxIrFrames = irLen;
+    s.channels = channels;
+    s.compactSpectra = compact;
+    auto mixer = ConvolutionMixer::create(s, sources);
+    ASSERT_TRUE(mixer.isOk());
+    ConvolutionMixer& m = **mixer;
+    ASSERT_EQ(m.layout().compactSpectra(), compact);
+    std::vector<std::vector<float>> inputs;
+    std::vector<std::vector<double>> want(channels, std::vector<double>(frames, 0.0));
+    std::vector<std::vector<float>> lastIr;
+    for (size_t src = 0; src < sources; ++src) {
+      const size_t silent = (src * 997) % 3600;
+      std::vector<std::vector<float>> ir;
+      for (size_t c = 0; c < channels; ++c) {
+        std::vector<float> ch = decayingNoise(irLen, 500 + 7 * src + c);
+        std::fill(ch.begin(), ch.begin() + long(silent), 0.0f);
+        for (float& v : ch) v *= c == 0 ? 1.0f : 0.3f;  // the directional channels quieter, as in a room
+        ir.push_back(std::move(ch));
+      }
+      auto prepared = prepare(ir, m.layout());
+      ASSERT_EQ(prepared->compact(), compact);
+      ASSERT_TRUE(m.setIr(src, prepared).isOk());
+      std::vector<float> x = decayingNoise(signal, 700 + src, 0.0);
+      for (size_t c = 0; c < channels; ++c) {
+        auto y = directConvolve(x, ir[c], signal);
+        for (size_t t = 0; t < signal; ++t) want[c][warmUp + t] += y[t];
+      }
+      x.insert(x.begin(), warmUp, 0.0f);
+      inputs.push_back(std::move(x));
+      lastIr = ir;
+    }
+    std::vector<std::vector<float>> out(channels, std::vector<float>(frames));
+    std::vector<const float*> ins(sources);
+    std::vector<float*> outs(channels);
+    for (size_t pos = 0; pos < frames; pos += block) {
+      // Halfway through the warm-up (silence), the last source's IR is set
+      // again: every level fades from it to itself, through the fading path.
+      if (pos == warmUp / 2) {
+        ASSERT_TRUE(m.setIr(sources - 1, prepare(lastIr, m.layout())).isOk());
+      }
+      for (size_t src = 0; src < sources; ++src) ins[src] = inputs[src].data() + pos;
+      for (size_t c = 0; c < channels; ++c) outs[c] = out[c].data() + pos;
+      m.process(ins.data(), outs.data(), std::min(block, frames - pos));
+    }
+    double peak = 0, worst = 0, signalEnergy = 0, errorEnergy = 0;
+    for (size_t c = 0; c < channels; ++c)
+      for (size_t t = block; t < frames; ++t) {
+        const double e = want[c][t - block] - out[c][t];
+        peak = std::max(peak, std::fabs(want[c][t - block]));
+        worst = std::max(worst, std::fabs(e));
+        signalEnergy += want[c][t - block] * want[c][t - block];
+        errorEnergy += e * e;
+      }
+    const double errorDb = 10 * std::log10(errorEnergy / signalEnergy);
+    EXPECT_GT(peak, 1.0);
+    if (compact) {
+      EXPECT_LE(errorDb, -60.0);
+      EXPECT_LE(worst, 2e-3 * peak);
+      EXPECT_GT(errorDb, -100.0);  // the storage is really binary16 (float would be ~-130 dB)
+    } else {
+      EXPECT_LE(worst, 1e-5 * peak);
+    }
+    std::printf("compact=%d: error energy %.1f dB of the output's, largest error %.2e of the peak\n", int(compact),
+                errorDb, worst / peak);
+  }
+  // An IR prepared for the float layout does not fit a compact mixer.
+  ConvolverSettings s;
+  s.latencyFrames = block;
+  s.maxIrFrames = irLen;
+  s.channels = channels;
+  auto floatMixer = ConvolutionMixer::create(s, sources);
+  s.compactSpectra = true;
+  auto compactMixer = ConvolutionMixer::create(s, sources);
+  ASSERT_TRUE(floatMixer.isOk() && compactMixer.isOk());
+  std::vector<std::vector<float>> ir(channels, decayingNoise(irLen, 9));
+  EXPECT_FALSE((*compactMixer)->setIr(0, prepare(ir, (*floatMixer)->layout())).isOk());
+}
+
 // After loud noise, silence through an IR whose tail decays to 1e-40
 // (subnormal territory) leaves no subnormal number anywhere in the state:
 // process() flushes denormals. It also restores the caller's FP mode.
@@ -470,7 +626,9 @@ TEST(ConvolutionMixer, SourceStateIsAllocatedOnFirstUse) {
   // Only source 5 has state: the output is x through its IR, not 64 x.
   for (size_t t = 0; t + 128 < 2048; ++t) {
     ASSERT_NEAR(out[0][t + 128], x[t], 1e-5) << t;
-    if (t >= 10) ASSERT_NEAR(out[1][t + 128], x[t - 10], 1e-5) << t;
+    if (t >= 10) {
+      ASSERT_NEAR(out[1][t + 128], x[t - 10], 1e-5) << t;
+    }
   }
   // Reserved while streaming: source 9 joins from silence, then is heard
   // once it has an IR.

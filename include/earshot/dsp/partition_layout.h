@@ -41,6 +41,15 @@ struct ConvolverSettings {
    *  Give each of many independent convolvers a different phase (e.g. its
    *  index) so that their large FFTs fall on different blocks. */
   uint32_t phase = 0;
+  /** Store the IRs' spectra as 16-bit floats (IEEE binary16), each channel
+   *  of each level under its own power-of-two scale: half the memory, and
+   *  half the bytes the audio thread streams from memory for IRs beyond the
+   *  CPU's cache (what limits many sources' convolution). Each spectrum
+   *  value keeps 11 significant bits (relative error <= 2^-11, about -66
+   *  dB; the output's error is ~-75 dB of its level, measured in
+   *  ConvolutionMixer.CompactSpectraErrorIsSmallAndBounded). Off: float,
+   *  the exact convolution to float precision. */
+  bool compactSpectra = false;
 };
 
 /** One level of a PartitionLayout: partitionCount partitions of
@@ -75,6 +84,8 @@ class PartitionLayout {
   const std::vector<PartitionLevel>& levels() const { return mLevels; }
   /** Input history (frames) a source must keep for this layout. */
   size_t historyFrames() const { return mHistory; }
+  /** IR spectra stored as 16-bit floats (ConvolverSettings::compactSpectra). */
+  bool compactSpectra() const { return mCompact; }
 
   bool operator==(const PartitionLayout& o) const;
   bool operator!=(const PartitionLayout& o) const { return !(*this == o); }
@@ -83,6 +94,7 @@ class PartitionLayout {
   size_t mLatency = 0;
   size_t mCapacity = 0;
   size_t mHistory = 0;
+  bool mCompact = false;
   std::vector<PartitionLevel> mLevels;
 };
 

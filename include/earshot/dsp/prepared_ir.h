@@ -4,6 +4,7 @@
  *  with. Built off the audio thread (it allocates and runs FFTs), immutable
  *  afterwards, shared with std::shared_ptr<const PreparedIr>. */
 #include <cstddef>
+#include <cstdint>
 #include <memory>
 #include <vector>
 
@@ -41,8 +42,16 @@ class PreparedIr {
    *  travel time); activePartitions(level) when all are silent. */
   size_t firstActivePartition(size_t level) const { return mFirstActive[level]; }
   /** Real parts of partition `k` of `level`, channel `channel`; the imaginary
-   *  parts follow at + binStride(level). */
+   *  parts follow at + binStride(level). Null when compact(). */
   const float* spectrum(size_t level, size_t channel, size_t k) const;
+  /** The layout's compactSpectra(): spectra as binary16 halves, read with
+   *  halfSpectrum() and multiplied by spectrumScale(). */
+  bool compact() const { return mHalf != nullptr; }
+  /** As spectrum(), binary16 halves, when compact(). */
+  const uint16_t* halfSpectrum(size_t level, size_t channel, size_t k) const;
+  /** The power of two that halfSpectrum(level, channel, .) values are
+   *  multiplied by (the channel's largest value is stored at <= 2^14). */
+  float spectrumScale(size_t level, size_t channel) const { return mScale[level * mChannels + channel]; }
 
   ~PreparedIr();
   PreparedIr(const PreparedIr&) = delete;
@@ -54,7 +63,9 @@ class PreparedIr {
   size_t mChannels = 0;
   size_t mIrFrames = 0;
   std::vector<size_t> mStride, mActive, mFirstActive, mLevelOffset;  // per level
-  float* mData = nullptr;                              // owned, 64-byte aligned
+  float* mData = nullptr;                              // owned, 64-byte aligned (float spectra)
+  uint16_t* mHalf = nullptr;                           // owned, 64-byte aligned (compact spectra)
+  std::vector<float> mScale;                           // compact: per level and channel
 };
 
 }  // namespace earshot

@@ -111,6 +111,14 @@ struct EngineSettings {
    *  multiply-adds per source fall from the whole IR's length to this.
    *  0: every source's whole IR. [0, maxIrSeconds). */
   double sharedTailSeconds = 0.15;
+  /** With ambisonic reflections: the sources' and the shared tail's IR
+   *  spectra stored as 16-bit floats (ConvolverSettings::compactSpectra):
+   *  the bus streams half the bytes from memory each block, which is what
+   *  limits it (32 sources: their spectra are ~3 MB, beyond the cache), for
+   *  an error ~-74 dB of the reflections' level. false: floats, the exact
+   *  convolution. Binaural reflections (ambisonicOrder 0), the exact
+   *  reference, are always floats. */
+  bool compactAmbisonicSpectra = true;
   /** How a simulation of several sources traces their reflections (issue
    *  16): kShared, one trace from the listener whose paths every source
    *  detects (traceReflectionsShared: a sphere test per segment and a

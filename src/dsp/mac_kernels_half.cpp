@@ -1,0 +1,162 @@
+// Multiply-accumulate over IR spectra stored as 16-bit floats (binary16):
+// the ambisonic bus streams its sources' spectra from memory every block
+// (32 sources' 0.16 s 4-channel IRs are 3 MB per block, beyond the L2
+// cache), so half the bytes is most of half the time. On x86-64 an AVX2 +
+// F16C version (vcvtph2ps) is chosen once when the CPU has it; elsewhere a
+// portable loop with the conversion in software.
+#include <cstring>
+
+#include "mac_kernels.h"
+
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#include <immintrin.h>
+#define EARSHOT_HAVE_F16C_PATH 1
+#endif
+
+namespace earshot::dsp_detail {
+
+uint16_t floatToHalf(float v) {
+  uint32_t f;
+  std::memcpy(&f, &v, sizeof f);
+  const uint32_t sign = (f >> 16) & 0x8000u;
+  const uint32_t absf = f & 0x7FFFFFFFu;
+  if (absf >= 0x7F800000u) return uint16_t(sign | (absf > 0x7F800000u ? 0x7E00u : 0x7C00u));  // NaN, inf
+  if (absf >= 0x477FF000u) return uint16_t(sign | 0x7C00u);  // rounds to >= 65520: inf
+  if (absf < 0x33000001u) return uint16_t(sign);             // below half the smallest subnormal: 0
+  const int exp = int(absf >> 23) - 127;
+  uint32_t mant = (absf & 0x7FFFFFu) | 0x800000u;  // 24 bits with the implicit one
+  if (exp < -14) {
+    // Subnormal half: value = mant * 2^(exp - 23) = m * 2^-24, m = mant >> (-exp - 1).
+    const int shift = -exp - 1;  // 14 .. 24
+    const uint32_t m = mant >> shift, rest = mant & ((1u << shift) - 1), halfway = 1u << (shift - 1);
+    const uint32_t r = m + ((rest > halfway || (rest == halfway && (m & 1u))) ? 1u : 0u);
+    return uint16_t(sign | r);  // r may carry into the smallest normal: still right
+  }
+  // Normal: 10 mantissa bits kept of 23, rounded to nearest even.
+  uint32_t h = (uint32_t(exp + 15) << 10) | ((mant >> 13) & 0x3FFu);
+  const uint32_t rest = mant & 0x1FFFu;
+  if (rest > 0x1000u || (rest == 0x1000u && (h & 1u))) ++h;  // may carry into the exponent: still right
+  return uint16_t(sign | h);
+}
+
+float halfToFloat(uint16_t h) {
+  const uint32_t sign = uint32_t(h & 0x8000u) << 16;
+  const uint32_t exp = (h >> 10) & 0x1Fu, mant = h & 0x3FFu;
+  uint32_t f;
+  if (exp == 0) {
+    if (mant == 0) {
+      f = sign;
+    } else {  // subnormal: mant * 2^-24
+      float v = float(mant) * (1.0f / 16777216.0f);
+      std::memcpy(&f, &v, sizeof f);
+      f |= sign;
+    }
+  } else if (exp == 31) {
+    f = sign | 0x7F800000u | (mant << 13);
+  } else {
+    f = sign | ((exp + 112) << 23) | (mant << 13);
+  }
+  float v;
+  std::memcpy(&v, &f, sizeof v);
+  return v;
+}
+
+namespace {
+
+#ifdef EARSHOT_HAVE_F16C_PATH
+#define EARSHOT_F16C __attribute__((target("avx2,fma,f16c")))
+
+EARSHOT_F16C static inline __m256 loadHalves(const uint16_t* p) {
+  return _mm256_cvtph_ps(_mm_loadu_si128(reinterpret_cast<const __m128i*>(p)));
+}
+
+// As complexMacBatch: a tile of 32 bins' sums in registers over all
+// partitions, added to the accumulator once, times the scale.
+EARSHOT_F16C void complexMacBatchHalfAvx(float* __restrict ar, float* __restrict ai, const float* const* x,
+                                         const uint16_t* const* h, size_t parts, size_t stride, size_t count,
+                                         float scale) {
+  const __m256 s = _mm256_set1_ps(scale);
+  size_t i = 0;
+  for (; i + 32 <= count; i += 32) {
+    __m256 r[4], m[4];
+    for (int t = 0; t < 4; ++t) r[t] = m[t] = _mm256_setzero_ps();
+    for (size_t j = 0; j < parts; ++j) {
+      const float* xr = x[j] + i;
+      const float* xi = xr + stride;
+      const uint16_t* hr = h[j] + i;
+      const uint16_t* hi = hr + stride;
+      for (int t = 0; t < 4; ++t) {
+        const __m256 a = _mm256_loadu_ps(xr + 8 * t), b = _mm256_loadu_ps(xi + 8 * t);
+        const __m256 c = loadHalves(hr + 8 * t), d = loadHalves(hi + 8 * t);
+        r[t] = _mm256_fmadd_ps(a, c, _mm256_fnmadd_ps(b, d, r[t]));
+        m[t] = _mm256_fmadd_ps(a, d, _mm256_fmadd_ps(b, c, m[t]));
+      }
+    }
+    for (int t = 0; t < 4; ++t) {
+      _mm256_storeu_ps(ar + i + 8 * t, _mm256_fmadd_ps(s, r[t], _mm256_loadu_ps(ar + i + 8 * t)));
+      _mm256_storeu_ps(ai + i + 8 * t, _mm256_fmadd_ps(s, m[t], _mm256_loadu_ps(ai + i + 8 * t)));
+    }
+  }
+  for (; i < count; i += 8) {  // tail, 8 bins at a time (count is a multiple of 8)
+    __m256 r = _mm256_setzero_ps(), m = _mm256_setzero_ps();
+    for (size_t j = 0; j < parts; ++j) {
+      const __m256 a = _mm256_loadu_ps(x[j] + i), b = _mm256_loadu_ps(x[j] + i + stride);
+      const __m256 c = loadHalves(h[j] + i), d = loadHalves(h[j] + i + stride);
+      r = _mm256_fmadd_ps(a, c, _mm256_fnmadd_ps(b, d, r));
+      m = _mm256_fmadd_ps(a, d, _mm256_fmadd_ps(b, c, m));
+    }
+    _mm256_storeu_ps(ar + i, _mm256_fmadd_ps(s, r, _mm256_loadu_ps(ar + i)));
+    _mm256_storeu_ps(ai + i, _mm256_fmadd_ps(s, m, _mm256_loadu_ps(ai + i)));
+  }
+}
+
+EARSHOT_F16C void halvesToFloatsAvx(const uint16_t* h, float* out, size_t count, float scale) {
+  const __m256 s = _mm256_set1_ps(scale);
+  size_t i = 0;
+  for (; i + 8 <= count; i += 8) _mm256_storeu_ps(out + i, _mm256_mul_ps(s, loadHalves(h + i)));
+  for (; i < count; ++i) out[i] = scale * halfToFloat(h[i]);
+}
+
+bool cpuHasF16cPath() {
+  __builtin_cpu_init();
+  return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") && __builtin_cpu_supports("f16c");
+}
+#else
+bool cpuHasF16cPath() { return false; }
+#endif
+
+const bool kF16cPath = cpuHasF16cPath();
+
+}  // namespace
+
+void complexMacBatchHalfPortable(float* __restrict ar, float* __restrict ai, const float* const* x,
+                                 const uint16_t* const* h, size_t parts, size_t stride, size_t count, float scale) {
+  for (size_t i = 0; i < count; ++i) {
+    float r = 0.0f, m = 0.0f;
+    for (size_t j = 0; j < parts; ++j) {
+      const float a = x[j][i], b = x[j][i + stride];
+      const float c = halfToFloat(h[j][i]), d = halfToFloat(h[j][i + stride]);
+      r += a * c - b * d;
+      m += a * d + b * c;
+    }
+    ar[i] += scale * r;
+    ai[i] += scale * m;
+  }
+}
+
+void complexMacBatchHalf(float* ar, float* ai, const float* const* x, const uint16_t* const* h, size_t parts,
+                         size_t stride, size_t count, float scale) {
+#ifdef EARSHOT_HAVE_F16C_PATH
+  if (kF16cPath) return complexMacBatchHalfAvx(ar, ai, x, h, parts, stride, count, scale);
+#endif
+  complexMacBatchHalfPortable(ar, ai, x, h, parts, stride, count, scale);
+}
+
+void halvesToFloats(const uint16_t* h, float* out, size_t count, float scale) {
+#ifdef EARSHOT_HAVE_F16C_PATH
+  if (kF16cPath) return halvesToFloatsAvx(h, out, count, scale);
+#endif
+  for (size_t i = 0; i < count; ++i) out[i] = scale * halfToFloat(h[i]);
+}
+
+}  // namespace earshot::dsp_detail
