@@ -26,14 +26,18 @@ Ran runCli(const std::string& args) {
 }
 
 TEST(CliBenchConvolve, PrintsOneReportLine) {
-  Ran r = runCli("bench convolve --ir-seconds 0.1 --block 128 --seconds 0.2 --sources 2");
-  ASSERT_EQ(r.code, 0) << r.out;
-  std::smatch m;
-  std::regex line(
-      R"(convolve L=0\.1 B=128 sources=2 rt_factor=([0-9.]+) p99_block_pct=([0-9.]+) max_block_pct=([0-9.]+)\n)");
-  ASSERT_TRUE(std::regex_match(r.out, m, line)) << r.out;
-  EXPECT_GT(std::stod(m[1]), 0.0);
-  EXPECT_LE(std::stod(m[2]), std::stod(m[3]));  // p99 never above the maximum
+  for (const char* spectra : {"float", "half"}) {
+    const std::string compact = std::string(spectra) == "half" ? " --compact" : "";
+    Ran r = runCli("bench convolve --ir-seconds 0.1 --block 128 --seconds 0.2 --sources 2" + compact);
+    ASSERT_EQ(r.code, 0) << r.out;
+    std::smatch m;
+    std::regex line(R"(convolve L=0\.1 B=128 sources=2 rt_factor=([0-9.]+) p99_block_pct=([0-9.]+) )"
+                    R"(max_block_pct=([0-9.]+) spectra=)" +
+                    std::string(spectra) + "\n");
+    ASSERT_TRUE(std::regex_match(r.out, m, line)) << r.out;
+    EXPECT_GT(std::stod(m[1]), 0.0);
+    EXPECT_LE(std::stod(m[2]), std::stod(m[3]));  // p99 never above the maximum
+  }
 }
 
 TEST(CliBenchConvolve, RejectsABlockKissFftWouldAllocateFor) {

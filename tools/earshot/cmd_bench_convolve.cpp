@@ -24,6 +24,7 @@ struct BenchOptions {
   double rate = 48000.0;
   size_t maxPartition = 0;
   bool silenceCheck = false;
+  bool compact = false;
 };
 
 double threadCpuSeconds() {
@@ -48,6 +49,7 @@ int run(const BenchOptions& o) {
   s.channels = o.channels;
   s.maxPartitionFrames = o.maxPartition;
   s.phase = 0;
+  s.compactSpectra = o.compact;
   auto mixer = ConvolutionMixer::create(s, o.sources);
   if (!check(mixer.status())) return 2;
   ConvolutionMixer& m = **mixer;
@@ -98,8 +100,9 @@ int run(const BenchOptions& o) {
   std::sort(blockSeconds.begin(), blockSeconds.end());
   const double p99 = blockSeconds[std::min(blockSeconds.size() - 1, blockSeconds.size() * 99 / 100)];
   const double worst = blockSeconds.back();
-  std::printf("convolve L=%g B=%zu sources=%zu rt_factor=%.1f p99_block_pct=%.3f max_block_pct=%.3f\n", o.irSeconds,
-              o.block, o.sources, audio / std::max(cpu, 1e-9), 100.0 * p99 / period, 100.0 * worst / period);
+  std::printf("convolve L=%g B=%zu sources=%zu rt_factor=%.1f p99_block_pct=%.3f max_block_pct=%.3f spectra=%s\n",
+              o.irSeconds, o.block, o.sources, audio / std::max(cpu, 1e-9), 100.0 * p99 / period,
+              100.0 * worst / period, o.compact ? "half" : "float");
   if (o.silenceCheck) {
     // Full-scale noise, then as long again of silence: with denormals
     // flushed the silent blocks must not cost more than the noisy ones.
@@ -152,6 +155,8 @@ const Registrar registrar([](CLI::App& root) {
       ->capture_default_str();
   cmd->add_option("--max-partition", o->maxPartition, "Largest partition in frames (0 = automatic)")
       ->capture_default_str();
+  cmd->add_flag("--compact", o->compact,
+                "IR spectra as 16-bit floats (what the runtime's ambisonic bus uses): half the memory traffic");
   cmd->add_flag("--silence-check", o->silenceCheck,
                 "Also time --seconds of full-scale noise then as much silence (denormal check)");
   cmd->add_option("--rate", o->rate, "Sample rate in Hz")->check(CLI::Range(8000.0, 384000.0))->capture_default_str();
