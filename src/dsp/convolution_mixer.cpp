@@ -311,11 +311,10 @@ struct ConvolutionMixer::Impl {
           xs[j] = sl.fdl.data() + slot * 2 * st;
         }
         if (cur->compact()) {
-          const uint16_t* hh[kBatch];
           for (size_t c = c0; c < c1; ++c) {
-            for (size_t j = 0; j < cnt; ++j) hh[j] = cur->halfSpectrum(li, c, kb + j);
             float* mr = lv.accMain.data() + c * 2 * st;
-            dsp_detail::complexMacBatchHalf(mr, mr + st, xs, hh, cnt, st, st, cur->spectrumScale(li, c));
+            dsp_detail::complexMacBatchHalf(mr, mr + st, xs, cur->compactSpectra(li, c), kb, cnt, lv.k, st,
+                                            cur->spectrumScale(li, c));
             lv.mainTouched[c] = 1;
           }
           continue;
@@ -348,7 +347,8 @@ struct ConvolutionMixer::Impl {
   // halves converted into `scratch` (2 * stride floats).
   static const float* spectrumOf(const PreparedIr& ir, size_t li, size_t c, size_t k, float* scratch) {
     if (!ir.compact()) return ir.spectrum(li, c, k);
-    dsp_detail::halvesToFloats(ir.halfSpectrum(li, c, k), scratch, 2 * ir.binStride(li), ir.spectrumScale(li, c));
+    dsp_detail::compactPartitionToFloats(ir.compactSpectra(li, c), k, ir.layout().levels()[li].partitionCount,
+                                         ir.binStride(li), ir.spectrumScale(li, c), scratch);
     return scratch;
   }
 

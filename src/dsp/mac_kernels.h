@@ -38,18 +38,36 @@ uint16_t floatToHalf(float v);
 /** float from IEEE 754 binary16 (exact). */
 float halfToFloat(uint16_t h);
 
-/** complexMacBatch with the H spectra in binary16 (count re, then at
- *  + stride count im halves per partition), all under one `scale`:
- *  (ar, ai) += scale * sum_j X_j * H_j. AVX2+F16C where the CPU has them
- *  (chosen once), else a portable loop. */
-void complexMacBatchHalf(float* ar, float* ai, const float* const* x, const uint16_t* const* h, size_t parts,
-                         size_t stride, size_t count, float scale);
+/** Compact (binary16) spectra of one level and channel: its K partitions of
+ *  `stride` bins (a multiple of 8) interleaved by bin tiles, so that the
+ *  multiply-accumulate reads them as one stream: for each 32-bin tile t
+ *  (t < stride / 32) the K partitions' 32 real then 32 imaginary halves,
+ *  then for each remaining 8-bin tile u the K partitions' 8 real then 8
+ *  imaginary halves. Offset of partition k's tile starting at bin i (a
+ *  tile start) in the level-channel block. */
+inline size_t compactTileOffset(size_t i, size_t k, size_t partitions, size_t stride) {
+  const size_t full = stride / 32 * 32;
+  if (i < full) return (i / 32) * partitions * 64 + k * 64;
+  return full * partitions * 2 + ((i - full) / 8) * partitions * 16 + k * 16;
+}
+/** Width (bins) of the tile starting at bin i. */
+inline size_t compactTileWidth(size_t i, size_t stride) { return i < stride / 32 * 32 ? 32 : 8; }
+
+/** complexMacBatch over compact spectra (`h`: a level-channel block laid
+ *  out as compactTileOffset says, with `partitions` partitions), for its
+ *  partitions k0 .. k0 + parts - 1 against x[0 .. parts - 1], all under one
+ *  `scale`: (ar, ai) += scale * sum_j X_j * H_(k0 + j), over `stride` bins.
+ *  AVX2+F16C where the CPU has them (chosen once), else a portable loop. */
+void complexMacBatchHalf(float* ar, float* ai, const float* const* x, const uint16_t* h, size_t k0, size_t parts,
+                         size_t partitions, size_t stride, float scale);
 /** The portable loop complexMacBatchHalf falls back to (tested against
  *  the AVX2 + F16C version where the CPU has it). */
-void complexMacBatchHalfPortable(float* ar, float* ai, const float* const* x, const uint16_t* const* h,
-                                 size_t parts, size_t stride, size_t count, float scale);
-/** `count` halves to floats times `scale` (a partition's spectrum for the
- *  float kernels while an IR fades). */
-void halvesToFloats(const uint16_t* h, float* out, size_t count, float scale);
+void complexMacBatchHalfPortable(float* ar, float* ai, const float* const* x, const uint16_t* h, size_t k0,
+                                 size_t parts, size_t partitions, size_t stride, float scale);
+/** Partition k of a compact level-channel block as floats times `scale`:
+ *  `stride` real parts, then `stride` imaginary parts (the float kernels'
+ *  layout; used while an IR fades). */
+void compactPartitionToFloats(const uint16_t* h, size_t k, size_t partitions, size_t stride, float scale,
+                              float* out);
 
 }  // namespace earshot::dsp_detail

@@ -71,23 +71,24 @@ EARSHOT_F16C static inline __m256 loadHalves(const uint16_t* p) {
 }
 
 // As complexMacBatch: a tile of 32 bins' sums in registers over all
-// partitions, added to the accumulator once, times the scale.
+// partitions, added to the accumulator once, times the scale; the spectra's
+// tiles are consecutive in memory (compactTileOffset).
 EARSHOT_F16C void complexMacBatchHalfAvx(float* __restrict ar, float* __restrict ai, const float* const* x,
-                                         const uint16_t* const* h, size_t parts, size_t stride, size_t count,
-                                         float scale) {
+                                         const uint16_t* h, size_t k0, size_t parts, size_t partitions,
+                                         size_t stride, float scale) {
   const __m256 s = _mm256_set1_ps(scale);
+  const size_t full = stride / 32 * 32;
   size_t i = 0;
-  for (; i + 32 <= count; i += 32) {
+  for (; i < full; i += 32) {
     __m256 r[4], m[4];
     for (int t = 0; t < 4; ++t) r[t] = m[t] = _mm256_setzero_ps();
-    for (size_t j = 0; j < parts; ++j) {
+    const uint16_t* hp = h + compactTileOffset(i, k0, partitions, stride);
+    for (size_t j = 0; j < parts; ++j, hp += 64) {
       const float* xr = x[j] + i;
       const float* xi = xr + stride;
-      const uint16_t* hr = h[j] + i;
-      const uint16_t* hi = hr + stride;
       for (int t = 0; t < 4; ++t) {
         const __m256 a = _mm256_loadu_ps(xr + 8 * t), b = _mm256_loadu_ps(xi + 8 * t);
-        const __m256 c = loadHalves(hr + 8 * t), d = loadHalves(hi + 8 * t);
+        const __m256 c = loadHalves(hp + 8 * t), d = loadHalves(hp + 32 + 8 * t);
         r[t] = _mm256_fmadd_ps(a, c, _mm256_fnmadd_ps(b, d, r[t]));
         m[t] = _mm256_fmadd_ps(a, d, _mm256_fmadd_ps(b, c, m[t]));
       }
@@ -97,24 +98,18 @@ EARSHOT_F16C void complexMacBatchHalfAvx(float* __restrict ar, float* __restrict
       _mm256_storeu_ps(ai + i + 8 * t, _mm256_fmadd_ps(s, m[t], _mm256_loadu_ps(ai + i + 8 * t)));
     }
   }
-  for (; i < count; i += 8) {  // tail, 8 bins at a time (count is a multiple of 8)
+  for (; i < stride; i += 8) {  // 8-bin tiles
     __m256 r = _mm256_setzero_ps(), m = _mm256_setzero_ps();
-    for (size_t j = 0; j < parts; ++j) {
+    const uint16_t* hp = h + compactTileOffset(i, k0, partitions, stride);
+    for (size_t j = 0; j < parts; ++j, hp += 16) {
       const __m256 a = _mm256_loadu_ps(x[j] + i), b = _mm256_loadu_ps(x[j] + i + stride);
-      const __m256 c = loadHalves(h[j] + i), d = loadHalves(h[j] + i + stride);
+      const __m256 c = loadHalves(hp), d = loadHalves(hp + 8);
       r = _mm256_fmadd_ps(a, c, _mm256_fnmadd_ps(b, d, r));
       m = _mm256_fmadd_ps(a, d, _mm256_fmadd_ps(b, c, m));
     }
     _mm256_storeu_ps(ar + i, _mm256_fmadd_ps(s, r, _mm256_loadu_ps(ar + i)));
     _mm256_storeu_ps(ai + i, _mm256_fmadd_ps(s, m, _mm256_loadu_ps(ai + i)));
   }
-}
-
-EARSHOT_F16C void halvesToFloatsAvx(const uint16_t* h, float* out, size_t count, float scale) {
-  const __m256 s = _mm256_set1_ps(scale);
-  size_t i = 0;
-  for (; i + 8 <= count; i += 8) _mm256_storeu_ps(out + i, _mm256_mul_ps(s, loadHalves(h + i)));
-  for (; i < count; ++i) out[i] = scale * halfToFloat(h[i]);
 }
 
 bool cpuHasF16cPath() {
@@ -129,34 +124,43 @@ const bool kF16cPath = cpuHasF16cPath();
 
 }  // namespace
 
-void complexMacBatchHalfPortable(float* __restrict ar, float* __restrict ai, const float* const* x,
-                                 const uint16_t* const* h, size_t parts, size_t stride, size_t count, float scale) {
-  for (size_t i = 0; i < count; ++i) {
-    float r = 0.0f, m = 0.0f;
-    for (size_t j = 0; j < parts; ++j) {
-      const float a = x[j][i], b = x[j][i + stride];
-      const float c = halfToFloat(h[j][i]), d = halfToFloat(h[j][i + stride]);
-      r += a * c - b * d;
-      m += a * d + b * c;
+void complexMacBatchHalfPortable(float* ar, float* ai, const float* const* x, const uint16_t* h, size_t k0,
+                                 size_t parts, size_t partitions, size_t stride, float scale) {
+  for (size_t i = 0; i < stride; i += compactTileWidth(i, stride)) {
+    const size_t w = compactTileWidth(i, stride);
+    for (size_t b = 0; b < w; ++b) {
+      float r = 0.0f, m = 0.0f;
+      for (size_t j = 0; j < parts; ++j) {
+        const uint16_t* t = h + compactTileOffset(i, k0 + j, partitions, stride);
+        const float a = x[j][i + b], bb = x[j][i + b + stride];
+        const float c = halfToFloat(t[b]), d = halfToFloat(t[w + b]);
+        r += a * c - bb * d;
+        m += a * d + bb * c;
+      }
+      ar[i + b] += scale * r;
+      ai[i + b] += scale * m;
     }
-    ar[i] += scale * r;
-    ai[i] += scale * m;
   }
 }
 
-void complexMacBatchHalf(float* ar, float* ai, const float* const* x, const uint16_t* const* h, size_t parts,
-                         size_t stride, size_t count, float scale) {
-#ifdef EARSHOT_HAVE_F16C_PATH
-  if (kF16cPath) return complexMacBatchHalfAvx(ar, ai, x, h, parts, stride, count, scale);
-#endif
-  complexMacBatchHalfPortable(ar, ai, x, h, parts, stride, count, scale);
+void compactPartitionToFloats(const uint16_t* h, size_t k, size_t partitions, size_t stride, float scale,
+                              float* out) {
+  for (size_t i = 0; i < stride; i += compactTileWidth(i, stride)) {
+    const size_t w = compactTileWidth(i, stride);
+    const uint16_t* t = h + compactTileOffset(i, k, partitions, stride);
+    for (size_t b = 0; b < w; ++b) {
+      out[i + b] = scale * halfToFloat(t[b]);
+      out[stride + i + b] = scale * halfToFloat(t[w + b]);
+    }
+  }
 }
 
-void halvesToFloats(const uint16_t* h, float* out, size_t count, float scale) {
+void complexMacBatchHalf(float* ar, float* ai, const float* const* x, const uint16_t* h, size_t k0, size_t parts,
+                         size_t partitions, size_t stride, float scale) {
 #ifdef EARSHOT_HAVE_F16C_PATH
-  if (kF16cPath) return halvesToFloatsAvx(h, out, count, scale);
+  if (kF16cPath) return complexMacBatchHalfAvx(ar, ai, x, h, k0, parts, partitions, stride, scale);
 #endif
-  for (size_t i = 0; i < count; ++i) out[i] = scale * halfToFloat(h[i]);
+  complexMacBatchHalfPortable(ar, ai, x, h, k0, parts, partitions, stride, scale);
 }
 
 }  // namespace earshot::dsp_detail

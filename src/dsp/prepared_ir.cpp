@@ -30,10 +30,10 @@ const float* PreparedIr::spectrum(size_t level, size_t channel, size_t k) const 
   return mData + mLevelOffset[level] + (channel * lv.partitionCount + k) * 2 * stride;
 }
 
-const uint16_t* PreparedIr::halfSpectrum(size_t level, size_t channel, size_t k) const {
+const uint16_t* PreparedIr::compactSpectra(size_t level, size_t channel) const {
   if (!mHalf) return nullptr;
   const PartitionLevel& lv = mLayout.levels()[level];
-  return mHalf + mLevelOffset[level] + (channel * lv.partitionCount + k) * 2 * mStride[level];
+  return mHalf + mLevelOffset[level] + channel * lv.partitionCount * 2 * mStride[level];
 }
 
 Result<std::shared_ptr<const PreparedIr>> PreparedIr::create(const AudioBuffer& ir, const PartitionLayout& layout) {
@@ -125,7 +125,8 @@ Result<std::shared_ptr<const PreparedIr>> PreparedIr::create(const std::vector<s
   if (layout.compactSpectra()) {
     // Each level's channel under a power of two that puts its largest value
     // at <= 2^14 (binary16 holds up to 65504, and values 2^-24 of that scale
-    // still count), then rounded to binary16; the floats are dropped.
+    // still count), rounded to binary16 and laid out by bin tiles
+    // (compactTileOffset); the floats are dropped.
     const size_t halfBytes = ((total * sizeof(uint16_t) + 63) / 64) * 64;
     out->mHalf = static_cast<uint16_t*>(std::aligned_alloc(64, halfBytes ? halfBytes : 64));
     if (!out->mHalf) return outOfRange("prepared IR: cannot allocate " + std::to_string(halfBytes) + " bytes");
@@ -139,8 +140,18 @@ Result<std::shared_ptr<const PreparedIr>> PreparedIr::create(const std::vector<s
         for (size_t i = 0; i < n; ++i) peak = std::max(peak, std::fabs(v[i]));
         const float scale = peak > 0.0f ? std::ldexp(1.0f, std::ilogb(peak) - 13) : 1.0f;  // peak / scale < 2^14
         out->mScale[l * channels.size() + c] = scale;
-        uint16_t* h = const_cast<uint16_t*>(out->halfSpectrum(l, c, 0));
-        for (size_t i = 0; i < n; ++i) h[i] = dsp_detail::floatToHalf(v[i] / scale);
+        uint16_t* h = const_cast<uint16_t*>(out->compactSpectra(l, c));
+        const size_t parts = levels[l].partitionCount, st = out->mStride[l];
+        for (size_t k = 0; k < parts; ++k)
+          for (size_t i = 0; i < st; i += dsp_detail::compactTileWidth(i, st)) {
+            const size_t w = dsp_detail::compactTileWidth(i, st);
+            uint16_t* t = h + dsp_detail::compactTileOffset(i, k, parts, st);
+            const float* re = v + k * 2 * st + i;
+            for (size_t b = 0; b < w; ++b) {
+              t[b] = dsp_detail::floatToHalf(re[b] / scale);
+              t[w + b] = dsp_detail::floatToHalf(re[st + b] / scale);
+            }
+          }
       }
     std::free(out->mData);
     out->mData = nullptr;

@@ -413,29 +413,46 @@ TEST(CompactSpectra, HalfConversionsAreExactAndRoundToNearest) {
 }
 
 // The binary16 multiply-accumulate (AVX2 + F16C where the CPU has it, as
-// here) equals its portable loop to float rounding: 5 partitions of 264
-// bins (a 32-bin tile and an 8-bin tail), random spectra and a scale.
-TEST(CompactSpectra, MultiplyAccumulateEqualsThePortableLoop) {
-  const size_t parts = 5, count = 264, stride = 264;
+// here) over tile-interleaved spectra equals the float kernel on the same
+// values (converted), and its portable loop, to float rounding: partitions
+// 2..6 of a level of 7 with 264 bins (32-bin tiles and an 8-bin tile);
+// compactPartitionToFloats gives each partition's values back.
+TEST(CompactSpectra, MultiplyAccumulateEqualsTheFloatKernel) {
+  const size_t partitions = 7, stride = 264, k0 = 2, parts = 5;
   Pcg32 rng(8, 9);
-  std::vector<std::vector<float>> x(parts, std::vector<float>(2 * stride));
-  std::vector<std::vector<uint16_t>> h(parts, std::vector<uint16_t>(2 * stride));
-  std::vector<const float*> xs;
-  std::vector<const uint16_t*> hs;
-  for (size_t j = 0; j < parts; ++j) {
-    for (auto& v : x[j]) v = float(rng.uniformDouble() * 2 - 1);
-    for (auto& v : h[j]) v = dsp_detail::floatToHalf(float(rng.uniformDouble() * 2 - 1));
-    xs.push_back(x[j].data());
-    hs.push_back(h[j].data());
+  std::vector<std::vector<float>> x(parts, std::vector<float>(2 * stride)), hf(partitions);
+  std::vector<uint16_t> block(partitions * 2 * stride);
+  for (auto& v : x)
+    for (auto& e : v) e = float(rng.uniformDouble() * 2 - 1);
+  for (size_t k = 0; k < partitions; ++k) {
+    hf[k].resize(2 * stride);
+    for (size_t i = 0; i < stride; i += dsp_detail::compactTileWidth(i, stride)) {
+      const size_t w = dsp_detail::compactTileWidth(i, stride);
+      uint16_t* t = block.data() + dsp_detail::compactTileOffset(i, k, partitions, stride);
+      for (size_t b = 0; b < 2 * w; ++b) {
+        t[b] = dsp_detail::floatToHalf(float(rng.uniformDouble() * 2 - 1));
+        hf[k][(b < w ? 0 : stride) + i + b % w] = 0.125f * dsp_detail::halfToFloat(t[b]);
+      }
+    }
+    std::vector<float> back(2 * stride);
+    dsp_detail::compactPartitionToFloats(block.data(), k, partitions, stride, 0.125f, back.data());
+    ASSERT_EQ(back, hf[k]) << "partition " << k;
   }
-  std::vector<float> a(2 * stride, 0.25f), b(2 * stride, 0.25f);
-  dsp_detail::complexMacBatchHalf(a.data(), a.data() + stride, xs.data(), hs.data(), parts, stride, count, 0.125f);
-  dsp_detail::complexMacBatchHalfPortable(b.data(), b.data() + stride, xs.data(), hs.data(), parts, stride, count,
-                                          0.125f);
+  std::vector<const float*> xs, hs;
+  for (size_t j = 0; j < parts; ++j) {
+    xs.push_back(x[j].data());
+    hs.push_back(hf[k0 + j].data());
+  }
+  std::vector<float> a(2 * stride, 0.25f), b(2 * stride, 0.25f), c(2 * stride, 0.25f);
+  dsp_detail::complexMacBatchHalf(a.data(), a.data() + stride, xs.data(), block.data(), k0, parts, partitions, stride,
+                                  0.125f);
+  dsp_detail::complexMacBatchHalfPortable(b.data(), b.data() + stride, xs.data(), block.data(), k0, parts, partitions,
+                                          stride, 0.125f);
+  dsp_detail::complexMacBatch(c.data(), c.data() + stride, xs.data(), hs.data(), parts, stride, stride);
   double worst = 0, sum = 0;
   for (size_t i = 0; i < 2 * stride; ++i) {
-    worst = std::max(worst, std::fabs(double(a[i]) - b[i]));
-    sum += std::fabs(double(b[i]) - 0.25);
+    worst = std::max({worst, std::fabs(double(a[i]) - c[i]), std::fabs(double(b[i]) - c[i])});
+    sum += std::fabs(double(c[i]) - 0.25);
   }
   EXPECT_GT(sum, 10.0);  // the products were added
   EXPECT_LE(worst, 1e-6);

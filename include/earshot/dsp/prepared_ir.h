@@ -45,10 +45,13 @@ class PreparedIr {
    *  parts follow at + binStride(level). Null when compact(). */
   const float* spectrum(size_t level, size_t channel, size_t k) const;
   /** The layout's compactSpectra(): spectra as binary16 halves, read with
-   *  halfSpectrum() and multiplied by spectrumScale(). */
+   *  compactSpectra() and multiplied by spectrumScale(). */
   bool compact() const { return mHalf != nullptr; }
-  /** As spectrum(), binary16 halves, when compact(). */
-  const uint16_t* halfSpectrum(size_t level, size_t channel, size_t k) const;
+  /** When compact(): the binary16 spectra of `level`'s partitions for
+   *  `channel`, interleaved by bin tiles (dsp_detail::compactTileOffset, in
+   *  src/dsp/mac_kernels.h: the multiply-accumulate reads them as one
+   *  stream). Null otherwise. */
+  const uint16_t* compactSpectra(size_t level, size_t channel) const;
   /** The power of two that halfSpectrum(level, channel, .) values are
    *  multiplied by (the channel's largest value is stored at <= 2^14). */
   float spectrumScale(size_t level, size_t channel) const { return mScale[level * mChannels + channel]; }
