@@ -3,6 +3,7 @@
 // convolver's hot loop. `count` is a multiple of 8; arrays are 64-byte
 // aligned and do not alias. Internal to src/dsp.
 #include <cstddef>
+#include <cstdint>
 
 namespace earshot::dsp_detail {
 
@@ -25,12 +26,6 @@ void complexMacNeg(float* ar, float* ai, const float* xr, const float* xi, const
 /** (ar, ai) += (xr, xi) * ((pr, pi) - (cr, ci)). */
 void complexMacDiff(float* ar, float* ai, const float* xr, const float* xi, const float* pr, const float* pi,
                     const float* cr, const float* ci, size_t count);
-
-}  // namespace earshot::dsp_detail
-
-#include <cstdint>
-
-namespace earshot::dsp_detail {
 
 /** IEEE 754 binary16 from float, rounded to nearest even (overflow to inf,
  *  which PreparedIr's per-channel scale rules out). */
