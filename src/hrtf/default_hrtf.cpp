@@ -13,6 +13,9 @@
 #ifndef EARSHOT_HRTF_DIR
 #define EARSHOT_HRTF_DIR ""
 #endif
+#ifndef EARSHOT_PREPARED_BUILD_DIR
+#define EARSHOT_PREPARED_BUILD_DIR ""
+#endif
 
 namespace earshot::hrtf {
 
@@ -30,6 +33,14 @@ std::string installedFile(const std::string& relative, bool executable) {
     if (::access(path.c_str(), executable ? X_OK : R_OK) == 0) return path;
   }
   return "";
+}
+
+std::string shippedPreparedFile(const std::string& name) {
+  std::string installed = installedFile("share/earshot/prepared/" + name, false);
+  if (!installed.empty()) return installed;
+  const std::string built = std::string(EARSHOT_PREPARED_BUILD_DIR) + "/" + name;
+  if (std::string(EARSHOT_PREPARED_BUILD_DIR).empty() || ::access(built.c_str(), R_OK) != 0) return "";
+  return built;
 }
 
 std::string sofaProbePath() {

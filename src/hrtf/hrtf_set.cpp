@@ -354,7 +354,15 @@ Result<std::shared_ptr<const HrtfSet>> HrtfSet::load(const std::string& sofaPath
     const Hash128 h = hashBytes(bytes->data(), bytes->size());
     cacheKey = {h.a, h.b, uint64_t(bytes->size()), preparationFingerprint(sampleRateHz)};
     cacheName = cacheFileName(cacheKey, sampleRateHz, mode);
-    if (auto cached = readPrepared(folder + "/" + cacheName, cacheKey, sampleRateHz, mode, limits.maxMemoryBytes)) {
+    auto cached = readPrepared(folder + "/" + cacheName, cacheKey, sampleRateHz, mode, limits.maxMemoryBytes);
+    // The shipped set's prepared form that earshot builds and installs (at
+    // 44.1 and 48 kHz, the default interpolation), read like an entry of
+    // the cache: a first run on a machine need not prepare it.
+    if (!cached && shipped) {
+      const std::string file = detail::shippedPreparedFile(cacheName);
+      if (!file.empty()) cached = readPrepared(file, cacheKey, sampleRateHz, mode, limits.maxMemoryBytes);
+    }
+    if (cached) {
       cached->mPath = sofaPath;
       cached->buildNearestGrid();
       if (mode == InterpolationMode::kBarycentric) cached->buildTriangulation();

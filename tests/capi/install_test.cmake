@@ -23,6 +23,23 @@ foreach(f include/earshot/earshot.h include/earshot/earshot.hpp include/earshot/
   endif()
 endforeach()
 
+# The default HRTF set comes prepared (share/earshot/prepared): the installed
+# tool, run with an empty cache folder, finds both rates already prepared.
+file(GLOB _prepared "${prefix}/share/earshot/prepared/hrtf-*.bin")
+list(LENGTH _prepared _count)
+if(NOT _count EQUAL 2)
+  message(FATAL_ERROR "installed prepared HRTF sets: ${_count}, expected 2")
+endif()
+set(ENV{EARSHOT_CACHE_DIR} "${WORK_DIR}/empty_cache")
+unset(ENV{EARSHOT_HRTF_DIR})
+execute_process(COMMAND "${prefix}/bin/earshot" cache --prepare RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+string(REGEX MATCHALL "already prepared" _hits "${out}")
+list(LENGTH _hits _hitCount)
+if(NOT rc EQUAL 0 OR NOT _hitCount EQUAL 2)
+  message(FATAL_ERROR "the installed earshot did not read the prepared set (${rc}):\n${out}\n${err}")
+endif()
+unset(ENV{EARSHOT_CACHE_DIR})
+
 # CMake package.
 # Only the public headers are installed.
 file(GLOB_RECURSE _headers RELATIVE "${prefix}/include" "${prefix}/include/*")

@@ -1,7 +1,9 @@
 // HrtfSet::load's prepared-set cache: a second load comes from it bit for
 // bit; another rate, mode or file content is another entry; a damaged entry
 // is prepared again and rewritten; no cache, an unwritable folder or a FIFO
-// in the entry's place only cost time; the folder keeps the newest entries.
+// in the entry's place only cost time; the folder keeps the newest entries;
+// the default set's prepared form that the build makes (and installs) is
+// read on a first run, bit for bit the set prepared from the SOFA file.
 #include <gtest/gtest.h>
 
 #include <sys/stat.h>
@@ -192,6 +194,34 @@ TEST_F(HrtfCache, NoCacheAnUnwritableFolderOrAFifoOnlyCostTime) {
   EXPECT_FALSE(c->loadedFromCache());
   expectSameSet(*a, *c);
   EXPECT_TRUE(fs::is_fifo(entry));
+}
+
+// An empty cache folder (a first run on a machine): the shipped set comes
+// prepared, from share/earshot/prepared (here the build tree's, made by
+// `earshot cache --prepare` at build time), at both rates it is made for,
+// bit for bit the set prepared from the SOFA file; nothing is written to the
+// user's folder for it. The same bytes at another path are prepared (the
+// prepared form is the shipped file's), and `off` reads nothing prepared.
+TEST_F(HrtfCache, TheShippedSetIsReadPreparedOnAFirstRun) {
+  auto shippedPath = defaultHrtfPath();
+  ASSERT_TRUE(shippedPath.isOk()) << shippedPath.status().message();
+  for (double rate : {48000.0, 44100.0}) {
+    auto first = load(*shippedPath, rate);
+    ASSERT_TRUE(first);
+    EXPECT_TRUE(first->loadedFromCache()) << rate;
+    EXPECT_TRUE(entries().empty());
+    setenv("EARSHOT_CACHE_DIR", "off", 1);
+    auto prepared = load(*shippedPath, rate);
+    setenv("EARSHOT_CACHE_DIR", mFolder.c_str(), 1);
+    ASSERT_TRUE(prepared);
+    EXPECT_FALSE(prepared->loadedFromCache());
+    expectSameSet(*first, *prepared);
+  }
+  const std::string copy = mRoot + "/copy.sofa";
+  fs::copy_file(*shippedPath, copy);
+  auto atOtherPath = load(copy);
+  ASSERT_TRUE(atOtherPath);
+  EXPECT_FALSE(atOtherPath->loadedFromCache());
 }
 
 TEST_F(HrtfCache, KeepsTheNewestEntries) {

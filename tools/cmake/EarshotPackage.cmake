@@ -80,6 +80,9 @@ install(EXPORT earshotStaticTargets NAMESPACE earshot:: DESTINATION ${EARSHOT_CM
 # The default HRTF and materials; defaultHrtfPath() finds share/earshot/hrtf
 # relative to the installed library.
 install(DIRECTORY ${PROJECT_SOURCE_DIR}/hrtf/ DESTINATION ${CMAKE_INSTALL_DATADIR}/earshot/hrtf)
+# The default set's prepared form (tools/CMakeLists.txt, earshot_prepared_hrtf).
+install(DIRECTORY ${PROJECT_BINARY_DIR}/share/earshot/prepared/ DESTINATION ${CMAKE_INSTALL_DATADIR}/earshot/prepared
+        FILES_MATCHING PATTERN "hrtf-*.bin")
 install(FILES ${PROJECT_SOURCE_DIR}/materials/default.json DESTINATION ${CMAKE_INSTALL_DATADIR}/earshot/materials)
 
 configure_package_config_file(${CMAKE_CURRENT_LIST_DIR}/earshotConfig.cmake.in

@@ -1,12 +1,14 @@
 // `earshot cache`: where the cache folder is and what it holds (prepared
 // HRTF sets, late noises: README "The cache folder"); --clear empties it of
-// earshot's files.
+// earshot's files; --prepare prepares the default HRTF set into it (the
+// build runs it to make the prepared set earshot installs).
 #include <cstdio>
 #include <map>
 #include <memory>
 #include <string>
 
 #include "command.h"
+#include "earshot/hrtf/hrtf_set.h"
 #include "earshot/io/disk_cache.h"
 #include "earshot/io/input_file.h"
 
@@ -15,19 +17,45 @@ namespace {
 
 struct CacheOptions {
   bool clear = false;
+  bool prepare = false;
 };
+
+// The rates the default set is prepared at (build time and --prepare).
+constexpr double kPreparedRates[] = {44100.0, 48000.0};
 
 void runCache(const CacheOptions& o) {
   const std::string folder = cacheFolder();
   if (folder.empty()) {
+    if (o.prepare) {
+      printError("no cache folder (EARSHOT_CACHE_DIR is \"off\" or empty, or no HOME): nothing to prepare into");
+      return;
+    }
     std::printf("no cache folder (EARSHOT_CACHE_DIR is \"off\" or empty, or no HOME): nothing is kept\n");
     return;
+  }
+  if (o.prepare) {
+    auto path = hrtf::defaultHrtfPath();
+    if (!path.isOk()) {
+      printError(path.status().message());
+      return;
+    }
+    for (double rate : kPreparedRates) {
+      auto set = hrtf::HrtfSet::load(*path, rate);
+      if (!set.isOk()) {
+        printError(set.status().message());
+        return;
+      }
+      std::printf("%s at %.0f Hz: %s\n", path->c_str(), rate,
+                  (*set)->loadedFromCache() ? "already prepared" : "prepared");
+    }
   }
   const auto files = listCacheFiles(folder);
   if (o.clear) {
     const size_t removed = clearCacheFiles(folder);
     std::printf("%s: removed %zu file%s\n", folder.c_str(), removed, removed == 1 ? "" : "s");
-    if (removed != files.size()) printError(folder + ": " + std::to_string(files.size() - removed) + " files could not be removed");
+    if (removed != files.size()) {
+      printError(folder + ": " + std::to_string(files.size() - removed) + " files could not be removed");
+    }
     return;
   }
   std::map<std::string, std::pair<size_t, uint64_t>> byKind;
@@ -51,6 +79,8 @@ const Registrar registrar([](CLI::App& root) {
                "(EARSHOT_CACHE_DIR, else ~/.cache/earshot; 'off' for none)");
   cmd->add_flag("--clear", o->clear, "Remove earshot's files from it (entries and leftovers of interrupted writes; "
                                      "other files stay). Later runs prepare them again");
+  cmd->add_flag("--prepare", o->prepare,
+                "Prepare the default HRTF set (at 44.1 and 48 kHz) into it now, so that no later run pays for it");
   cmd->callback([o] { runCache(*o); });
 });
 
