@@ -6,6 +6,9 @@
 #include <cmath>
 #include <complex>
 #include <string>
+#include <atomic>
+#include <thread>
+#include <vector>
 
 #include "earshot/core/math.h"
 #include "earshot/hrtf/coordinates.h"
@@ -30,6 +33,40 @@ constexpr size_t kMaxDecoderDesignValues = size_t(8) << 20;
 // Rotating phasors (e^(i k w), one complex multiply per bin) are set exactly
 // every this many bins: their rounding stays near 1e-14.
 constexpr size_t kPhasorAnchor = 32;
+
+// Runs body(begin, end) over [0, count) cut into `parts` runs whose starts
+// are multiples of `align`, the first run on this thread and the others on
+// threads of their own. Every element's work must not depend on the cut (the
+// runs are independent and each starts at an anchor of any recurrence), so
+// the result is the same whatever the number of parts. False if a run threw
+// (e.g. out of memory) or returned false.
+template <typename Body>
+bool forRuns(size_t count, size_t align, size_t parts, const Body& body) {
+  const size_t per = std::max(align, (count / std::max<size_t>(1, parts) + align - 1) / align * align);
+  std::atomic<bool> ok{true};
+  auto run = [&](size_t begin, size_t end) {
+    try {
+      if (!body(begin, end)) ok = false;
+    } catch (...) {
+      ok = false;
+    }
+  };
+  std::vector<std::thread> threads;
+  for (size_t begin = per; begin < count; begin += per) {
+    const size_t end = std::min(count, begin + per);
+    try {
+      threads.emplace_back(run, begin, end);
+    } catch (...) {
+      run(begin, end);  // no thread to be had: this one does the run
+    }
+  }
+  run(0, std::min(count, per));
+  for (auto& t : threads) t.join();
+  return ok;
+}
+
+// The design's threads: the machine's cores, at most 4.
+size_t designThreads() { return std::clamp<size_t>(std::thread::hardware_concurrency(), 1, 4); }
 
 // The 2x2 mixing M closest to the identity with M Cx M^H = Cy (Vilkamo et
 // al. 2013, with the identity as prototype): M = Ky P Kx^-1, P = V U^H from
@@ -87,10 +124,8 @@ Result<std::shared_ptr<const AmbisonicDecoder>> AmbisonicDecoder::create(const B
 
   // HRTF spectra: minimum phase plus the onset and the bulk delay (the full
   // HRTF), and minimum phase plus the bulk delay alone (time-aligned).
-  detail::FftrPtr fft(kiss_fftr_alloc(int(n), 0, nullptr, nullptr));
   detail::FftrPtr ifft(kiss_fftr_alloc(int(n), 1, nullptr, nullptr));
-  if (!fft || !ifft) return Status(StatusCode::kInternal, "FFT allocation failed");
-  std::vector<float> padded(n);
+  if (!ifft) return Status(StatusCode::kInternal, "FFT allocation failed");
   std::vector<kiss_fft_cpx> spec(bins);
   // Held in float, the full HRTFs only (the time-aligned ones differ by the
   // onset's phase, applied per bin below): 2 x directions x bins values.
@@ -100,28 +135,40 @@ Result<std::shared_ptr<const AmbisonicDecoder>> AmbisonicDecoder::create(const B
                       std::to_string(kMaxDecoderDesignValues) + " (HRIRs too long or too many directions)");
   Eigen::MatrixXcf full[2] = {Eigen::MatrixXcf(m, Eigen::Index(bins)), Eigen::MatrixXcf(m, Eigen::Index(bins))};
   Eigen::MatrixXd onsetFrames(m, 2);
-  for (Eigen::Index r = 0; r < m; ++r) {
-    const hrtf::HrtfMeasurement meas = set.measurement(used[size_t(r)]);
-    for (int ear = 0; ear < 2; ++ear) {
-      const float* taps = ear == 0 ? meas.left : meas.right;
-      std::fill(padded.begin(), padded.end(), 0.0f);
-      std::copy(taps, taps + hrir, padded.begin());
-      kiss_fftr(fft.get(), padded.data(), spec.data());
-      const double onset = (ear == 0 ? meas.leftDelaySeconds : meas.rightDelaySeconds) * fs;
-      onsetFrames(r, ear) = onset;
-      // e^(-2 pi i k (onset + delay) / n) by a rotating phasor, anchored
-      // exactly every kPhasorAnchor bins (a sine and cosine per bin was
-      // most of the design's time).
-      const double w1 = -2.0 * kPi * (onset + double(s.delayFrames)) / double(n);
-      const cd step = std::polar(1.0, w1);
-      cd phase = 1.0;
-      for (size_t k = 0; k < bins; ++k) {
-        if (k % kPhasorAnchor == 0) phase = std::polar(1.0, w1 * double(k));
-        full[ear](r, Eigen::Index(k)) = std::complex<float>(cd(spec[k].r, spec[k].i) * phase);
-        phase *= step;
+  // Directions in runs on the design's threads (each its own FFT plan and
+  // scratch; every direction's spectra are computed the same way whatever
+  // the runs).
+  const size_t threads = designThreads();
+  const bool spectraOk = forRuns(size_t(m), 1, threads, [&](size_t r0, size_t r1) {
+    detail::FftrPtr fft(kiss_fftr_alloc(int(n), 0, nullptr, nullptr));
+    if (!fft) return false;
+    std::vector<float> padded(n);
+    std::vector<kiss_fft_cpx> runSpec(bins);
+    for (Eigen::Index r = Eigen::Index(r0); r < Eigen::Index(r1); ++r) {
+      const hrtf::HrtfMeasurement meas = set.measurement(used[size_t(r)]);
+      for (int ear = 0; ear < 2; ++ear) {
+        const float* taps = ear == 0 ? meas.left : meas.right;
+        std::fill(padded.begin(), padded.end(), 0.0f);
+        std::copy(taps, taps + hrir, padded.begin());
+        kiss_fftr(fft.get(), padded.data(), runSpec.data());
+        const double onset = (ear == 0 ? meas.leftDelaySeconds : meas.rightDelaySeconds) * fs;
+        onsetFrames(r, ear) = onset;
+        // e^(-2 pi i k (onset + delay) / n) by a rotating phasor, anchored
+        // exactly every kPhasorAnchor bins (a sine and cosine per bin was
+        // most of the design's time).
+        const double w1 = -2.0 * kPi * (onset + double(s.delayFrames)) / double(n);
+        const cd step = std::polar(1.0, w1);
+        cd phase = 1.0;
+        for (size_t k = 0; k < bins; ++k) {
+          if (k % kPhasorAnchor == 0) phase = std::polar(1.0, w1 * double(k));
+          full[ear](r, Eigen::Index(k)) = std::complex<float>(cd(runSpec[k].r, runSpec[k].i) * phase);
+          phase *= step;
+        }
       }
     }
-  }
+    return true;
+  });
+  if (!spectraOk) return Status(StatusCode::kInternal, "ambisonic decoder: out of memory (FFT plans or scratch)");
 
   // Per bin: least squares on the full HRTFs below the crossover, on the
   // time-aligned ones above (raised-cosine crossfade over an octave around
@@ -129,39 +176,46 @@ Result<std::shared_ptr<const AmbisonicDecoder>> AmbisonicDecoder::create(const B
   // field. Each fit is a fixed linear combination of compact HRIRs, so the
   // filters stay compact.
   std::vector<Eigen::MatrixXcd> decoders(bins);
-  Eigen::MatrixXcd d(channels, 2), hk(m, 2);
-  Eigen::VectorXcd aligned(m);
   const double lo = s.alignedAboveHz / std::sqrt(2.0), hi = s.alignedAboveHz * std::sqrt(2.0);
   // The onsets' phases e^(2 pi i k onset / n), per direction and ear, as
   // rotating phasors (anchored as above).
-  Eigen::MatrixXcd onsetPhase(m, 2), onsetStep(m, 2);
+  Eigen::MatrixXcd onsetStep(m, 2);
   for (Eigen::Index r = 0; r < m; ++r)
     for (int ear = 0; ear < 2; ++ear) onsetStep(r, ear) = std::polar(1.0, 2.0 * kPi * onsetFrames(r, ear) / double(n));
-  for (size_t k = 0; k < bins; ++k) {
-    if (k % kPhasorAnchor == 0)
-      for (Eigen::Index r = 0; r < m; ++r)
-        for (int ear = 0; ear < 2; ++ear)
-          onsetPhase(r, ear) = std::polar(1.0, 2.0 * kPi * double(k) * onsetFrames(r, ear) / double(n));
-    const double f = double(k) * fs / double(n);
-    const double t = f <= lo ? 0.0 : f >= hi ? 1.0 : 0.5 - 0.5 * std::cos(kPi * std::log(f / lo) / std::log(hi / lo));
-    for (int ear = 0; ear < 2; ++ear) {
-      hk.col(ear) = full[ear].col(Eigen::Index(k)).cast<cd>();
-      if (t > 0) {  // the time-aligned HRTFs: the onset's phase taken out
-        for (Eigen::Index r = 0; r < m; ++r) aligned(r) = hk(r, ear) * onsetPhase(r, ear);
-        d.col(ear) = (1.0 - t) * (pinv * hk.col(ear)) + t * (pinv * aligned);
-      } else {
-        d.col(ear) = pinv * hk.col(ear);
+  // Bins in runs on the design's threads, each run starting at a phasor
+  // anchor (so every bin's decoder is the same whatever the runs).
+  const bool designOk = forRuns(bins, kPhasorAnchor, threads, [&](size_t k0, size_t k1) {
+    Eigen::MatrixXcd d(channels, 2), hk(m, 2), onsetPhase(m, 2);
+    Eigen::VectorXcd aligned(m);
+    for (size_t k = k0; k < k1; ++k) {
+      if (k % kPhasorAnchor == 0)
+        for (Eigen::Index r = 0; r < m; ++r)
+          for (int ear = 0; ear < 2; ++ear)
+            onsetPhase(r, ear) = std::polar(1.0, 2.0 * kPi * double(k) * onsetFrames(r, ear) / double(n));
+      const double f = double(k) * fs / double(n);
+      const double t =
+          f <= lo ? 0.0 : f >= hi ? 1.0 : 0.5 - 0.5 * std::cos(kPi * std::log(f / lo) / std::log(hi / lo));
+      for (int ear = 0; ear < 2; ++ear) {
+        hk.col(ear) = full[ear].col(Eigen::Index(k)).cast<cd>();
+        if (t > 0) {  // the time-aligned HRTFs: the onset's phase taken out
+          for (Eigen::Index r = 0; r < m; ++r) aligned(r) = hk(r, ear) * onsetPhase(r, ear);
+          d.col(ear) = (1.0 - t) * (pinv * hk.col(ear)) + t * (pinv * aligned);
+        } else {
+          d.col(ear) = pinv * hk.col(ear);
+        }
       }
+      if (s.covarianceConstraint) {
+        const Eigen::Matrix2cd target = hk.transpose() * w.asDiagonal() * hk.conjugate();
+        const Eigen::Matrix2cd decoded = d.transpose() * phi * d.conjugate();
+        decoders[k] = d * covarianceMixing(decoded, target).transpose();
+      } else {
+        decoders[k] = d;
+      }
+      onsetPhase = onsetPhase.cwiseProduct(onsetStep);
     }
-    if (s.covarianceConstraint) {
-      const Eigen::Matrix2cd target = hk.transpose() * w.asDiagonal() * hk.conjugate();
-      const Eigen::Matrix2cd decoded = d.transpose() * phi * d.conjugate();
-      decoders[k] = d * covarianceMixing(decoded, target).transpose();
-    } else {
-      decoders[k] = d;
-    }
-    onsetPhase = onsetPhase.cwiseProduct(onsetStep);
-  }
+    return true;
+  });
+  if (!designOk) return Status(StatusCode::kInternal, "ambisonic decoder: out of memory (design)");
 
   // FIRs: inverse transforms, the last eighth faded out.
   std::shared_ptr<AmbisonicDecoder> out(new AmbisonicDecoder());
