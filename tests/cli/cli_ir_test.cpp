@@ -129,6 +129,12 @@ TEST(CliIr, CacheFolderGivesTheSameIrsAndSurvivesDamage) {
       if (it->path().filename().string().rfind(prefix, 0) == 0) out.push_back(it->path());
     return out;
   };
+  // A user's HRTF file (the shipped set's bytes at another path): the
+  // shipped file itself comes prepared with earshot and writes no entry
+  // (HrtfCache.TheShippedSetIsReadPreparedOnAFirstRun).
+  const std::string userHrtf = dir / "user.sofa";
+  fs::copy_file(std::string(EARSHOT_SOURCE_DIR) + "/hrtf/FHK_HRIR_L2354.sofa", userHrtf);
+  const std::string binaural = "--receiver binaural --hrtf " + userHrtf;
   const std::string common = "ir " + kShoebox + " --material-map " + kShoeboxMap +
                              " --source 2,3.5,1.5 --listener 7,3.5,1.5 --quality draft --seed 41 ";
   auto run = [&](const std::string& extra, const std::string& out) {
@@ -136,12 +142,12 @@ TEST(CliIr, CacheFolderGivesTheSameIrsAndSurvivesDamage) {
     EXPECT_EQ(r.exitCode, 0) << r.output;
     return readFile(dir / out);
   };
-  const std::string fresh = run("--receiver binaural", "a.wav");
+  const std::string fresh = run(binaural, "a.wav");
   ASSERT_FALSE(fresh.empty());
   EXPECT_EQ(entries("hrtf-").size(), 1u);
   const auto noises = entries("noise-");
   EXPECT_GE(noises.size(), 1u);
-  EXPECT_EQ(run("--receiver binaural", "b.wav"), fresh);
+  EXPECT_EQ(run(binaural, "b.wav"), fresh);
   // Damage every noise entry (one byte in the samples): made again, the
   // same IR, the entries rewritten whole.
   std::vector<std::string> original;
@@ -153,9 +159,9 @@ TEST(CliIr, CacheFolderGivesTheSameIrsAndSurvivesDamage) {
     f.close();
     EXPECT_NE(readFile(e), original.back());
   }
-  EXPECT_EQ(run("--receiver binaural", "c.wav"), fresh);
+  EXPECT_EQ(run(binaural, "c.wav"), fresh);
   for (size_t i = 0; i < noises.size(); ++i) EXPECT_TRUE(readFile(noises[i]) == original[i]) << noises[i];
-  EXPECT_EQ(run("--receiver binaural", "d.wav"), fresh);
+  EXPECT_EQ(run(binaural, "d.wav"), fresh);
   // An order-3 ambisonic IR reads 16 noises: at most 8 are written.
   const size_t before = entries("noise-").size();
   const std::string amb = run("--receiver ambisonic --order 3", "e.wav");

@@ -80,7 +80,8 @@ const Registrar registrar([](CLI::App& root) {
   cmd->add_flag("--clear", o->clear, "Remove earshot's files from it (entries and leftovers of interrupted writes; "
                                      "other files stay). Later runs prepare them again");
   cmd->add_flag("--prepare", o->prepare,
-                "Prepare the default HRTF set (at 44.1 and 48 kHz) into it now, so that no later run pays for it");
+                "Prepare the default HRTF set (at 44.1 and 48 kHz) into it now, so that no later run pays for it")
+      ->excludes("--clear");
   cmd->callback([o] { runCache(*o); });
 });
 
