@@ -9,6 +9,7 @@
 #include "mac_kernels.h"
 
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#include <cpuid.h>
 #include <immintrin.h>
 #define EARSHOT_HAVE_F16C_PATH 1
 #endif
@@ -114,7 +115,12 @@ EARSHOT_F16C void complexMacBatchHalfAvx(float* __restrict ar, float* __restrict
 
 bool cpuHasF16cPath() {
   __builtin_cpu_init();
-  return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") && __builtin_cpu_supports("f16c");
+  if (!__builtin_cpu_supports("avx2") || !__builtin_cpu_supports("fma")) return false;  // (AVX state enabled by the OS)
+  // F16C from CPUID leaf 1 (ECX bit 29): not every compiler's
+  // __builtin_cpu_supports knows "f16c" (clang 14 does not).
+  unsigned eax = 0, ebx = 0, ecx = 0, edx = 0;
+  if (!__get_cpuid(1, &eax, &ebx, &ecx, &edx)) return false;
+  return (ecx & (1u << 29)) != 0;
 }
 #else
 bool cpuHasF16cPath() { return false; }
