@@ -3,10 +3,10 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <complex>
 #include <string>
-#include <atomic>
 #include <thread>
 #include <vector>
 
@@ -39,7 +39,10 @@ constexpr size_t kPhasorAnchor = 32;
 // threads of their own. Every element's work must not depend on the cut (the
 // runs are independent and each starts at an anchor of any recurrence), so
 // the result is the same whatever the number of parts. False if a run threw
-// (e.g. out of memory) or returned false.
+// (e.g. out of memory) or returned false. Plain threads rather than a
+// ThreadPool: its workers flush denormals, and the design keeps the
+// caller's floating-point mode as when it ran on one thread (the same
+// filters bit for bit), as HrtfSet::load's preparing threads do.
 template <typename Body>
 bool forRuns(size_t count, size_t align, size_t parts, const Body& body) {
   const size_t per = std::max(align, (count / std::max<size_t>(1, parts) + align - 1) / align * align);
