@@ -134,10 +134,11 @@ void complexMacBatchHalfPortable(float* ar, float* ai, const float* const* x, co
                                  size_t parts, size_t partitions, size_t stride, float scale) {
   for (size_t i = 0; i < stride; i += compactTileWidth(i, stride)) {
     const size_t w = compactTileWidth(i, stride);
+    const uint16_t* tile = h + compactTileOffset(i, k0, partitions, stride);  // partition k0 + j at + 2 w j
     for (size_t b = 0; b < w; ++b) {
       float r = 0.0f, m = 0.0f;
       for (size_t j = 0; j < parts; ++j) {
-        const uint16_t* t = h + compactTileOffset(i, k0 + j, partitions, stride);
+        const uint16_t* t = tile + 2 * w * j;
         const float a = x[j][i + b], bb = x[j][i + b + stride];
         const float c = halfToFloat(t[b]), d = halfToFloat(t[w + b]);
         r += a * c - bb * d;
