@@ -81,7 +81,7 @@ install(EXPORT earshotStaticTargets NAMESPACE earshot:: DESTINATION ${EARSHOT_CM
 # relative to the installed library.
 install(DIRECTORY ${PROJECT_SOURCE_DIR}/hrtf/ DESTINATION ${CMAKE_INSTALL_DATADIR}/earshot/hrtf)
 # The default set's prepared form (tools/CMakeLists.txt, earshot_prepared_hrtf).
-install(DIRECTORY ${PROJECT_BINARY_DIR}/share/earshot/prepared/ DESTINATION ${CMAKE_INSTALL_DATADIR}/earshot/prepared
+install(DIRECTORY ${EARSHOT_PREPARED_DIR}/ DESTINATION ${CMAKE_INSTALL_DATADIR}/earshot/prepared
         FILES_MATCHING PATTERN "hrtf-*.bin")
 install(FILES ${PROJECT_SOURCE_DIR}/materials/default.json DESTINATION ${CMAKE_INSTALL_DATADIR}/earshot/materials)
 
