@@ -45,4 +45,53 @@ ScopedFlushDenormals::~ScopedFlushDenormals() {
 #endif
 }
 
+namespace {
+#if defined(EARSHOT_HAVE_MXCSR)
+constexpr uint32_t kModeBits = 0x8040u;  // FTZ, DAZ
+#else
+constexpr uint32_t kModeBits = uint32_t(1) << 24;  // FZ
+#endif
+
+uint32_t readControl() {
+#if defined(EARSHOT_HAVE_MXCSR)
+  return _mm_getcsr();
+#elif defined(EARSHOT_HAVE_FPCR)
+  uint64_t fpcr;
+  __asm__ __volatile__("mrs %0, fpcr" : "=r"(fpcr));
+  return uint32_t(fpcr);
+#elif defined(EARSHOT_HAVE_FPSCR)
+  uint32_t fpscr;
+  __asm__ __volatile__("vmrs %0, fpscr" : "=r"(fpscr));
+  return fpscr;
+#else
+  return 0;
+#endif
+}
+
+// The mode bits set to `mode`'s, the rest of the control state kept.
+void writeModeBits(uint32_t mode) {
+#if defined(EARSHOT_HAVE_MXCSR)
+  _mm_setcsr((_mm_getcsr() & ~kModeBits) | (mode & kModeBits));
+#elif defined(EARSHOT_HAVE_FPCR)
+  uint64_t fpcr;
+  __asm__ __volatile__("mrs %0, fpcr" : "=r"(fpcr));
+  fpcr = (fpcr & ~uint64_t(kModeBits)) | uint64_t(mode & kModeBits);
+  __asm__ __volatile__("msr fpcr, %0" : : "r"(fpcr));
+#elif defined(EARSHOT_HAVE_FPSCR)
+  uint32_t fpscr;
+  __asm__ __volatile__("vmrs %0, fpscr" : "=r"(fpscr));
+  fpscr = (fpscr & ~kModeBits) | (mode & kModeBits);
+  __asm__ __volatile__("vmsr fpscr, %0" : : "r"(fpscr));
+#else
+  (void)mode;
+#endif
+}
+}  // namespace
+
+uint32_t currentDenormalMode() { return readControl() & kModeBits; }
+
+ScopedDenormalMode::ScopedDenormalMode(uint32_t mode) : mSaved(currentDenormalMode()) { writeModeBits(mode); }
+
+ScopedDenormalMode::~ScopedDenormalMode() { writeModeBits(mSaved); }
+
 }  // namespace earshot
