@@ -8,10 +8,14 @@
 #include <cmath>
 #include <condition_variable>
 #include <cstring>
+#include <exception>
 #include <mutex>
 #include <string>
+#include <system_error>
+#include <thread>
 #include <tuple>
 
+#include "earshot/core/denormals.h"
 #include "earshot/core/math.h"
 #include "earshot/core/random.h"
 #include "earshot/io/disk_cache.h"
@@ -37,25 +41,92 @@ size_t fastFftSize(size_t minimum) {
 }
 
 namespace {
-// Real FFT plans (forward or inverse) by size, per thread (a KissFFT plan
-// holds scratch: one thread at a time), the last few kept: making one costs
-// a sincos per bin, a large part of a short IR's synthesis.
+// Real FFT plans (forward or inverse) by size. A KissFFT plan holds scratch,
+// so each is lent to one user at a time and comes back when its last
+// reference goes; the most recently returned few are kept for the next
+// user, whatever its thread (a noise's helper thread is new each time):
+// making one costs a sincos per bin, a large part of a short IR's synthesis
+// and ~5 ms for a 2 s IR's noise period.
 using Plan = std::shared_ptr<std::remove_pointer_t<kiss_fftr_cfg>>;
+struct PlanPool {
+  std::mutex mutex;
+  std::vector<std::pair<size_t, kiss_fftr_cfg>> idle;  // most recent first; key 2n + inverse
+};
+PlanPool& planPool() {
+  static PlanPool* pool = new PlanPool;  // never destroyed: plans may come back during static destruction
+  return *pool;
+}
+constexpr size_t kIdlePlans = 8;
 Plan realPlan(size_t n, bool inverse) {
-  thread_local std::vector<std::pair<size_t, Plan>> plans;  // most recent first; key 2n + inverse
   const size_t key = 2 * n + (inverse ? 1 : 0);
-  for (size_t i = 0; i < plans.size(); ++i)
-    if (plans[i].first == key) {
-      std::rotate(plans.begin(), plans.begin() + std::ptrdiff_t(i), plans.begin() + std::ptrdiff_t(i) + 1);
-      return plans[0].second;
+  PlanPool& pool = planPool();
+  auto giveBack = [key](kiss_fftr_cfg cfg) {
+    PlanPool& p = planPool();
+    kiss_fftr_cfg dropped = nullptr;
+    {
+      std::lock_guard<std::mutex> lock(p.mutex);
+      try {
+        p.idle.insert(p.idle.begin(), {key, cfg});
+      } catch (...) {
+        dropped = cfg;  // no room to keep it
+      }
+      if (p.idle.size() > kIdlePlans) {
+        dropped = p.idle.back().second;
+        p.idle.pop_back();
+      }
     }
-  Plan plan(kiss_fftr_alloc(int(n), inverse ? 1 : 0, nullptr, nullptr), FftrDeleter());
-  if (!plan) return plan;
-  plans.insert(plans.begin(), {key, plan});
-  if (plans.size() > 6) plans.pop_back();
-  return plan;
+    if (dropped) kiss_fftr_free(dropped);
+  };
+  {
+    std::lock_guard<std::mutex> lock(pool.mutex);
+    for (size_t i = 0; i < pool.idle.size(); ++i)
+      if (pool.idle[i].first == key) {
+        kiss_fftr_cfg cfg = pool.idle[i].second;
+        pool.idle.erase(pool.idle.begin() + std::ptrdiff_t(i));
+        return Plan(cfg, giveBack);
+      }
+  }
+  kiss_fftr_cfg cfg = kiss_fftr_alloc(int(n), inverse ? 1 : 0, nullptr, nullptr);
+  if (!cfg) return Plan();
+  return Plan(cfg, giveBack);
 }
 Plan inversePlan(size_t n) { return realPlan(n, true); }
+
+// body(b0, b1) for the bands [0, kNumBands) on two threads, the caller's
+// and a helper in the caller's denormal mode: a band's noise is the same
+// whichever thread makes it. A noise's bands are independent FFT work
+// (its 22 FFTs: 125 ms for a 2 s IR), and the sources of a simulation that
+// need it wait for it. One thread where there is one core or no thread to
+// be had.
+template <typename Body>
+void forBandHalves(const Body& body) {
+  constexpr int kSplit = (kNumBands + 1) / 2;
+  std::thread helper;
+  std::exception_ptr helperError;
+  if (std::thread::hardware_concurrency() > 1) {
+    try {
+      helper = std::thread([&body, &helperError, mode = currentDenormalMode()] {
+        ScopedDenormalMode same(mode);
+        try {
+          body(0, kSplit);
+        } catch (...) {
+          helperError = std::current_exception();
+        }
+      });
+    } catch (const std::system_error&) {
+    }
+  }
+  std::exception_ptr error;
+  try {
+    if (!helper.joinable()) body(0, kSplit);
+    body(kSplit, kNumBands);
+  } catch (...) {
+    error = std::current_exception();
+  }
+  if (helper.joinable()) helper.join();
+  if (error) std::rethrow_exception(error);
+  if (helperError) std::rethrow_exception(helperError);
+}
 
 // The period of the band noises for an IR of `length` samples: the power of
 // two at or above it (at least 1024), so IRs of similar lengths share them.
@@ -255,41 +326,49 @@ std::shared_ptr<const std::vector<std::vector<float>>> SpectralSynth::levelledBa
     for (const Cached& c : cache)
       if (c.seed == seed && c.stream == stream && c.n == n && c.fs == mFs) return c.bands;
   }
-  const Plan forward = realPlan(n, false), inverse = realPlan(n, true);
+  const Plan forward = realPlan(n, false);
   auto bands = std::make_shared<Bands>(kNumBands, std::vector<float>(n, 0.0f));
-  if (!forward || !inverse) return bands;  // allocation failed: silence rather than a crash
+  if (!forward) return bands;  // allocation failed: silence rather than a crash
   const size_t bins = n / 2 + 1;
-  std::vector<float> white = whiteNoise(seed, stream, n), time(n);
-  std::vector<kiss_fft_cpx> spectrum(bins), filtered(bins);
-  kiss_fftr(forward.get(), white.data(), spectrum.data());
-  const auto weights = sqrtNoiseWeights(n, mFs);
-  std::vector<double> prefix(n + 1);
-  for (int b = 0; b < kNumBands; ++b) {
-    // Through sqrt(W); white noise keeps the mean of W over the circle.
-    double power = 0;
-    for (size_t k = 0; k < bins; ++k) {
-      const float g = (*weights)[k][size_t(b)];
-      const double w = double(g) * double(g);
-      filtered[k] = {spectrum[k].r * g, spectrum[k].i * g};
-      power += (k == 0 || k == bins - 1) ? w : 2.0 * w;
-    }
-    power /= double(n);
-    kiss_fftri(inverse.get(), filtered.data(), time.data());
-    const double scale = 1.0 / double(n);  // KissFFT's inverse is unnormalised
-    prefix[0] = 0;
-    for (size_t i = 0; i < n; ++i) {
-      const double x = double(time[i]) * scale;
-      prefix[i + 1] = prefix[i] + x * x;
-    }
-    const double width = 0.7071 * kBandCentersHz[size_t(b)];
-    const size_t half = std::max<size_t>(4, size_t(0.5 * kLevelWindowCycles * mFs / width));
-    std::vector<float>& out = (*bands)[size_t(b)];
-    for (size_t i = 0; i < n; ++i) {
-      const size_t lo = i > half ? i - half : 0, hi = std::min(n, i + half + 1);
-      const double rms2 = (prefix[hi] - prefix[lo]) / double(hi - lo);
-      out[i] = rms2 > 0 ? float(double(time[i]) * scale * std::sqrt(power / rms2)) : 0.0f;
-    }
+  std::vector<kiss_fft_cpx> spectrum(bins);
+  {
+    std::vector<float> white = whiteNoise(seed, stream, n);
+    kiss_fftr(forward.get(), white.data(), spectrum.data());
   }
+  const auto weights = sqrtNoiseWeights(n, mFs);
+  forBandHalves([&](int b0, int b1) {
+    const Plan inverse = realPlan(n, true);  // this thread's while it runs
+    if (!inverse) return;                    // silence, as above
+    std::vector<float> time(n);
+    std::vector<kiss_fft_cpx> filtered(bins);
+    std::vector<double> prefix(n + 1);
+    for (int b = b0; b < b1; ++b) {
+      // Through sqrt(W); white noise keeps the mean of W over the circle.
+      double power = 0;
+      for (size_t k = 0; k < bins; ++k) {
+        const float g = (*weights)[k][size_t(b)];
+        const double w = double(g) * double(g);
+        filtered[k] = {spectrum[k].r * g, spectrum[k].i * g};
+        power += (k == 0 || k == bins - 1) ? w : 2.0 * w;
+      }
+      power /= double(n);
+      kiss_fftri(inverse.get(), filtered.data(), time.data());
+      const double scale = 1.0 / double(n);  // KissFFT's inverse is unnormalised
+      prefix[0] = 0;
+      for (size_t i = 0; i < n; ++i) {
+        const double x = double(time[i]) * scale;
+        prefix[i + 1] = prefix[i] + x * x;
+      }
+      const double width = 0.7071 * kBandCentersHz[size_t(b)];
+      const size_t half = std::max<size_t>(4, size_t(0.5 * kLevelWindowCycles * mFs / width));
+      std::vector<float>& out = (*bands)[size_t(b)];
+      for (size_t i = 0; i < n; ++i) {
+        const size_t lo = i > half ? i - half : 0, hi = std::min(n, i + half + 1);
+        const double rms2 = (prefix[hi] - prefix[lo]) / double(hi - lo);
+        out[i] = rms2 > 0 ? float(double(time[i]) * scale * std::sqrt(power / rms2)) : 0.0f;
+      }
+    }
+  });
   std::lock_guard<std::mutex> lock(mutex);
   cache.insert(cache.begin(), Cached{seed, stream, n, mFs, bands});
   trimNoiseCache(cache, size_t(32) << 20, 6);
@@ -625,10 +704,8 @@ std::vector<std::shared_ptr<std::vector<std::vector<float>>>> SpectralSynth::mak
   using Bands = std::vector<std::vector<float>>;
   const size_t n = noisePeriod(mLength);
   const auto levelled = levelledBandNoise(seed, stream);
-  const Plan forward = realPlan(n, false), inverse = realPlan(n, true);
   std::vector<std::shared_ptr<Bands>> made;
   for (size_t k = 0; k < missing.size(); ++k) made.push_back(std::make_shared<Bands>(kNumBands, std::vector<float>(n, 0.0f)));
-  if (!forward || !inverse) return made;  // allocation failed: silence rather than a crash
   const size_t bins = n / 2 + 1;
   // The second sqrt(W_band) and each h on this period's bins (h linear
   // between its grid points); one forward FFT per band serves every filter.
@@ -647,21 +724,25 @@ std::vector<std::shared_ptr<std::vector<std::vector<float>>>> SpectralSynth::mak
       response[f][k] = h.values[i] * (1.0f - fr) + h.values[i + 1] * fr;
     }
   }
-  std::vector<kiss_fft_cpx> spectrum(bins), filtered(bins);
   const float scale = 1.0f / float(n);  // KissFFT's inverse is unnormalised
-  for (int b = 0; b < kNumBands; ++b) {
-    kiss_fftr(forward.get(), (*levelled)[size_t(b)].data(), spectrum.data());
-    for (size_t f = 0; f < missing.size(); ++f) {
-      for (size_t k = 0; k < bins; ++k) {
-        const float g = (*weights)[k][size_t(b)] * scale;
-        std::complex<float> x(spectrum[k].r * g, spectrum[k].i * g);
-        if (!response[f].empty()) x *= response[f][k];
-        filtered[k] = {x.real(), x.imag()};
+  forBandHalves([&](int b0, int b1) {
+    const Plan forward = realPlan(n, false), inverse = realPlan(n, true);  // this thread's while it runs
+    if (!forward || !inverse) return;  // allocation failed: silence rather than a crash
+    std::vector<kiss_fft_cpx> spectrum(bins), filtered(bins);
+    for (int b = b0; b < b1; ++b) {
+      kiss_fftr(forward.get(), (*levelled)[size_t(b)].data(), spectrum.data());
+      for (size_t f = 0; f < missing.size(); ++f) {
+        for (size_t k = 0; k < bins; ++k) {
+          const float g = (*weights)[k][size_t(b)] * scale;
+          std::complex<float> x(spectrum[k].r * g, spectrum[k].i * g);
+          if (!response[f].empty()) x *= response[f][k];
+          filtered[k] = {x.real(), x.imag()};
+        }
+        if (n % 2 == 0) filtered[bins - 1].i = 0.0f;
+        kiss_fftri(inverse.get(), filtered.data(), (*made[f])[size_t(b)].data());
       }
-      if (n % 2 == 0) filtered[bins - 1].i = 0.0f;
-      kiss_fftri(inverse.get(), filtered.data(), (*made[f])[size_t(b)].data());
     }
-  }
+  });
   return made;
 }
 

@@ -135,7 +135,7 @@ class SpectralSynth {
 
   double mFs = 48000.0;
   size_t mLength = 0, mN = 0, mBins = 0, mKeep = 0;
-  std::shared_ptr<std::remove_pointer_t<kiss_fftr_cfg>> mInverse;  // this thread's plan for mN (inversePlan)
+  std::shared_ptr<std::remove_pointer_t<kiss_fftr_cfg>> mInverse;  // a plan for mN, lent while this lives (inversePlan)
   std::vector<uint8_t> mLowerBand;           // per bin: the lower of the (at most two) non-zero bands
   std::vector<float> mLowerWeight;
   std::vector<kiss_fft_cpx> mScratch;
