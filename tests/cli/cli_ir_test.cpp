@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -162,11 +163,20 @@ TEST(CliIr, CacheFolderGivesTheSameIrsAndSurvivesDamage) {
   EXPECT_EQ(run(binaural, "c.wav"), fresh);
   for (size_t i = 0; i < noises.size(); ++i) EXPECT_TRUE(readFile(noises[i]) == original[i]) << noises[i];
   EXPECT_EQ(run(binaural, "d.wav"), fresh);
-  // An order-3 ambisonic IR reads 16 noises: at most 8 are written.
+  // A short order-3 ambisonic IR reads 16 noises (one per channel): at
+  // most 8 are written. A long one reads one, W's, for every channel.
   const size_t before = entries("noise-").size();
-  const std::string amb = run("--receiver ambisonic --order 3", "e.wav");
+  const std::string amb = run("--receiver ambisonic --order 3 --length 0.3", "e.wav");
   EXPECT_EQ(entries("noise-").size(), before + 8);
-  EXPECT_EQ(run("--receiver ambisonic --order 3", "f.wav"), amb);
+  EXPECT_EQ(run("--receiver ambisonic --order 3 --length 0.3", "f.wav"), amb);
+  // (The folder keeps the newest 16 noises: count the new names.)
+  const auto beforeLong = entries("noise-");
+  const std::string ambLong = run("--receiver ambisonic --order 3 --length 1.5", "g.wav");
+  size_t added = 0;
+  for (const auto& e : entries("noise-"))
+    added += std::find(beforeLong.begin(), beforeLong.end(), e) == beforeLong.end() ? 1 : 0;
+  EXPECT_EQ(added, 1u);
+  EXPECT_EQ(run("--receiver ambisonic --order 3 --length 1.5", "h.wav"), ambLong);
   // `earshot cache` says what is there; --clear removes earshot's files
   // (entries, an interrupted write's leftover) and nothing else.
   std::ofstream(cache + "/notes.txt") << "mine";
