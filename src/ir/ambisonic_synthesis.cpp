@@ -15,9 +15,6 @@ namespace {
 // for IRs too short for the channels to share W's (see below).
 uint64_t channelNoiseStream(int c) { return 0xA3B1C2D3E4F50000ULL + uint64_t(c); }
 
-// Channels sharing one late noise read it at least this far apart.
-constexpr double kMinChannelNoiseSpacingSeconds = 0.05;
-
 // Per-bin values linear between bin centres (sample i at (i + 0.5) /
 // binSamples - 0.5 bins, as SpectralSynth::bandEnvelope), held beyond the ends.
 void binsToSamples(const std::vector<float>& perBin, double binSamples, std::vector<float>& out) {
@@ -89,23 +86,21 @@ Result<AudioBuffer> synthesizeAmbisonicIr(const std::vector<Arrival>& arrivals, 
   // Every channel's late noise. W's, then: when the period allows, every
   // channel reads that same noise, channel c shifted by c period / C (C the
   // channel count rounded up to a power of two), which keeps channels at
-  // least kMinChannelNoiseSpacingSeconds apart: band noise is uncorrelated
-  // beyond ~10 ms (125 Hz band: |r| <= 0.06 from 256 samples at 48 kHz,
-  // the estimate's own floor), so the channels are as independent as
-  // separately made noises, and a first run makes one noise instead of
-  // (order + 1)^2 (each 22 FFTs of the period). Shorter IRs make a noise
-  // per channel, fetched from channel `first` on: the sources of one
+  // least detail::kMinNoiseSpacingSeconds apart, so the channels are as
+  // independent as separately made noises, and a first run makes one
+  // noise instead of (order + 1)^2 (each 22 FFTs of the period). Shorter
+  // IRs make a noise per channel, fetched from channel `first` on: the sources of one
   // simulation, synthesised side by side, start at different channels and
   // so make different noises at the same time (finishedBandNoise waits for
   // one that another thread is making).
   std::vector<std::shared_ptr<const std::vector<std::vector<float>>>> noises{size_t(channels)};
   noises[0] = plan.finishedBandNoise(settings.seed, detail::kLateNoiseStream, {}, 0);
-  const size_t period = (*noises[0])[0].size();
+  const size_t period = plan.noisePeriod();
   const size_t offset = detail::noiseOffset(settings.seed, settings.noiseKey, period);
   size_t spread = 1;
   while (spread < size_t(channels)) spread *= 2;
   const size_t spacing = period / spread;
-  const bool sharedNoise = double(spacing) >= kMinChannelNoiseSpacingSeconds * fs;
+  const bool sharedNoise = double(spacing) >= detail::kMinNoiseSpacingSeconds * fs;
   const int first = int(settings.noiseKey % uint64_t(channels));
   for (int i = 0; i < channels; ++i) {
     const int c = (first + i) % channels;

@@ -218,6 +218,8 @@ Result<SpectralSynth> SpectralSynth::plan(const std::vector<Arrival>& arrivals, 
   return create(length, settings.sampleRateHz, arrivalsEnd);
 }
 
+size_t SpectralSynth::noisePeriod() const { return detail::noisePeriod(mLength); }
+
 void SpectralSynth::prepareGrid(size_t gridSize) {
   if (mGridSize == gridSize) return;
   mGridSize = gridSize;
@@ -309,7 +311,7 @@ std::shared_ptr<const std::vector<std::vector<float>>> SpectralSynth::levelledBa
   // Made for a power-of-two period n >= length(), circularly filtered (so
   // exactly stationary), and cached: IRs of similar lengths share it, and an
   // IR's length and seed alone decide its noise.
-  const size_t n = noisePeriod(mLength);
+  const size_t n = noisePeriod();
   using Bands = std::vector<std::vector<float>>;
   struct Cached {
     uint64_t seed = 0, stream = 0;
@@ -590,7 +592,7 @@ std::vector<std::shared_ptr<const std::vector<std::vector<float>>>> SpectralSynt
   // synthesis together and need the same noises), and makes the others.
   static std::vector<Key> making;
   static std::condition_variable made;
-  const size_t n = noisePeriod(mLength);
+  const size_t n = noisePeriod();
   auto keyOf = [&](size_t f) { return Key{seed, stream, filters[f].second, n, mFs}; };
   std::vector<std::shared_ptr<const Bands>> out(filters.size());
   std::unique_lock<std::mutex> lock(mutex);
@@ -642,7 +644,7 @@ std::vector<std::shared_ptr<std::vector<std::vector<float>>>> SpectralSynth::cac
   using Bands = std::vector<std::vector<float>>;
   const std::string folder = cacheFolder();
   if (folder.empty()) return makeFinishedBandNoises(seed, stream, filters, missing);
-  const size_t n = noisePeriod(mLength);
+  const size_t n = noisePeriod();
   const uint64_t payload = uint64_t(kNumBands) * n * sizeof(float);
   std::vector<std::shared_ptr<Bands>> out(missing.size());
   std::vector<NoiseEntryKey> keys(missing.size());
@@ -702,7 +704,7 @@ std::vector<std::shared_ptr<std::vector<std::vector<float>>>> SpectralSynth::mak
     uint64_t seed, uint64_t stream, const std::vector<std::pair<GridFilter, uint64_t>>& filters,
     const std::vector<size_t>& missing) const {
   using Bands = std::vector<std::vector<float>>;
-  const size_t n = noisePeriod(mLength);
+  const size_t n = noisePeriod();
   const auto levelled = levelledBandNoise(seed, stream);
   std::vector<std::shared_ptr<Bands>> made;
   for (size_t k = 0; k < missing.size(); ++k) made.push_back(std::make_shared<Bands>(kNumBands, std::vector<float>(n, 0.0f)));
