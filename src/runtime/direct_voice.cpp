@@ -246,6 +246,7 @@ Result<std::unique_ptr<DirectVoice>> DirectVoice::create(const DirectVoiceSettin
   }
   v->mScratch.assign(kChunk, 0.0f);
   v->mScratchNext.assign(kChunk, 0.0f);
+  v->mFade.assign(kChunk, 0.0f);
   return v;
 }
 
@@ -288,12 +289,23 @@ void DirectVoice::setShelves(const Params& to) {
 
 size_t DirectVoice::pushInput(const float* input, size_t frames) {
   const size_t base = mWrite;
+  // The shelves as locals: with them in the object, each ring store may
+  // alias their state, which then went to memory and back every sample.
+  // The same operations in the same order.
+  Biquad low = mLow, high = mHigh;
+  float* ring = mRing.data();
+  const size_t mask = mRingMask;
+  size_t write = mWrite;
   for (size_t i = 0; i < frames; ++i) {
     const float x = input ? input[i] : 0.0f;
-    const size_t w = (mWrite++) & mRingMask;
-    mRing[w] = mHigh.run(mLow.run(x));
-    if (w < size_t(kTaps)) mRing[w + mRingMask + 1] = mRing[w];
+    const size_t w = (write++) & mask;
+    const float y = high.run(low.run(x));
+    ring[w] = y;
+    if (w < size_t(kTaps)) ring[w + mask + 1] = y;
   }
+  mWrite = write;
+  mLow = low;
+  mHigh = high;
   return base;
 }
 
@@ -310,6 +322,9 @@ void DirectVoice::processChunk(const float* input, float* left, float* right, si
                        total};
   delayedReads(mRing.data(), mRingMask, &mSincTable->taps[0][0], base, ramp, mHistory[0].data() + taps - 1,
                mHistory[1].data() + taps - 1, frames);
+  float* fade = mFade.data();  // the same weights for both ears
+  if (crossfade)
+    for (size_t i = 0; i < frames; ++i) fade[i] = float(double(offset + i + 1) / double(total));
   for (int e = 0; e < 2; ++e) {
     float* hist = mHistory[e].data();
     auto fir = [&](const float* h, float* y) { firInto(h, taps, hist, y, frames); };
@@ -318,10 +333,7 @@ void DirectVoice::processChunk(const float* input, float* left, float* right, si
     if (crossfade) {
       float* yn = mScratchNext.data();
       fir(mTapsNext[e].data(), yn);
-      for (size_t i = 0; i < frames; ++i) {
-        const float a = float(double(offset + i + 1) / double(total));
-        y[i] += a * (yn[i] - y[i]);
-      }
+      for (size_t i = 0; i < frames; ++i) y[i] += fade[i] * (yn[i] - y[i]);
     }
     for (size_t i = 0; i < frames; ++i) out[e][i] += y[i];
     std::memmove(hist, hist + frames, (taps - 1) * sizeof(float));

@@ -118,6 +118,7 @@ class DirectVoice {
   std::vector<float> mTaps[2], mTapsNext[2];   // reversed HRIR taps per ear
   std::vector<float> mHistory[2];              // per ear: last taps-1 delayed samples, then the chunk
   std::vector<float> mScratch, mScratchNext;  // per chunk: FIR outputs of the current and the next HRIR
+  std::vector<float> mFade;                   // per chunk: the crossfade's weight of the next HRIR, both ears
   Biquad mLow, mHigh;
   Params mCurrent;
   Vec3f mHeadDirection;
