@@ -375,6 +375,7 @@ Result<std::unique_ptr<Engine>> Engine::create(const EngineSettings& s, Binaural
     }
   }
 
+  e->mRamp.assign(kProcessChunk, 0.0f);
   for (size_t i = 0; i < s.maxSources; ++i) e->mSlots.push_back(std::make_unique<Slot>());
   const ListenerOrientation o;
   const double listener[9] = {0, 0, 0, o.forward.x, o.forward.y, o.forward.z, o.up.x, o.up.y, o.up.z};
@@ -775,6 +776,10 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
     const size_t m = std::min(kProcessChunk, frames - off);
     bool tailUsed = false;
     if (mTailMixer) std::fill(mTailInput.begin(), mTailInput.begin() + std::ptrdiff_t(m), 0.0f);
+    // The gains' ramp across the chunk, once for every source (a division
+    // per sample and source was a tenth of this function).
+    float* ramp = mRamp.data();
+    for (size_t k = 0; k < m; ++k) ramp[k] = float(k + 1) / float(m);
     for (size_t i = 0; i < n; ++i) {
       Slot& slot = *mSlots[i];
       mInputs[i] = nullptr;
@@ -796,7 +801,8 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
         // The source gain and the reflections' gain, both ramped.
         const float rFrom = from * float(slot.appliedReflectionsGain);
         const float rTo = to * float(slot.reflectionsGain.load(std::memory_order_relaxed));
-        for (size_t k = 0; k < m; ++k) g[k] = in[k] * (rFrom + (rTo - rFrom) * float(k + 1) / float(m));
+        const float rStep = rTo - rFrom;
+        for (size_t k = 0; k < m; ++k) g[k] = in[k] * (rFrom + rStep * ramp[k]);
       }
       slot.appliedReflectionsGain = slot.reflectionsGain.load(std::memory_order_relaxed);
       slot.appliedGain = to;
@@ -805,7 +811,8 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
         // The shared tail's input: this source at its late level, ramped.
         const float t0 = float(slot.appliedTailGain), t1 = float(slot.tailGain.load(std::memory_order_relaxed));
         float* tail = mTailInput.data();
-        for (size_t k = 0; k < m; ++k) tail[k] += g[k] * (t0 + (t1 - t0) * float(k + 1) / float(m));
+        const float tStep = t1 - t0;
+        for (size_t k = 0; k < m; ++k) tail[k] += g[k] * (t0 + tStep * ramp[k]);
         slot.appliedTailGain = t1;
         tailUsed = true;
       }

@@ -330,6 +330,7 @@ class Engine {
   // The shared late tail (sharedTailSeconds > 0, ambisonic reflections).
   std::unique_ptr<ConvolutionMixer> mTailMixer;
   std::vector<float> mTailInput, mTailBus;  // audio thread: chunk, channels x chunk
+  std::vector<float> mRamp;  // audio thread: (k + 1) / m of the chunk's m frames, the gains' ramp
   std::vector<float> mBus, mRotated;  // audio thread: channels x chunk
   std::vector<float> mLastRotation;   // audio thread: the bus's rotation at the end of the last chunk
   bool mHaveRotation = false;         // audio thread
