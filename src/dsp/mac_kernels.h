@@ -61,8 +61,12 @@ void complexMacBatchHalfPortable(float* ar, float* ai, const float* const* x, co
                                  size_t parts, size_t partitions, size_t stride, float scale);
 /** Partition k of a compact level-channel block as floats times `scale`:
  *  `stride` real parts, then `stride` imaginary parts (the float kernels'
- *  layout; used while an IR fades). */
+ *  layout; used while an IR fades). F16C where the CPU has it. */
 void compactPartitionToFloats(const uint16_t* h, size_t k, size_t partitions, size_t stride, float scale,
                               float* out);
+/** The portable loop compactPartitionToFloats falls back to (tested against
+ *  the F16C version where the CPU has it). */
+void compactPartitionToFloatsPortable(const uint16_t* h, size_t k, size_t partitions, size_t stride, float scale,
+                                      float* out);
 
 }  // namespace earshot::dsp_detail

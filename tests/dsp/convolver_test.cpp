@@ -434,9 +434,11 @@ TEST(CompactSpectra, MultiplyAccumulateEqualsTheFloatKernel) {
         hf[k][(b < w ? 0 : stride) + i + b % w] = 0.125f * dsp_detail::halfToFloat(t[b]);
       }
     }
-    std::vector<float> back(2 * stride);
+    std::vector<float> back(2 * stride), portable(2 * stride);
     dsp_detail::compactPartitionToFloats(block.data(), k, partitions, stride, 0.125f, back.data());
+    dsp_detail::compactPartitionToFloatsPortable(block.data(), k, partitions, stride, 0.125f, portable.data());
     ASSERT_EQ(back, hf[k]) << "partition " << k;
+    ASSERT_EQ(portable, hf[k]) << "partition " << k;
   }
   std::vector<const float*> xs, hs;
   for (size_t j = 0; j < parts; ++j) {
