@@ -1,5 +1,6 @@
-// `earshot bench synth`: IR synthesis speed from traced data (binaural and
-// omni), and the HRTF lookup cost per direction; medians of repeated runs.
+// `earshot bench synth`: IR synthesis speed from traced data (binaural,
+// omni, ambisonic orders 1 and 3, each also per output channel), and the
+// HRTF lookup cost per direction; medians of repeated runs.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -9,6 +10,7 @@
 #include "command.h"
 #include "earshot/core/thread_pool.h"
 #include "earshot/hrtf/coordinates.h"
+#include "earshot/ir/ambisonic_synthesis.h"
 #include "earshot/ir/binaural_synthesis.h"
 #include "earshot/ir/ir_pipeline.h"
 
@@ -49,7 +51,7 @@ int run(const BenchSynthOptions& o) {
   is.sampleRateHz = settings.sampleRateHz;
   is.lengthSeconds = o.seconds;
   ListenerOrientation orientation;
-  std::vector<double> binauralMs, omniMs;
+  std::vector<double> binauralMs, omniMs, amb1Ms, amb3Ms;
   for (int i = 0; i <= o.runs; ++i) {  // run 0 warms up
     auto t = Clock::now();
     auto b = synthesizeBinauralIr(arrivals, &traced->late, is, **model, orientation);
@@ -59,9 +61,18 @@ int run(const BenchSynthOptions& o) {
     auto m = synthesizeOmniIr(arrivals, &traced->late, is);
     const double om = msSince(t);
     if (!check(m.status())) return 2;
+    double am[2];
+    for (int k = 0; k < 2; ++k) {
+      t = Clock::now();
+      auto a = synthesizeAmbisonicIr(arrivals, &traced->late, is, k == 0 ? 1 : 3, worldAmbisonicFrame());
+      am[k] = msSince(t);
+      if (!check(a.status())) return 2;
+    }
     if (i == 0) continue;
     binauralMs.push_back(bm);
     omniMs.push_back(om);
+    amb1Ms.push_back(am[0]);
+    amb3Ms.push_back(am[1]);
   }
   // HRTF lookups over a Fibonacci sphere: the audio thread's time-domain
   // lookup and the IR synthesis's frequency-domain one.
@@ -83,10 +94,13 @@ int run(const BenchSynthOptions& o) {
     }
     spectrumUs.push_back(msSince(t) * 1000.0 / (directions / 10));
   }
+  const double b = median(binauralMs), m = median(omniMs), a1 = median(amb1Ms), a3 = median(amb3Ms);
   std::printf("synth scene=%s quality=%s ir_seconds=%.2f arrivals=%zu runs=%d threads=1 binaural_ms=%.2f omni_ms=%.2f "
-              "hrtf_load_ms=%.0f hrtf_lookup_us=%.2f hrtf_spectrum_us=%.1f (per ear)\n",
-              o.geometry.c_str(), o.quality.c_str(), o.seconds, arrivals.size(), o.runs, median(binauralMs),
-              median(omniMs), loadMs, median(lookupUs), median(spectrumUs));
+              "ambisonic1_ms=%.2f ambisonic3_ms=%.2f hrtf_load_ms=%.0f hrtf_lookup_us=%.2f hrtf_spectrum_us=%.1f (per ear)\n",
+              o.geometry.c_str(), o.quality.c_str(), o.seconds, arrivals.size(), o.runs, b, m, a1, a3, loadMs,
+              median(lookupUs), median(spectrumUs));
+  std::printf("synth per output channel: binaural_ms=%.2f omni_ms=%.2f ambisonic1_ms=%.2f ambisonic3_ms=%.2f\n", b / 2,
+              m, a1 / 4, a3 / 16);
   return 0;
 }
 
@@ -94,7 +108,9 @@ const Registrar registrar([](CLI::App& root) {
   auto o = std::make_shared<BenchSynthOptions>();
   CLI::App& bench = subcommandGroup(root, "bench", "Measure the speed of earshot's stages");
   CLI::App* cmd = bench.add_subcommand(
-      "synth", "IR synthesis speed from traced data (binaural and omni, one thread) and HRTF lookup cost");
+      "synth",
+      "IR synthesis speed from traced data (binaural, omni, ambisonic orders 1 and 3; one thread; also per output "
+      "channel) and HRTF lookup cost");
   cmd->add_option("geometry", o->geometry, "Scene geometry (glTF)")->required()->check(CLI::ExistingFile);
   cmd->add_option("--material-map", o->materialMap, "JSON object mapping glTF material names to acoustic materials");
   cmd->add_option("--hrtf", o->hrtf, "HRTF set (SOFA); default: the shipped KU100 set")->check(CLI::ExistingFile);
