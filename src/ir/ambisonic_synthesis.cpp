@@ -16,17 +16,42 @@ namespace {
 uint64_t channelNoiseStream(int c) { return 0xA3B1C2D3E4F50000ULL + uint64_t(c); }
 
 // Per-bin values linear between bin centres (sample i at (i + 0.5) /
-// binSamples - 0.5 bins, as SpectralSynth::bandEnvelope), held beyond the ends.
-void binsToSamples(const std::vector<float>& perBin, double binSamples, std::vector<float>& out) {
-  const long last = long(perBin.size()) - 1;
-  for (size_t i = 0; i < out.size(); ++i) {
-    const double x = (double(i) + 0.5) / binSamples - 0.5;
-    const long j = long(std::floor(x));
-    const float frac = float(x - double(j));
-    const float lo = perBin[size_t(std::clamp(j, 0L, last))], hi = perBin[size_t(std::clamp(j + 1, 0L, last))];
-    out[i] = lo + frac * (hi - lo);
+// binSamples - 0.5 bins, as SpectralSynth::bandEnvelope), held beyond the
+// ends. The samples' positions are the same for every channel: found once
+// (runs of samples between two bin centres, each sample's fraction), then
+// each channel's values are a ramp per run (a floor, a division and two
+// clamps per sample and channel were a sixth of the synthesis).
+class BinsToSamples {
+ public:
+  BinsToSamples(size_t bins, double binSamples, size_t length) : mLast(long(bins) - 1), mFrac(length) {
+    const double perSample = 1.0 / binSamples;
+    long j = length > 0 ? long(std::floor(0.5 * perSample - 0.5)) : 0;
+    for (size_t i = 0; i < length; ++i) {
+      const double x = (double(i) + 0.5) * perSample - 0.5;  // increasing: j follows floor(x)
+      while (double(j + 1) <= x) ++j;
+      if (mRuns.empty() || mRuns.back().j != j) mRuns.push_back({j, i});
+      mFrac[i] = float(x - double(j));
+    }
   }
-}
+  void operator()(const std::vector<float>& perBin, std::vector<float>& out) const {
+    for (size_t r = 0; r < mRuns.size(); ++r) {
+      const long j = mRuns[r].j;
+      const float lo = perBin[size_t(std::clamp(j, 0L, mLast))], hi = perBin[size_t(std::clamp(j + 1, 0L, mLast))];
+      const float d = hi - lo;
+      const size_t end = r + 1 < mRuns.size() ? mRuns[r + 1].begin : mFrac.size();
+      for (size_t i = mRuns[r].begin; i < end; ++i) out[i] = lo + mFrac[i] * d;
+    }
+  }
+
+ private:
+  struct Run {
+    long j;        // the bin centre at or before the run's samples
+    size_t begin;  // its first sample
+  };
+  long mLast;
+  std::vector<float> mFrac;
+  std::vector<Run> mRuns;
+};
 
 }  // namespace
 
@@ -134,6 +159,7 @@ Result<AudioBuffer> synthesizeAmbisonicIr(const std::vector<Arrival>& arrivals, 
   const double binSamples = reflections->binSeconds() * fs;
   std::vector<float> coherentBins(histBins), independentBins(histBins), coherent(length), independent(length),
       lateC;
+  const BinsToSamples toSamples(histBins, binSamples, length);
   for (int c = 1; c < channels; ++c) {
     const double diffuse = 1.0 / double(2 * ambisonicOrderOf(c) + 1);
     for (size_t bin = 0; bin < histBins; ++bin) {
@@ -141,8 +167,8 @@ Result<AudioBuffer> synthesizeAmbisonicIr(const std::vector<Arrival>& arrivals, 
       coherentBins[bin] = float(a * yc);
       independentBins[bin] = float(std::sqrt(std::max(0.0, a * yc * yc + (1.0 - a) * diffuse - a * a * yc * yc)));
     }
-    binsToSamples(coherentBins, binSamples, coherent);
-    binsToSamples(independentBins, binSamples, independent);
+    toSamples(coherentBins, coherent);
+    toSamples(independentBins, independent);
     lateOf(c, lateC);
     float* o = out.channels[size_t(c)].data();
     for (size_t i = 0; i < length; ++i) o[i] += coherent[i] * lateW[i] + independent[i] * lateC[i];
