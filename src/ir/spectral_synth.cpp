@@ -225,6 +225,7 @@ void SpectralSynth::prepareGrid(size_t gridSize) {
   mGridSize = gridSize;
   mGridIndex.resize(mBins);
   mGridFrac.resize(mBins);
+  mGridRunEnd.resize(mBins);
   const size_t last = gridSize / 2;
   for (size_t k = 0; k < mBins; ++k) {
     const double pos = double(k) * double(gridSize) / double(mN);
@@ -232,6 +233,10 @@ void SpectralSynth::prepareGrid(size_t gridSize) {
     mGridIndex[k] = uint32_t(i == last ? last - 1 : i);
     mGridFrac[k] = i == last ? 1.0f : float(pos - double(i));
   }
+  // The index grows with k: each bin's run of bins with its grid point ends
+  // where the next run starts.
+  for (size_t k = mBins; k-- > 0;)
+    mGridRunEnd[k] = uint32_t(k + 1 < mBins && mGridIndex[k + 1] == mGridIndex[k] ? mGridRunEnd[k + 1] : k + 1);
 }
 
 void SpectralSynth::addArrival(const Arrival& a, double delaySeconds, const GridFilter& h, Spectrum& spectrum) {
@@ -291,15 +296,26 @@ void SpectralSynth::addArrival(const Arrival& a, double delaySeconds, const Grid
       g[m] = gains[lb] * w + gains[lb + 1] * (1.0f - w);
     }
     if (hv) {
-      for (size_t m = 0; m < count; ++m) {
+      // The filter on these bins, a run of bins per grid interval (the
+      // interval's two points loaded once, the run's loop vectorised).
+      float hr[kBlock], hi[kBlock];
+      for (size_t m = 0; m < count;) {
         const size_t k = k0 + m;
         const uint32_t i = mGridIndex[k];
-        const float f = mGridFrac[k];
-        const float fr = hv[2 * i] * (1.0f - f) + hv[2 * i + 2] * f;
-        const float fi = hv[2 * i + 1] * (1.0f - f) + hv[2 * i + 3] * f;
+        const size_t end = std::min(count, size_t(mGridRunEnd[k]) - k0);
+        const float ar = hv[2 * i], ai = hv[2 * i + 1], br2 = hv[2 * i + 2], bi2 = hv[2 * i + 3];
+        const float* fk = mGridFrac.data() + k0;
+        for (; m < end; ++m) {
+          const float f = fk[m];
+          hr[m] = ar * (1.0f - f) + br2 * f;
+          hi[m] = ai * (1.0f - f) + bi2 * f;
+        }
+      }
+      for (size_t m = 0; m < count; ++m) {
+        const size_t k = k0 + m;
         const float vr = g[m] * pr[m], vi = g[m] * pi[m];
-        re[k] += vr * fr - vi * fi;
-        im[k] += vr * fi + vi * fr;
+        re[k] += vr * hr[m] - vi * hi[m];
+        im[k] += vr * hi[m] + vi * hr[m];
       }
     } else {
       for (size_t m = 0; m < count; ++m) {

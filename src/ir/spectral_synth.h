@@ -144,6 +144,7 @@ class SpectralSynth {
   size_t mGridSize = 0;
   std::vector<uint32_t> mGridIndex;  // per bin: the grid point below
   std::vector<float> mGridFrac;      // per bin: position between it and the next
+  std::vector<uint32_t> mGridRunEnd;  // per bin: the first bin after its run of bins with the same grid point
 };
 
 /** The offset into a noise of `period` samples that IrSynthesisSettings'
