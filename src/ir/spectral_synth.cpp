@@ -467,16 +467,18 @@ const std::vector<double>& SpectralSynth::energyResponse(int band, size_t q) con
 bool SpectralSynth::bandEnvelope(const EnergyHistogram& h, int band, const float* gain, std::vector<float>& env) const {
   const double binSamples = h.binSeconds() * mFs;
   const size_t histBins = h.binCount();
-  env.assign(mLength, 0.0f);
+  env.resize(mLength);  // every sample is written below
   if (mLength == 0) return false;
-  auto densityAt = [&](long bin) {
-    if (bin < 0 || size_t(bin) >= histBins) return 0.0;
-    const double d = h.energy(size_t(bin), band) / binSamples;
-    return gain ? d * double(gain[bin]) : d;
-  };
+  // The density per bin (energy per sample), with a zero bin on each side.
+  std::vector<double> density(histBins + 2, 0.0);
   bool any = false;
-  for (size_t b = 0; b < histBins && !any; ++b) any = densityAt(long(b)) > 0;
+  for (size_t b = 0; b < histBins; ++b) {
+    const double d = h.energy(b, band) / binSamples;
+    density[b + 1] = gain ? d * double(gain[b]) : d;
+    any = any || density[b + 1] > 0;
+  }
   if (!any) return false;
+  auto densityAt = [&](long bin) { return bin < 0 || size_t(bin) >= histBins ? 0.0 : density[size_t(bin) + 1]; };
   // The noise is shaped after its band filters (finishedBandNoise), not
   // filtered after the shaping, so the envelope's steps (the late field's
   // onset, the histogram's end) would widen the band (a step spreads a band
@@ -493,12 +495,23 @@ bool SpectralSynth::bandEnvelope(const EnergyHistogram& h, int band, const float
   const size_t q = std::max<size_t>(1, std::min(width / 2, size_t(binSamples)));
   const size_t points = mLength / q + 2;  // grid point m at sample m q
   std::vector<double> grid(points);
-  for (size_t m = 0; m < points; ++m) {
-    // The density between bin centres: sample i sits at (i + 0.5) / binSamples - 0.5 bins.
-    const double x = (double(m * q) + 0.5) / binSamples - 0.5;
-    const double j = std::floor(x);
-    const double frac = x - j;
-    grid[m] = std::max(0.0, (1.0 - frac) * densityAt(long(j)) + frac * densityAt(long(j) + 1));
+  {
+    // The density between bin centres: sample i sits at (i + 0.5) /
+    // binSamples - 0.5 bins; the bin j at or before it followed as it grows
+    // (a floor per point is a libm call on baseline x86-64).
+    const double perSample = 1.0 / binSamples;
+    long j = long(std::floor(0.5 * perSample - 0.5));
+    double lo = densityAt(j), hi = densityAt(j + 1);
+    for (size_t m = 0; m < points; ++m) {
+      const double x = (double(m * q) + 0.5) * perSample - 0.5;
+      if (double(j + 1) <= x) {
+        while (double(j + 1) <= x) ++j;
+        lo = densityAt(j);
+        hi = densityAt(j + 1);
+      }
+      const double frac = x - double(j);
+      grid[m] = std::max(0.0, (1.0 - frac) * lo + frac * hi);
+    }
   }
   const std::vector<double>& kernel = energyResponse(band, q);  // odd length, centred, sum 1
   if (kernel.size() > 1) {
