@@ -198,6 +198,10 @@ Result<SpectralSynth> SpectralSynth::create(size_t length, double fs, size_t arr
     s.mLowerBand[k] = uint8_t(lb);
     s.mLowerWeight[k] = float(w[lb]);  // lb = kNumBands - 1: the weight of the top band, 1
   }
+  s.mLowerBandRunEnd.resize(s.mBins);
+  for (size_t k = s.mBins; k-- > 0;)
+    s.mLowerBandRunEnd[k] =
+        uint32_t(k + 1 < s.mBins && s.mLowerBand[k + 1] == s.mLowerBand[k] ? s.mLowerBandRunEnd[k + 1] : k + 1);
   s.mScratch.resize(s.mBins);
   return s;
 }
@@ -289,11 +293,15 @@ void SpectralSynth::addArrival(const Arrival& a, double delaySeconds, const Grid
       pr[m] = br * stepRe[m] - bi * stepIm[m];
       pi[m] = br * stepIm[m] + bi * stepRe[m];
     }
-    for (size_t m = 0; m < count; ++m) {
+    // A run of bins per lower band: its two gains loaded once, the run's
+    // loop vectorised.
+    for (size_t m = 0; m < count;) {
       const size_t k = k0 + m;
       const uint8_t lb = mLowerBand[k];
-      const float w = mLowerWeight[k];
-      g[m] = gains[lb] * w + gains[lb + 1] * (1.0f - w);
+      const size_t end = std::min(count, size_t(mLowerBandRunEnd[k]) - k0);
+      const float ga = gains[lb], gb = gains[lb + 1];
+      const float* wk = mLowerWeight.data() + k0;
+      for (; m < end; ++m) g[m] = ga * wk[m] + gb * (1.0f - wk[m]);
     }
     if (hv) {
       // The filter on these bins, a run of bins per grid interval (the

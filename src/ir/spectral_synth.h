@@ -140,6 +140,7 @@ class SpectralSynth {
   std::shared_ptr<std::remove_pointer_t<kiss_fftr_cfg>> mInverse;  // a plan for mN, lent while this lives (inversePlan)
   std::vector<uint8_t> mLowerBand;           // per bin: the lower of the (at most two) non-zero bands
   std::vector<float> mLowerWeight;
+  std::vector<uint32_t> mLowerBandRunEnd;  // per bin: the first bin after its run of bins with the same lower band
   std::vector<kiss_fft_cpx> mScratch;
   size_t mGridSize = 0;
   std::vector<uint32_t> mGridIndex;  // per bin: the grid point below
