@@ -101,11 +101,15 @@ Result<AudioBuffer> synthesizeAmbisonicIr(const std::vector<Arrival>& arrivals, 
   if (!reflections || reflections->lastNonEmptyBin() < 0) return out;
   const size_t length = plan.length();
   // Band envelopes (shared by every channel) and W's late field.
-  std::vector<std::vector<float>> env(kNumBands);
+  // The band envelopes and late fields in this thread's buffers, reused by
+  // its next IR (ThreadScratch): 11 per IR, each the IR's length.
+  detail::ThreadScratch scratch(kNumBands + 4);
+  std::vector<std::vector<float>*> env(kNumBands);
+  for (int b = 0; b < kNumBands; ++b) env[size_t(b)] = &scratch[size_t(b)];
   bool anyBand = false;
   for (int b = 0; b < kNumBands; ++b) {
-    if (!plan.bandEnvelope(*reflections, b, nullptr, env[size_t(b)])) env[size_t(b)].clear();
-    anyBand = anyBand || !env[size_t(b)].empty();
+    if (!plan.bandEnvelope(*reflections, b, nullptr, *env[size_t(b)])) env[size_t(b)]->clear();
+    anyBand = anyBand || !env[size_t(b)]->empty();
   }
   if (!anyBand) return out;
   // Every channel's late noise. W's, then: when the period allows, every
@@ -137,9 +141,9 @@ Result<AudioBuffer> synthesizeAmbisonicIr(const std::vector<Arrival>& arrivals, 
     const size_t at = sharedNoise ? (offset + size_t(c) * spacing) % period : offset;
     late.assign(length, 0.0f);
     for (int b = 0; b < kNumBands; ++b)
-      if (!env[size_t(b)].empty()) plan.addEnvelopedNoise((*noise)[size_t(b)], at, env[size_t(b)], late.data());
+      if (!env[size_t(b)]->empty()) plan.addEnvelopedNoise((*noise)[size_t(b)], at, *env[size_t(b)], late.data());
   };
-  std::vector<float> lateW;
+  std::vector<float>& lateW = scratch[kNumBands];
   lateOf(0, lateW);
   for (size_t i = 0; i < length; ++i) out.channels[0][i] += lateW[i];
 
@@ -157,8 +161,12 @@ Result<AudioBuffer> synthesizeAmbisonicIr(const std::vector<Arrival>& arrivals, 
     realSphericalHarmonics(rotate(frame.worldToFrame, sum / len), order, &harmonicsOf[bin * kMaxAmbisonicChannels]);
   }
   const double binSamples = reflections->binSeconds() * fs;
-  std::vector<float> coherentBins(histBins), independentBins(histBins), coherent(length), independent(length),
-      lateC;
+  std::vector<float> coherentBins(histBins), independentBins(histBins);
+  std::vector<float>& coherent = scratch[kNumBands + 1];
+  std::vector<float>& independent = scratch[kNumBands + 2];
+  std::vector<float>& lateC = scratch[kNumBands + 3];
+  coherent.resize(length);
+  independent.resize(length);
   const BinsToSamples toSamples(histBins, binSamples, length);
   for (int c = 1; c < channels; ++c) {
     const double diffuse = 1.0 / double(2 * ambisonicOrderOf(c) + 1);

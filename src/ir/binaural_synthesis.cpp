@@ -307,7 +307,8 @@ Result<AudioBuffer> synthesizeBinauralIr(const std::vector<Arrival>& arrivals, c
                         ? plan.finishedBandNoise(settings.seed, detail::kLateNoiseStreamIndependent, rightV, key + 3)
                         : nullptr;
     const size_t offset = detail::noiseOffset(settings.seed, settings.noiseKey, (*l)[0].size());
-    std::vector<float> env;
+    detail::ThreadScratch scratch(1);  // the band envelope in a buffer of this thread, kept for its next IR
+    std::vector<float>& env = scratch[0];
     for (int b = 0; b < kNumBands; ++b) {
       const float* gl = directional ? gain[0][b].data() : nullptr;
       const float* gr = directional ? gain[1][b].data() : nullptr;

@@ -79,7 +79,8 @@ Result<AudioBuffer> synthesizeOmniIr(const std::vector<Arrival>& arrivals, const
   if (reflections && reflections->lastNonEmptyBin() >= 0) {
     const auto noise = plan.finishedBandNoise(settings.seed, detail::kLateNoiseStream, {}, 0);
     const size_t offset = detail::noiseOffset(settings.seed, settings.noiseKey, (*noise)[0].size());
-    std::vector<float> env;
+    detail::ThreadScratch scratch(1);  // the band envelope in a buffer of this thread, kept for its next IR
+    std::vector<float>& env = scratch[0];
     for (int b = 0; b < kNumBands; ++b)
       if (plan.bandEnvelope(*reflections, b, nullptr, env))
         plan.addEnvelopedNoise((*noise)[size_t(b)], offset, env, out.channels[0].data());

@@ -9,6 +9,7 @@
 #include <condition_variable>
 #include <cstring>
 #include <exception>
+#include <memory>
 #include <mutex>
 #include <string>
 #include <system_error>
@@ -419,6 +420,34 @@ std::shared_ptr<const std::vector<std::vector<float>>> SpectralSynth::levelledBa
   return bands;
 }
 
+namespace {
+struct ScratchStack {
+  std::vector<std::unique_ptr<std::vector<float>>> buffers;  // each buffer stays where it is as this grows
+  size_t top = 0;
+};
+ScratchStack& scratchStack() {
+  thread_local ScratchStack stack;
+  return stack;
+}
+}  // namespace
+
+ThreadScratch::ThreadScratch(size_t count) {
+  ScratchStack& st = scratchStack();
+  mBase = st.top;
+  while (st.buffers.size() < mBase + count) st.buffers.push_back(std::make_unique<std::vector<float>>());
+  st.top = mBase + count;
+  mCount = count;
+}
+
+std::vector<float>& ThreadScratch::operator[](size_t i) { return *scratchStack().buffers[mBase + i]; }
+
+ThreadScratch::~ThreadScratch() {
+  ScratchStack& st = scratchStack();
+  for (size_t i = mBase; i < mBase + mCount; ++i)
+    if (st.buffers[i]->capacity() > kKeptFloats) std::vector<float>().swap(*st.buffers[i]);
+  st.top = mBase;
+}
+
 size_t noiseOffset(uint64_t seed, uint64_t noiseKey, size_t period) {
   if (noiseKey == 0 || period == 0) return 0;
   return size_t(mix64(mix64(seed) ^ mix64(noiseKey + 0x9E3779B97F4A7C15ULL)) % uint64_t(period));
@@ -502,7 +531,18 @@ bool SpectralSynth::bandEnvelope(const EnergyHistogram& h, int band, const float
   const size_t width = std::max<size_t>(1, size_t(std::lround(mFs / kBandCentersHz[size_t(band)])));
   const size_t q = std::max<size_t>(1, std::min(width / 2, size_t(binSamples)));
   const size_t points = mLength / q + 2;  // grid point m at sample m q
-  std::vector<double> grid(points);
+  // The grid and the float temporaries in this thread's buffers (see
+  // ThreadScratch), kept for its next envelope.
+  thread_local std::vector<double> gridBuffer;
+  struct ReleaseLarge {
+    std::vector<double>& v;
+    ~ReleaseLarge() {
+      if (v.capacity() > ThreadScratch::kKeptFloats / 2) std::vector<double>().swap(v);
+    }
+  } releaseGrid{gridBuffer};
+  ThreadScratch scratch(2);
+  std::vector<double>& grid = gridBuffer;
+  grid.resize(points);
   {
     // The density between bin centres: sample i sits at (i + 0.5) /
     // binSamples - 0.5 bins; the bin j at or before it followed as it grows
@@ -526,7 +566,9 @@ bool SpectralSynth::bandEnvelope(const EnergyHistogram& h, int band, const float
     // In float (the kernel sums to one; float keeps 1e-7 of each sum), four
     // output points at a time so that the compiler vectorises across them.
     const size_t taps = kernel.size(), half = taps / 2;
-    std::vector<float> padded(points + 2 * half + 4, 0.0f), k32(kernel.begin(), kernel.end());
+    std::vector<float>& padded = scratch[0];
+    padded.assign(points + 2 * half + 4, 0.0f);
+    const std::vector<float> k32(kernel.begin(), kernel.end());
     for (size_t m = 0; m < points; ++m) padded[m + half] = float(grid[m]);
     size_t m = 0;
     for (; m + 4 <= points; m += 4) {
@@ -542,7 +584,8 @@ bool SpectralSynth::bandEnvelope(const EnergyHistogram& h, int band, const float
       grid[m] = double(acc);
     }
   }
-  std::vector<float> amp(points);
+  std::vector<float>& amp = scratch[1];
+  amp.resize(points);
   for (size_t m = 0; m < points; ++m) amp[m] = float(std::sqrt(std::max(0.0, grid[m])));
   if (q == 1) {
     std::copy(amp.begin(), amp.begin() + std::ptrdiff_t(mLength), env.begin());

@@ -148,6 +148,28 @@ class SpectralSynth {
   std::vector<uint32_t> mGridRunEnd;  // per bin: the first bin after its run of bins with the same grid point
 };
 
+/** `count` float buffers of the calling thread for an IR's temporaries
+ *  (band envelopes, late fields), lent for the scope and reused by the
+ *  thread's next IR: a fresh buffer of a 2 s IR (384 KB) is mapped and
+ *  zeroed by the kernel as it is first written (~0.2 ms; an ambisonic
+ *  IR's seven band envelopes were a sixth of its synthesis). Their size
+ *  and contents are what the last user left: resize and write them. A
+ *  buffer of over kKeptFloats is released when the scope ends. Scopes
+ *  nest (each takes the next buffers); not shared between threads. */
+class ThreadScratch {
+ public:
+  explicit ThreadScratch(size_t count);
+  ~ThreadScratch();
+  ThreadScratch(const ThreadScratch&) = delete;
+  ThreadScratch& operator=(const ThreadScratch&) = delete;
+  std::vector<float>& operator[](size_t i);
+
+  static constexpr size_t kKeptFloats = size_t(4) << 20;  // 16 MB: a 87 s IR at 48 kHz
+
+ private:
+  size_t mBase = 0, mCount = 0;
+};
+
 /** The offset into a noise of `period` samples that IrSynthesisSettings'
  *  seed and noiseKey give (0 for key 0). */
 size_t noiseOffset(uint64_t seed, uint64_t noiseKey, size_t period);
