@@ -172,6 +172,42 @@ std::shared_ptr<const std::vector<std::array<float, kNumBands>>> sqrtNoiseWeight
 }
 }  // namespace
 
+std::shared_ptr<const SpectralSynth::BandTable> SpectralSynth::bandTable(size_t n, double fs) {
+  static std::mutex mutex;
+  static std::vector<std::tuple<size_t, double, std::shared_ptr<const BandTable>>> tables;  // most recent first
+  {
+    std::lock_guard<std::mutex> lock(mutex);
+    for (size_t i = 0; i < tables.size(); ++i)
+      if (std::get<0>(tables[i]) == n && std::get<1>(tables[i]) == fs) {
+        std::rotate(tables.begin(), tables.begin() + std::ptrdiff_t(i), tables.begin() + std::ptrdiff_t(i) + 1);
+        return std::get<2>(tables[0]);
+      }
+  }
+  const size_t bins = n / 2 + 1;
+  auto t = std::make_shared<BandTable>();
+  t->lowerBand.resize(bins);
+  t->lowerWeight.resize(bins);
+  t->runEnd.resize(bins);
+  for (size_t k = 0; k < bins; ++k) {
+    const BandArrayD w = bandWeights(double(k) * fs / double(n));
+    // At most two band weights are non-zero at any frequency: keep the lower one.
+    int lb = kNumBands - 1;
+    for (int b = 0; b < kNumBands; ++b)
+      if (float(w[b]) > 0) {
+        lb = b;
+        break;
+      }
+    t->lowerBand[k] = uint8_t(lb);
+    t->lowerWeight[k] = float(w[lb]);  // lb = kNumBands - 1: the weight of the top band, 1
+  }
+  for (size_t k = bins; k-- > 0;)
+    t->runEnd[k] = uint32_t(k + 1 < bins && t->lowerBand[k + 1] == t->lowerBand[k] ? t->runEnd[k + 1] : k + 1);
+  std::lock_guard<std::mutex> lock(mutex);
+  tables.insert(tables.begin(), {n, fs, t});
+  if (tables.size() > 16) tables.pop_back();  // at most ~16 x 0.5 MB for 2 s IRs
+  return t;
+}
+
 Result<SpectralSynth> SpectralSynth::create(size_t length, double fs, size_t arrivalsEnd) {
   SpectralSynth s;
   s.mFs = fs;
@@ -185,24 +221,7 @@ Result<SpectralSynth> SpectralSynth::create(size_t length, double fs, size_t arr
   s.mBins = s.mN / 2 + 1;
   s.mInverse = inversePlan(s.mN);
   if (!s.mInverse) return Status(StatusCode::kInternal, "FFT allocation failed");
-  s.mLowerBand.resize(s.mBins);
-  s.mLowerWeight.resize(s.mBins);
-  for (size_t k = 0; k < s.mBins; ++k) {
-    const BandArrayD w = bandWeights(double(k) * fs / double(s.mN));
-    // At most two band weights are non-zero at any frequency: keep the lower one.
-    int lb = kNumBands - 1;
-    for (int b = 0; b < kNumBands; ++b)
-      if (float(w[b]) > 0) {
-        lb = b;
-        break;
-      }
-    s.mLowerBand[k] = uint8_t(lb);
-    s.mLowerWeight[k] = float(w[lb]);  // lb = kNumBands - 1: the weight of the top band, 1
-  }
-  s.mLowerBandRunEnd.resize(s.mBins);
-  for (size_t k = s.mBins; k-- > 0;)
-    s.mLowerBandRunEnd[k] =
-        uint32_t(k + 1 < s.mBins && s.mLowerBand[k + 1] == s.mLowerBand[k] ? s.mLowerBandRunEnd[k + 1] : k + 1);
+  s.mBands = bandTable(s.mN, fs);
   s.mScratch.resize(s.mBins);
   return s;
 }
@@ -298,10 +317,10 @@ void SpectralSynth::addArrival(const Arrival& a, double delaySeconds, const Grid
     // loop vectorised.
     for (size_t m = 0; m < count;) {
       const size_t k = k0 + m;
-      const uint8_t lb = mLowerBand[k];
-      const size_t end = std::min(count, size_t(mLowerBandRunEnd[k]) - k0);
+      const uint8_t lb = mBands->lowerBand[k];
+      const size_t end = std::min(count, size_t(mBands->runEnd[k]) - k0);
       const float ga = gains[lb], gb = gains[lb + 1];
-      const float* wk = mLowerWeight.data() + k0;
+      const float* wk = mBands->lowerWeight.data() + k0;
       for (; m < end; ++m) g[m] = ga * wk[m] + gb * (1.0f - wk[m]);
     }
     if (hv) {

@@ -138,9 +138,17 @@ class SpectralSynth {
   double mFs = 48000.0;
   size_t mLength = 0, mN = 0, mBins = 0, mKeep = 0;
   std::shared_ptr<std::remove_pointer_t<kiss_fftr_cfg>> mInverse;  // a plan for mN, lent while this lives (inversePlan)
-  std::vector<uint8_t> mLowerBand;           // per bin: the lower of the (at most two) non-zero bands
-  std::vector<float> mLowerWeight;
-  std::vector<uint32_t> mLowerBandRunEnd;  // per bin: the first bin after its run of bins with the same lower band
+  // Per bin of an mN-point FFT at mFs, shared by the IRs of that size
+  // (bandWeights costs logs per bin): the lower of the (at most two)
+  // non-zero bands, its weight, and the first bin after the bin's run of
+  // bins with the same lower band.
+  struct BandTable {
+    std::vector<uint8_t> lowerBand;
+    std::vector<float> lowerWeight;
+    std::vector<uint32_t> runEnd;
+  };
+  std::shared_ptr<const BandTable> mBands;
+  static std::shared_ptr<const BandTable> bandTable(size_t n, double fs);
   std::vector<kiss_fft_cpx> mScratch;
   size_t mGridSize = 0;
   std::vector<uint32_t> mGridIndex;  // per bin: the grid point below
