@@ -172,7 +172,9 @@ class ThreadScratch {
   ThreadScratch& operator=(const ThreadScratch&) = delete;
   std::vector<float>& operator[](size_t i);
 
-  static constexpr size_t kKeptFloats = size_t(4) << 20;  // 16 MB: a 87 s IR at 48 kHz
+  // 4 MB: a 21 s IR at 48 kHz (an ambisonic IR uses 13 buffers: at most
+  // 52 MB a thread are kept).
+  static constexpr size_t kKeptFloats = size_t(1) << 20;
 
  private:
   size_t mBase = 0, mCount = 0;

@@ -22,8 +22,12 @@ TEST(BandFilterBank, WeightsSumToOneEverywhereAndStayInUnitRange) {
 TEST(BandFilterBank, EachBandIsWholeAtItsCentreAndAbsentTwoOctavesAway) {
   for (int b = 0; b < kNumBands; ++b) {
     EXPECT_NEAR(bandWeight(b, kBandCentersHz[b]), 1.0, 1e-12);
-    if (b >= 2) EXPECT_EQ(bandWeight(b, kBandCentersHz[b] / 4), 0.0);
-    if (b + 2 < kNumBands) EXPECT_EQ(bandWeight(b, kBandCentersHz[b] * 4), 0.0);
+    if (b >= 2) {
+      EXPECT_EQ(bandWeight(b, kBandCentersHz[b] / 4), 0.0);
+    }
+    if (b + 2 < kNumBands) {
+      EXPECT_EQ(bandWeight(b, kBandCentersHz[b] * 4), 0.0);
+    }
   }
   // The edge bands extend to DC and to Nyquist.
   EXPECT_EQ(bandWeight(0, 10.0), 1.0);
