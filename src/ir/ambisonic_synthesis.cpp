@@ -100,9 +100,9 @@ Result<AudioBuffer> synthesizeAmbisonicIr(const std::vector<Arrival>& arrivals, 
 
   if (!reflections || reflections->lastNonEmptyBin() < 0) return out;
   const size_t length = plan.length();
-  // Band envelopes (shared by every channel) and W's late field.
-  // The band envelopes and late fields in this thread's buffers, reused by
-  // its next IR (ThreadScratch): 11 per IR, each the IR's length.
+  // Band envelopes (shared by every channel) and W's late field, in this
+  // thread's buffers reused by its next IR (ThreadScratch): 11 per IR, each
+  // the IR's length.
   detail::ThreadScratch scratch(kNumBands + 4);
   std::vector<std::vector<float>*> env(kNumBands);
   for (int b = 0; b < kNumBands; ++b) env[size_t(b)] = &scratch[size_t(b)];
@@ -118,10 +118,10 @@ Result<AudioBuffer> synthesizeAmbisonicIr(const std::vector<Arrival>& arrivals, 
   // least detail::kMinNoiseSpacingSeconds apart, so the channels are as
   // independent as separately made noises, and a first run makes one
   // noise instead of (order + 1)^2 (each 22 FFTs of the period). Shorter
-  // IRs make a noise per channel, fetched from channel `first` on: the sources of one
-  // simulation, synthesised side by side, start at different channels and
-  // so make different noises at the same time (finishedBandNoise waits for
-  // one that another thread is making).
+  // IRs make a noise per channel, fetched from channel `first` on: the
+  // sources of one simulation, synthesised side by side, start at different
+  // channels and so make different noises at the same time
+  // (finishedBandNoise waits for one that another thread is making).
   std::vector<std::shared_ptr<const std::vector<std::vector<float>>>> noises{size_t(channels)};
   noises[0] = plan.finishedBandNoise(settings.seed, detail::kLateNoiseStream, {}, 0);
   const size_t period = plan.noisePeriod();

@@ -96,9 +96,9 @@ Plan inversePlan(size_t n) { return realPlan(n, true); }
 // body(b0, b1) for the bands [0, kNumBands) on two threads, the caller's
 // and a helper in the caller's denormal mode: a band's noise is the same
 // whichever thread makes it. A noise's bands are independent FFT work
-// (its 22 FFTs: 125 ms for a 2 s IR), and the sources of a simulation that
-// need it wait for it. One thread where there is one core or no thread to
-// be had.
+// (its 22 FFTs of the period: ~57 ms on one core for a 2 s IR), and the
+// sources of a simulation that need it wait for it. One thread where there
+// is one core or no thread to be had.
 template <typename Body>
 void forBandHalves(const Body& body) {
   constexpr int kSplit = (kNumBands + 1) / 2;
@@ -331,12 +331,12 @@ void SpectralSynth::addArrival(const Arrival& a, double delaySeconds, const Grid
         const size_t k = k0 + m;
         const uint32_t i = mGridIndex[k];
         const size_t end = std::min(count, size_t(mGridRunEnd[k]) - k0);
-        const float ar = hv[2 * i], ai = hv[2 * i + 1], br2 = hv[2 * i + 2], bi2 = hv[2 * i + 3];
+        const float lowRe = hv[2 * i], lowIm = hv[2 * i + 1], highRe = hv[2 * i + 2], highIm = hv[2 * i + 3];
         const float* fk = mGridFrac.data() + k0;
         for (; m < end; ++m) {
           const float f = fk[m];
-          hr[m] = ar * (1.0f - f) + br2 * f;
-          hi[m] = ai * (1.0f - f) + bi2 * f;
+          hr[m] = lowRe * (1.0f - f) + highRe * f;
+          hi[m] = lowIm * (1.0f - f) + highIm * f;
         }
       }
       for (size_t m = 0; m < count; ++m) {
