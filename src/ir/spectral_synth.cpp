@@ -19,6 +19,7 @@
 #include "earshot/core/denormals.h"
 #include "earshot/core/math.h"
 #include "earshot/core/random.h"
+#include "earshot/dsp/fir.h"
 #include "earshot/io/disk_cache.h"
 #include "earshot/ir/band_filter_bank.h"
 
@@ -559,7 +560,7 @@ bool SpectralSynth::bandEnvelope(const EnergyHistogram& h, int band, const float
       if (v.capacity() > ThreadScratch::kKeptFloats / 2) std::vector<double>().swap(v);
     }
   } releaseGrid{gridBuffer};
-  ThreadScratch scratch(2);
+  ThreadScratch scratch(3);
   std::vector<double>& grid = gridBuffer;
   grid.resize(points);
   {
@@ -582,26 +583,17 @@ bool SpectralSynth::bandEnvelope(const EnergyHistogram& h, int band, const float
   }
   const std::vector<double>& kernel = energyResponse(band, q);  // odd length, centred, sum 1
   if (kernel.size() > 1) {
-    // In float (the kernel sums to one; float keeps 1e-7 of each sum), four
-    // output points at a time so that the compiler vectorises across them.
+    // In float (the kernel sums to one; float keeps 1e-7 of each sum), by
+    // the FIR kernel (earshot/dsp/fir.h; the kernel is symmetric).
     const size_t taps = kernel.size(), half = taps / 2;
     std::vector<float>& padded = scratch[0];
-    padded.assign(points + 2 * half + 4, 0.0f);
+    padded.assign(points + 2 * half, 0.0f);
     const std::vector<float> k32(kernel.begin(), kernel.end());
     for (size_t m = 0; m < points; ++m) padded[m + half] = float(grid[m]);
-    size_t m = 0;
-    for (; m + 4 <= points; m += 4) {
-      const float* x = padded.data() + m;  // the kernel is symmetric
-      float acc[4] = {0.0f, 0.0f, 0.0f, 0.0f};
-      for (size_t k = 0; k < taps; ++k)
-        for (int l = 0; l < 4; ++l) acc[l] += x[k + size_t(l)] * k32[k];
-      for (int l = 0; l < 4; ++l) grid[m + size_t(l)] = double(acc[l]);
-    }
-    for (; m < points; ++m) {
-      float acc = 0.0f;
-      for (size_t k = 0; k < taps; ++k) acc += padded[m + k] * k32[k];
-      grid[m] = double(acc);
-    }
+    std::vector<float>& convolved = scratch[2];
+    convolved.resize(points);
+    firInto(k32.data(), taps, padded.data(), convolved.data(), points);
+    for (size_t m = 0; m < points; ++m) grid[m] = double(convolved[m]);
   }
   std::vector<float>& amp = scratch[1];
   amp.resize(points);

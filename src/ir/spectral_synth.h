@@ -172,8 +172,8 @@ class ThreadScratch {
   ThreadScratch& operator=(const ThreadScratch&) = delete;
   std::vector<float>& operator[](size_t i);
 
-  // 4 MB: a 21 s IR at 48 kHz (an ambisonic IR uses 13 buffers: at most
-  // 52 MB a thread are kept).
+  // 4 MB: a 21 s IR at 48 kHz (an ambisonic IR uses 14 buffers: at most
+  // 56 MB a thread are kept).
   static constexpr size_t kKeptFloats = size_t(1) << 20;
 
  private:
