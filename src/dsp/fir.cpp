@@ -3,19 +3,11 @@
 
 #include <cstring>
 
+#include "earshot/core/target_clones.h"
+
 namespace earshot {
 
-// As the convolver's kernels (mac_kernels.cpp): an AVX2+FMA clone chosen at
-// load time on x86-64 with GCC (not under the sanitizers, whose runtimes do
-// not resolve clones).
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__SANITIZE_THREAD__) && \
-    !defined(__SANITIZE_ADDRESS__)
-#define EARSHOT_FIR_CLONES __attribute__((target_clones("arch=x86-64-v3", "default")))
-#else
-#define EARSHOT_FIR_CLONES
-#endif
-
-// Written with GCC/Clang vector extensions: a tile of 32 outputs stays in
+// An AVX2+FMA clone where the CPU has it (EARSHOT_CLONES). Written with GCC/Clang vector extensions: a tile of 32 outputs stays in
 // four 8-float registers over all taps, so each tap costs four loads and
 // four multiply-adds instead of a load and a store of every output (the
 // plain loop was bound by that traffic). Each output sums its taps in the
@@ -23,7 +15,7 @@ namespace earshot {
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wpsabi"
 typedef float FirV8 __attribute__((vector_size(32)));
-EARSHOT_FIR_CLONES
+EARSHOT_CLONES
 void firInto(const float* __restrict h, size_t taps, const float* __restrict x, float* __restrict y, size_t frames) {
   size_t i = 0;
   for (; i + 32 <= frames; i += 32) {

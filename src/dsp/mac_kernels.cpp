@@ -3,16 +3,11 @@
 // AVX2+FMA clone is chosen at load time (ifunc) when the CPU has it.
 #include "mac_kernels.h"
 
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__SANITIZE_THREAD__) && \
-    !defined(__SANITIZE_ADDRESS__)
-#define EARSHOT_MAC_CLONES __attribute__((target_clones("arch=x86-64-v3", "default")))
-#else
-#define EARSHOT_MAC_CLONES
-#endif
+#include "earshot/core/target_clones.h"
 
 namespace earshot::dsp_detail {
 
-EARSHOT_MAC_CLONES
+EARSHOT_CLONES
 void complexMac(float* __restrict ar, float* __restrict ai, const float* __restrict xr, const float* __restrict xi,
                 const float* __restrict hr, const float* __restrict hi, size_t count) {
   for (size_t i = 0; i < count; ++i) {
@@ -36,7 +31,7 @@ static inline V8 load8(const float* p) {
 }
 static inline void store8(float* p, V8 v) { __builtin_memcpy(p, &v, sizeof(v)); }
 
-EARSHOT_MAC_CLONES
+EARSHOT_CLONES
 void complexMacBatch(float* __restrict ar, float* __restrict ai, const float* const* x, const float* const* h,
                      size_t parts, size_t stride, size_t count) {
   size_t i = 0;
@@ -77,7 +72,7 @@ void complexMacBatch(float* __restrict ar, float* __restrict ai, const float* co
 #undef EARSHOT_MAC8
 }
 
-EARSHOT_MAC_CLONES
+EARSHOT_CLONES
 void complexMacBatch2(float* __restrict a0r, float* __restrict a0i, float* __restrict a1r, float* __restrict a1i,
                       const float* const* x, const float* const* h0, const float* const* h1, size_t parts,
                       size_t stride, size_t count) {
@@ -120,7 +115,7 @@ void complexMacBatch2(float* __restrict a0r, float* __restrict a0i, float* __res
 #undef EARSHOT_MAC8X2
 }
 
-EARSHOT_MAC_CLONES
+EARSHOT_CLONES
 void complexMacNeg(float* __restrict ar, float* __restrict ai, const float* __restrict xr,
                    const float* __restrict xi, const float* __restrict hr, const float* __restrict hi,
                    size_t count) {
@@ -130,7 +125,7 @@ void complexMacNeg(float* __restrict ar, float* __restrict ai, const float* __re
   }
 }
 
-EARSHOT_MAC_CLONES
+EARSHOT_CLONES
 void complexMacDiff(float* __restrict ar, float* __restrict ai, const float* __restrict xr,
                     const float* __restrict xi, const float* __restrict pr, const float* __restrict pi,
                     const float* __restrict cr, const float* __restrict ci, size_t count) {

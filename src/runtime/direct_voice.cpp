@@ -11,6 +11,7 @@
 #include <string>
 
 #include "earshot/core/math.h"
+#include "earshot/core/target_clones.h"
 #include "earshot/dsp/fir.h"
 
 namespace earshot::runtime {
@@ -62,15 +63,8 @@ const SincTable& sincTable() {
   static const SincTable table;
   return table;
 }
-// The delayed reads below: on x86-64 an AVX2+FMA clone is chosen at load
-// time when the CPU has it, as for the FIR (earshot/dsp/fir.h) and the
-// convolver's kernels (src/dsp/mac_kernels.cpp).
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__SANITIZE_THREAD__) && \
-    !defined(__SANITIZE_ADDRESS__)
-#define EARSHOT_FIR_CLONES __attribute__((target_clones("arch=x86-64-v3", "default")))
-#else
-#define EARSHOT_FIR_CLONES
-#endif
+// 8-float vectors for the delayed reads below (which get an AVX2+FMA clone
+// where the CPU has it: EARSHOT_CLONES).
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wpsabi"
 typedef float FirV8 __attribute__((vector_size(32)));
@@ -108,7 +102,7 @@ static inline void sincProduct(const float* __restrict ring, size_t mask, const 
   std::memcpy(&x, ring + start, sizeof x);
   product = (ta + f * (tb - ta)) * x;
 }
-EARSHOT_FIR_CLONES
+EARSHOT_CLONES
 void delayedReads(const float* __restrict ring, size_t mask, const float* __restrict table, size_t base,
                   const DelayRamp& r, float* __restrict out0, float* __restrict out1, size_t frames) {
   const double total = double(r.total);
