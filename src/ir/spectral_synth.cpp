@@ -19,6 +19,7 @@
 #include "earshot/core/denormals.h"
 #include "earshot/core/math.h"
 #include "earshot/core/random.h"
+#include "earshot/core/target_clones.h"
 #include "earshot/dsp/fir.h"
 #include "earshot/io/disk_cache.h"
 #include "earshot/ir/band_filter_bank.h"
@@ -264,6 +265,7 @@ void SpectralSynth::prepareGrid(size_t gridSize) {
     mGridRunEnd[k] = uint32_t(k + 1 < mBins && mGridIndex[k + 1] == mGridIndex[k] ? mGridRunEnd[k + 1] : k + 1);
 }
 
+EARSHOT_CLONES
 void SpectralSynth::addArrival(const Arrival& a, double delaySeconds, const GridFilter& h, Spectrum& spectrum) {
   if (a.gain == 0) return;
   if (h.values) prepareGrid(h.gridSize);
