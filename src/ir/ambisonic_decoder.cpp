@@ -3,7 +3,6 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
-#include <atomic>
 #include <cmath>
 #include <complex>
 #include <string>
@@ -11,6 +10,7 @@
 #include <vector>
 
 #include "earshot/core/math.h"
+#include "earshot/core/thread_runs.h"
 #include "earshot/hrtf/coordinates.h"
 #include "earshot/ir/spherical_harmonics.h"
 #include "spectral_synth.h"
@@ -33,40 +33,6 @@ constexpr size_t kMaxDecoderDesignValues = size_t(8) << 20;
 // Rotating phasors (e^(i k w), one complex multiply per bin) are set exactly
 // every this many bins: their rounding stays near 1e-14.
 constexpr size_t kPhasorAnchor = 32;
-
-// Runs body(begin, end) over [0, count) cut into `parts` runs whose starts
-// are multiples of `align`, the first run on this thread and the others on
-// threads of their own. Every element's work must not depend on the cut (the
-// runs are independent and each starts at an anchor of any recurrence), so
-// the result is the same whatever the number of parts. False if a run threw
-// (e.g. out of memory) or returned false. Plain threads rather than a
-// ThreadPool: its workers flush denormals, and the design keeps the
-// caller's floating-point mode as when it ran on one thread (the same
-// filters bit for bit), as HrtfSet::load's preparing threads do.
-template <typename Body>
-bool forRuns(size_t count, size_t align, size_t parts, const Body& body) {
-  const size_t per = std::max(align, (count / std::max<size_t>(1, parts) + align - 1) / align * align);
-  std::atomic<bool> ok{true};
-  auto run = [&](size_t begin, size_t end) {
-    try {
-      if (!body(begin, end)) ok = false;
-    } catch (...) {
-      ok = false;
-    }
-  };
-  std::vector<std::thread> threads;
-  for (size_t begin = per; begin < count; begin += per) {
-    const size_t end = std::min(count, begin + per);
-    try {
-      threads.emplace_back(run, begin, end);
-    } catch (...) {
-      run(begin, end);  // no thread to be had: this one does the run
-    }
-  }
-  run(0, std::min(count, per));
-  for (auto& t : threads) t.join();
-  return ok;
-}
 
 // The design's threads: the machine's cores, at most 4.
 size_t designThreads() { return std::clamp<size_t>(std::thread::hardware_concurrency(), 1, 4); }

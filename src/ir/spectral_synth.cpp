@@ -8,18 +8,17 @@
 #include <cmath>
 #include <condition_variable>
 #include <cstring>
-#include <exception>
 #include <memory>
 #include <mutex>
+#include <new>
 #include <string>
-#include <system_error>
 #include <thread>
 #include <tuple>
 
-#include "earshot/core/denormals.h"
 #include "earshot/core/math.h"
 #include "earshot/core/random.h"
 #include "earshot/core/target_clones.h"
+#include "earshot/core/thread_runs.h"
 #include "earshot/dsp/fir.h"
 #include "earshot/io/disk_cache.h"
 #include "earshot/ir/band_filter_bank.h"
@@ -95,40 +94,20 @@ Plan realPlan(size_t n, bool inverse) {
 }
 Plan inversePlan(size_t n) { return realPlan(n, true); }
 
-// body(b0, b1) for the bands [0, kNumBands) on two threads, the caller's
-// and a helper in the caller's denormal mode: a band's noise is the same
-// whichever thread makes it. A noise's bands are independent FFT work
-// (its 22 FFTs of the period: ~57 ms on one core for a 2 s IR), and the
-// sources of a simulation that need it wait for it. One thread where there
-// is one core or no thread to be had.
+// body(b0, b1) for the bands [0, kNumBands) in two runs (forRuns: the
+// caller's thread and a helper in its denormal mode, so a band's noise is
+// the same whichever thread makes it). A noise's bands are independent FFT
+// work (its 22 FFTs of the period: ~57 ms on one core for a 2 s IR), and
+// the sources of a simulation that need it wait for it. One run where there
+// is one core. Out of memory in a run is thrown here.
 template <typename Body>
 void forBandHalves(const Body& body) {
-  constexpr int kSplit = (kNumBands + 1) / 2;
-  std::thread helper;
-  std::exception_ptr helperError;
-  if (std::thread::hardware_concurrency() > 1) {
-    try {
-      helper = std::thread([&body, &helperError, mode = currentDenormalMode()] {
-        ScopedDenormalMode same(mode);
-        try {
-          body(0, kSplit);
-        } catch (...) {
-          helperError = std::current_exception();
-        }
-      });
-    } catch (const std::system_error&) {
-    }
-  }
-  std::exception_ptr error;
-  try {
-    if (!helper.joinable()) body(0, kSplit);
-    body(kSplit, kNumBands);
-  } catch (...) {
-    error = std::current_exception();
-  }
-  if (helper.joinable()) helper.join();
-  if (error) std::rethrow_exception(error);
-  if (helperError) std::rethrow_exception(helperError);
+  const size_t parts = std::thread::hardware_concurrency() > 1 ? 2 : 1;
+  if (!forRuns(size_t(kNumBands), 1, parts, [&](size_t b0, size_t b1) {
+        body(int(b0), int(b1));
+        return true;
+      }))
+    throw std::bad_alloc();
 }
 
 // The period of the band noises for an IR of `length` samples: the power of
