@@ -78,6 +78,9 @@ Result<Material> parseMaterial(const std::string& name, const Json& j, const std
   std::vector<double> absorption, transmission, scattering;
   EARSHOT_RETURN_IF_ERROR(perBand("absorption", &absorption));
   m.absorption = interpolateToEngineBands(bandsHz, absorption);
+  m.givenBandsHz = bandsHz;
+  m.givenAbsorption = absorption;
+  m.givenScattering.assign(n, double(m.scattering[0]));  // the default, or one number for every band
 
   if (j.contains("scattering")) {
     const Json& s = j.at("scattering");
@@ -87,9 +90,11 @@ Result<Material> parseMaterial(const std::string& name, const Json& j, const std
       if (!std::isfinite(one[0])) return invalidArgument(item + " is not finite");
       if (one[0] < 0.0 || one[0] > 1.0) return invalidArgument(item + " is outside [0, 1]");
       m.scattering = filledBands(static_cast<float>(one[0]));
+      m.givenScattering.assign(n, one[0]);
     } else {
       EARSHOT_RETURN_IF_ERROR(perBand("scattering", &scattering));
       m.scattering = interpolateToEngineBands(bandsHz, scattering);
+      m.givenScattering = scattering;
     }
   }
   if (j.contains("transmission")) {
@@ -100,8 +105,10 @@ Result<Material> parseMaterial(const std::string& name, const Json& j, const std
                                " exceeds absorption[" + std::to_string(i) + "] = " + formatNumber(absorption[i]) +
                                " (transmission is the part of the absorbed energy that passes through)");
     m.transmission = interpolateToEngineBands(bandsHz, transmission);
+    m.givenTransmission = transmission;
   } else {
     m.transmission = filledBands(0.0f);
+    m.givenTransmission.assign(n, 0.0);
   }
   return m;
 }
@@ -109,14 +116,27 @@ Result<Material> parseMaterial(const std::string& name, const Json& j, const std
 }  // namespace
 
 BandArray interpolateToEngineBands(const std::vector<double>& hz, const std::vector<double>& values) {
+  return interpolateToBands(hz, values, 0.0);
+}
+
+BandArray interpolateToBands(const std::vector<double>& hz, const std::vector<double>& values, double shiftOctaves) {
   BandArray out = filledBands(0.0f);
   if (hz.empty() || hz.size() != values.size()) return out;
   for (size_t i = 0; i < hz.size(); ++i)
     if (!(hz[i] > 0.0) || (i > 0 && !(hz[i] > hz[i - 1]))) return out;
+  const double shift = std::exp2(shiftOctaves);  // exactly 1 for the engine's octaves
   for (int b = 0; b < kNumBands; ++b) {
-    const double f = kBandCentersHz[b];
+    const double f = kBandCentersHz[b] * shift;
+    // A given band within a twelfth of an octave is this band under its
+    // nominal name (IEC 61260: 400 Hz is the third octave at 396.9 Hz,
+    // 160 at 157.5): its value, not a blend with the next band's.
+    size_t nearest = 0;
+    for (size_t i = 1; i < hz.size(); ++i)
+      if (std::abs(std::log2(hz[i] / f)) < std::abs(std::log2(hz[nearest] / f))) nearest = i;
     double v;
-    if (f <= hz.front()) {
+    if (std::abs(std::log2(hz[nearest] / f)) < 1.0 / 12.0) {
+      v = values[nearest];
+    } else if (f <= hz.front()) {
       v = values.front();
     } else if (f >= hz.back()) {
       v = values.back();

@@ -1,5 +1,7 @@
 #include "earshot/materials/material.h"
 
+#include <algorithm>
+
 namespace earshot {
 
 MaterialTable::MaterialTable() {
@@ -26,6 +28,32 @@ std::optional<uint32_t> MaterialTable::find(const std::string& name) const {
   const auto it = mIndex.find(name);
   if (it == mIndex.end()) return std::nullopt;
   return it->second;
+}
+
+MaterialTable MaterialTable::atBandShift(double octaves) const {
+  MaterialTable t = *this;
+  if (octaves == 0.0) return t;
+  std::vector<double> engineHz(kBandCentersHz.begin(), kBandCentersHz.end()), a(kNumBands), s(kNumBands), x(kNumBands);
+  for (Material& m : t.mMaterials) {
+    if (m.givenBandsHz.empty()) {  // made in code: its arrays are the data
+      for (int b = 0; b < kNumBands; ++b) {
+        a[size_t(b)] = m.absorption[size_t(b)];
+        s[size_t(b)] = m.scattering[size_t(b)];
+        x[size_t(b)] = m.transmission[size_t(b)];
+      }
+      m.absorption = interpolateToBands(engineHz, a, octaves);
+      m.scattering = interpolateToBands(engineHz, s, octaves);
+      m.transmission = interpolateToBands(engineHz, x, octaves);
+    } else {
+      m.absorption = interpolateToBands(m.givenBandsHz, m.givenAbsorption, octaves);
+      m.scattering = interpolateToBands(m.givenBandsHz, m.givenScattering, octaves);
+      m.transmission = interpolateToBands(m.givenBandsHz, m.givenTransmission, octaves);
+    }
+    // Interpolation keeps transmission <= absorption (both are the same
+    // convex combination of values that satisfy it); float rounding might not.
+    for (int b = 0; b < kNumBands; ++b) m.transmission[size_t(b)] = std::min(m.transmission[size_t(b)], m.absorption[size_t(b)]);
+  }
+  return t;
 }
 
 Status MaterialTable::setDefault(const std::string& name) {

@@ -14,6 +14,8 @@
 namespace earshot {
 
 Status validate(const AirConditions& air) {
+  if (!(air.bandShiftOctaves >= -1.0 && air.bandShiftOctaves <= 1.0))
+    return invalidArgument("air band shift " + std::to_string(air.bandShiftOctaves) + " octaves is outside [-1, 1]");
   if (!air.enabled) return Status::ok();
   if (!(air.temperatureC >= -20.0 && air.temperatureC <= 50.0))
     return invalidArgument("air temperature " + std::to_string(air.temperatureC) + " C is outside [-20, 50]");
@@ -61,7 +63,8 @@ double airAttenuationDbPerMeter(double f, const AirConditions& air) {
 
 BandArrayD airAttenuationDbPerMeter(const AirConditions& air) {
   BandArrayD a{};
-  for (int b = 0; b < kNumBands; ++b) a[b] = airAttenuationDbPerMeter(kBandCentersHz[b], air);
+  const double shift = std::exp2(air.bandShiftOctaves);  // exactly 1 for the octaves
+  for (int b = 0; b < kNumBands; ++b) a[b] = airAttenuationDbPerMeter(kBandCentersHz[b] * shift, air);
   return a;
 }
 

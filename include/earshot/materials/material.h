@@ -27,6 +27,11 @@ struct Material {
   BandArray absorption = filledBands(0.1f);    ///< energy fraction absorbed per reflection, [0, 1]
   BandArray scattering = filledBands(0.1f);    ///< fraction of reflected energy scattered diffusely, [0, 1]
   BandArray transmission = filledBands(0.0f);  ///< energy fraction passing through the surface, [0, 1]
+  /** The values as a materials file gave them, at its bands_hz (each array
+   *  as long): what MaterialTable::atBandShift resamples, so that a file in
+   *  third octaves is used as such by third-octave IRs. Empty: the arrays
+   *  above are the data (given at kBandCentersHz). */
+  std::vector<double> givenBandsHz, givenAbsorption, givenScattering, givenTransmission;
 };
 
 /** Materials by id (their index). Id 0 is always the default material, given
@@ -42,6 +47,11 @@ class MaterialTable {
   const Material& operator[](uint32_t id) const { return mMaterials[id]; }
   size_t size() const { return mMaterials.size(); }
   const std::vector<Material>& all() const { return mMaterials; }
+  /** The same table (ids, names) with every material's bands at
+   *  kBandCentersHz x 2^octaves, resampled from what its file gave
+   *  (Material::givenBandsHz) as interpolateToEngineBands does: a
+   *  third-octave pass's materials (bands.h). octaves 0 gives the table. */
+  MaterialTable atBandShift(double octaves) const;
   /** Makes an existing material the default (copied to id 0 under its own name). */
   Status setDefault(const std::string& name);
 
@@ -76,7 +86,13 @@ const MaterialTable& defaultMaterials();
 /** Resamples values given at centre frequencies `bandsHz` (ascending,
  *  positive; same length as `values`, at least 1) to the engine's bands:
  *  linear in log-frequency between neighbouring centres, held constant below
- *  the first and above the last. Precondition violations give all zeros. */
+ *  the first and above the last; a given centre within 1/12 octave of a
+ *  band's is that band's nominal name (400 Hz for the third octave at
+ *  396.9 Hz) and gives its value. Precondition violations give all zeros. */
 BandArray interpolateToEngineBands(const std::vector<double>& bandsHz, const std::vector<double>& values);
+/** As interpolateToEngineBands, to the engine's bands shifted by
+ *  `shiftOctaves` (kBandCentersHz x 2^shiftOctaves). */
+BandArray interpolateToBands(const std::vector<double>& bandsHz, const std::vector<double>& values,
+                             double shiftOctaves);
 
 }  // namespace earshot

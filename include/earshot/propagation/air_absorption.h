@@ -13,6 +13,9 @@ struct AirConditions {
   double humidityPercent = 50.0;  ///< relative humidity, [0, 100] %
   double pressureKpa = 101.325;   ///< [50, 120] kPa
   bool enabled = true;            ///< false: no air absorption
+  /** The bands' centres are kBandCentersHz x 2^this: a third-octave pass
+   *  (bands.h) sets -1/3 or +1/3; 0 for the engine's octaves. [-1, 1] */
+  double bandShiftOctaves = 0.0;
 };
 
 /** Parses "TEMP_C,HUMIDITY_PCT" (e.g. "20,50") or "off"; checks ranges. */
@@ -24,7 +27,8 @@ Status validate(const AirConditions& air);
 /** Attenuation coefficient in dB per metre at frequency `hz` (ISO 9613-1 eq. 5). */
 double airAttenuationDbPerMeter(double hz, const AirConditions& air);
 
-/** Per band, at the engine's nominal centre frequencies; zero when disabled. */
+/** Per band, at the engine's nominal centre frequencies (shifted by
+ *  air.bandShiftOctaves); zero when disabled. */
 BandArrayD airAttenuationDbPerMeter(const AirConditions& air);
 
 /** Energy attenuation coefficient m (1/m) per band: energy falls as exp(-m d). */
