@@ -32,6 +32,8 @@ Status validate(const IrSynthesisSettings& s) {
     return invalidArgument("sample rate " + std::to_string(s.sampleRateHz) + " Hz is outside [8000, 384000]");
   if (!(s.lengthSeconds >= 0.0 && s.lengthSeconds <= 600.0))
     return invalidArgument("IR length " + std::to_string(s.lengthSeconds) + " s is outside [0, 600]");
+  if (!(s.bandShiftOctaves >= -1.0 && s.bandShiftOctaves <= 1.0))
+    return invalidArgument("band shift " + std::to_string(s.bandShiftOctaves) + " octaves is outside [-1, 1]");
   return Status::ok();
 }
 

@@ -189,9 +189,10 @@ std::shared_ptr<const SpectralSynth::BandTable> SpectralSynth::bandTable(size_t 
   return t;
 }
 
-Result<SpectralSynth> SpectralSynth::create(size_t length, double fs, size_t arrivalsEnd) {
+Result<SpectralSynth> SpectralSynth::create(size_t length, double fs, size_t arrivalsEnd, double bandShiftOctaves) {
   SpectralSynth s;
   s.mFs = fs;
+  s.mBandFs = fs * std::exp2(-bandShiftOctaves);  // exactly fs for the octaves
   s.mLength = length;
   // The arrivals' frame: up to the last arrival, half the margin after it
   // for its band filters' ringing and sinc tail (kept), and the whole margin
@@ -202,7 +203,7 @@ Result<SpectralSynth> SpectralSynth::create(size_t length, double fs, size_t arr
   s.mBins = s.mN / 2 + 1;
   s.mInverse = inversePlan(s.mN);
   if (!s.mInverse) return Status(StatusCode::kInternal, "FFT allocation failed");
-  s.mBands = bandTable(s.mN, fs);
+  s.mBands = bandTable(s.mN, s.mBandFs);
   s.mScratch.resize(s.mBins);
   return s;
 }
@@ -220,7 +221,7 @@ Result<SpectralSynth> SpectralSynth::plan(const std::vector<Arrival>& arrivals, 
     if (a.gain != 0) end = std::max(end, a.delaySeconds);
   const size_t arrivalsEnd =
       end < 0 ? 0 : size_t(std::min(double(kMaxIrSamples), std::ceil((end + kArrivalSlackSeconds) * settings.sampleRateHz)));
-  return create(length, settings.sampleRateHz, arrivalsEnd);
+  return create(length, settings.sampleRateHz, arrivalsEnd, settings.bandShiftOctaves);
 }
 
 size_t SpectralSynth::noisePeriod() const { return detail::noisePeriod(mLength); }
@@ -370,7 +371,7 @@ std::shared_ptr<const std::vector<std::vector<float>>> SpectralSynth::levelledBa
   {
     std::lock_guard<std::mutex> lock(mutex);
     for (const Cached& c : cache)
-      if (c.seed == seed && c.stream == stream && c.n == n && c.fs == mFs) return c.bands;
+      if (c.seed == seed && c.stream == stream && c.n == n && c.fs == mBandFs) return c.bands;
   }
   const Plan forward = realPlan(n, false);
   auto bands = std::make_shared<Bands>(kNumBands, std::vector<float>(n, 0.0f));
@@ -381,7 +382,7 @@ std::shared_ptr<const std::vector<std::vector<float>>> SpectralSynth::levelledBa
     std::vector<float> white = whiteNoise(seed, stream, n);
     kiss_fftr(forward.get(), white.data(), spectrum.data());
   }
-  const auto weights = sqrtNoiseWeights(n, mFs);
+  const auto weights = sqrtNoiseWeights(n, mBandFs);
   forBandHalves([&](int b0, int b1) {
     const Plan inverse = realPlan(n, true);  // this thread's while it runs
     if (!inverse) return;                    // silence, as above
@@ -406,7 +407,7 @@ std::shared_ptr<const std::vector<std::vector<float>>> SpectralSynth::levelledBa
         prefix[i + 1] = prefix[i] + x * x;
       }
       const double width = 0.7071 * kBandCentersHz[size_t(b)];
-      const size_t half = std::max<size_t>(4, size_t(0.5 * kLevelWindowCycles * mFs / width));
+      const size_t half = std::max<size_t>(4, size_t(0.5 * kLevelWindowCycles * mBandFs / width));
       std::vector<float>& out = (*bands)[size_t(b)];
       for (size_t i = 0; i < n; ++i) {
         const size_t lo = i > half ? i - half : 0, hi = std::min(n, i + half + 1);
@@ -416,7 +417,7 @@ std::shared_ptr<const std::vector<std::vector<float>>> SpectralSynth::levelledBa
     }
   });
   std::lock_guard<std::mutex> lock(mutex);
-  cache.insert(cache.begin(), Cached{seed, stream, n, mFs, bands});
+  cache.insert(cache.begin(), Cached{seed, stream, n, mBandFs, bands});
   trimNoiseCache(cache, size_t(32) << 20, 6);
   return bands;
 }
@@ -465,17 +466,17 @@ const std::vector<double>& SpectralSynth::energyResponse(int band, size_t q) con
   static std::vector<std::unique_ptr<Cached>> cache;  // never shrinks: bands x grid steps x rates in use
   std::lock_guard<std::mutex> lock(mutex);
   for (const auto& c : cache)
-    if (c->band == band && c->q == q && c->fs == mFs) return c->kernel;
+    if (c->band == band && c->q == q && c->fs == mBandFs) return c->kernel;
   // |f_b(t)|^2 from sqrt(W_b) on a 2^16-point grid (1.4 s at 48 kHz: far
   // longer than any band filter's response), summed into cells of q
   // samples centred on t = 0, cut where a cell holds under 1e-5 of the
   // whole (-50 dB), normalised.
   constexpr size_t n = size_t(1) << 16;
   FftrPtr inverse(kiss_fftr_alloc(int(n), 1, nullptr, nullptr));
-  auto c = std::make_unique<Cached>(Cached{band, q, mFs, {1.0}});
+  auto c = std::make_unique<Cached>(Cached{band, q, mBandFs, {1.0}});
   if (inverse) {
     std::vector<kiss_fft_cpx> spectrum(n / 2 + 1);
-    const auto weights = sqrtNoiseWeights(n, mFs);
+    const auto weights = sqrtNoiseWeights(n, mBandFs);
     for (size_t k = 0; k <= n / 2; ++k) spectrum[k] = {(*weights)[k][size_t(band)], 0.0f};
     std::vector<float> f(n);
     kiss_fftri(inverse.get(), spectrum.data(), f.data());
@@ -529,7 +530,7 @@ bool SpectralSynth::bandEnvelope(const EnergyHistogram& h, int band, const float
   // it, and the envelope's spectrum stays within the filter's bandwidth. The
   // convolution runs on a grid of half a period of the band's centre (at
   // most a histogram bin), the amplitude linear between grid points.
-  const size_t width = std::max<size_t>(1, size_t(std::lround(mFs / kBandCentersHz[size_t(band)])));
+  const size_t width = std::max<size_t>(1, size_t(std::lround(mBandFs / kBandCentersHz[size_t(band)])));
   const size_t q = std::max<size_t>(1, std::min(width / 2, size_t(binSamples)));
   const size_t points = mLength / q + 2;  // grid point m at sample m q
   // The grid and the float temporaries in this thread's buffers (see
@@ -683,7 +684,7 @@ std::vector<std::shared_ptr<const std::vector<std::vector<float>>>> SpectralSynt
   static std::vector<Key> making;
   static std::condition_variable made;
   const size_t n = noisePeriod();
-  auto keyOf = [&](size_t f) { return Key{seed, stream, filters[f].second, n, mFs}; };
+  auto keyOf = [&](size_t f) { return Key{seed, stream, filters[f].second, n, mBandFs}; };
   std::vector<std::shared_ptr<const Bands>> out(filters.size());
   std::unique_lock<std::mutex> lock(mutex);
   for (;;) {
@@ -752,7 +753,7 @@ std::vector<std::shared_ptr<std::vector<std::vector<float>>>> SpectralSynth::cac
       key.filterB = fh.b;
     }
     key.n = n;
-    key.fs = mFs;
+    key.fs = mBandFs;
     key.fingerprint = noiseFingerprint();
     names[k] = cacheEntryName("noise-", &key, sizeof key);
     const auto entry = readCacheEntry(folder + "/" + names[k], sizeof key + payload + 16);
@@ -801,7 +802,7 @@ std::vector<std::shared_ptr<std::vector<std::vector<float>>>> SpectralSynth::mak
   const size_t bins = n / 2 + 1;
   // The second sqrt(W_band) and each h on this period's bins (h linear
   // between its grid points); one forward FFT per band serves every filter.
-  const auto weights = sqrtNoiseWeights(n, mFs);
+  const auto weights = sqrtNoiseWeights(n, mBandFs);
   std::vector<std::vector<std::complex<float>>> response(missing.size());
   for (size_t f = 0; f < missing.size(); ++f) {
     const GridFilter& h = filters[missing[f]].first;

@@ -44,7 +44,7 @@ class SpectralSynth {
   /** Plans an IR of `length` samples at `fs` whose arrivals all lie before
    *  sample `arrivalsEnd` (their filters' onset and length included); fails
    *  on FFT allocation. */
-  static Result<SpectralSynth> create(size_t length, double fs, size_t arrivalsEnd);
+  static Result<SpectralSynth> create(size_t length, double fs, size_t arrivalsEnd, double bandShiftOctaves = 0.0);
   /** Validates the settings and arrivals (finite, delay >= 0) and plans the
    *  IR of irLengthSamples() samples (at most kMaxIrSamples). */
   static Result<SpectralSynth> plan(const std::vector<Arrival>& arrivals, const EnergyHistogram* reflections,
@@ -136,6 +136,12 @@ class SpectralSynth {
   const std::vector<double>& energyResponse(int band, size_t q) const;
 
   double mFs = 48000.0;
+  // The rate at which the engine's octave bands fall where this IR's bands
+  // are: fs x 2^-(IrSynthesisSettings::bandShiftOctaves). Every band
+  // computation (weights, filters' responses, the noises' levelling) reads
+  // it instead of mFs, and the caches are keyed by it: a band noise depends
+  // on the rate only through its bands.
+  double mBandFs = 48000.0;
   size_t mLength = 0, mN = 0, mBins = 0, mKeep = 0;
   std::shared_ptr<std::remove_pointer_t<kiss_fftr_cfg>> mInverse;  // a plan for mN, lent while this lives (inversePlan)
   // Per bin of an mN-point FFT at mFs, shared by the IRs of that size

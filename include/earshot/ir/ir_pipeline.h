@@ -34,6 +34,9 @@ struct OmniIrSettings {
   uint32_t imageSourceOrder = 3;   ///< 0: no image sources (all reflections stochastic)
   uint64_t seed = 1;
   double speedOfSound = 343.0;
+  /** Also the bands': air.bandShiftOctaves != 0 shifts every band of the
+   *  IR (air absorption and synthesis; the materials table must be shifted
+   *  to match, MaterialTable::atBandShift): one pass of computeIrThirdOctave. */
   AirConditions air;
   double binSeconds = 0.001;
   double receiverRadiusMeters = 0.0;  ///< 0: automatic

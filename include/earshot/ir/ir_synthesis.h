@@ -45,6 +45,9 @@ struct IrSynthesisSettings {
    *  different positions carry independent noise (position averages
    *  converge) while the same inputs still give the same bits. */
   uint64_t noiseKey = 0;
+  /** The bands are the engine's octaves shifted by this (kBandCentersHz x
+   *  2^shift): a third-octave pass (bands.h) sets -1/3 or +1/3. [-1, 1] */
+  double bandShiftOctaves = 0.0;
 };
 
 /** A key for IrSynthesisSettings::noiseKey from a source/listener pair: made
