@@ -16,6 +16,7 @@
 #include "earshot/io/wav.h"
 #include "earshot/ir/ir_pipeline.h"
 #include "earshot/ir/ir_report.h"
+#include "earshot/ir/third_octave.h"
 #include "earshot/materials/material.h"
 #include "earshot/scene/enclosure.h"
 #include "earshot/scene/gltf_loader.h"
@@ -50,6 +51,7 @@ struct IrOptions {
   double convergeDb = 0.0;
   std::string trace = "per-source";
   bool noFlutterCones = false;
+  std::string bands = "octave";
 };
 
 double msSince(std::chrono::steady_clock::time_point t) {
@@ -65,6 +67,15 @@ int run(const IrOptions& o, const CLI::App& cmd) {
   }
   if (o.receiver != "ambisonic" && cmd.count("--order")) {
     printError("--order: applies only to --receiver ambisonic");
+    return 2;
+  }
+  const bool thirdOctave = o.bands == "third-octave";
+  if (thirdOctave && o.receiver == "binaural") {
+    printError("--bands third-octave: binaural IRs are not supported yet; use --receiver omni or ambisonic");
+    return 2;
+  }
+  if (thirdOctave && o.trace != "per-source") {
+    printError("--bands third-octave: traces per source (--trace per-source)");
     return 2;
   }
   auto air = parseCliAir(o.air);
@@ -163,19 +174,52 @@ int run(const IrOptions& o, const CLI::App& cmd) {
   if (traceMode == TraceMode::kShared && o.convergeDb > 0 &&
       !check(invalidArgument("--converge works with --trace per-source only (a shared trace traces every ray)")))
     return 2;
-  IrRequest request;
-  request.source = source;
-  request.directivity = settings.directivity;
-  request.includeDirect = settings.includeDirect;
-  auto result = computeIrs(*tracer, materials, listener, {request}, settings, traceMode, pool, binaural.get(),
-                           ambisonic.get());
-  if (!check(result.status())) return 2;
-  const OmniIrResult& r = result->front();
+  Result<std::vector<OmniIrResult>> result = std::vector<OmniIrResult>{};
+  Result<ThirdOctaveIrResult> thirds = ThirdOctaveIrResult{};
+  if (thirdOctave) {
+    thirds = computeIrThirdOctave(*tracer, materials, source, listener, settings, pool, ambisonic.get());
+    if (!check(thirds.status())) return 2;
+  } else {
+    IrRequest request;
+    request.source = source;
+    request.directivity = settings.directivity;
+    request.includeDirect = settings.includeDirect;
+    result = computeIrs(*tracer, materials, listener, {request}, settings, traceMode, pool, binaural.get(),
+                        ambisonic.get());
+    if (!check(result.status())) return 2;
+  }
+  // The unshifted pass stands for a third-octave IR's top-level report.
+  const OmniIrResult& r = thirdOctave ? thirds->passes[1] : result->front();
+  const AudioBuffer& irOut = thirdOctave ? thirds->ir : r.ir;
 
   // The result's own report (shared with the Python package), then what
   // only the command knows.
   nlohmann::json report = nlohmann::json::parse(irReportJson(r, settings, !tracer->empty()));
   for (auto& [key, value] : report.items()) stats[key] = std::move(value);
+  stats["bands"] = o.bands;
+  if (thirdOctave) {
+    nlohmann::json t;
+    std::vector<double> centers, nominal(kThirdOctaveNominalHz.begin(), kThirdOctaveNominalHz.end());
+    for (int j = 0; j < kNumThirdOctaveBands; ++j) centers.push_back(thirdOctaveCenterHz(j));
+    t["bands_hz"] = nominal;
+    t["centers_hz"] = centers;
+    const ThirdOctaveDecay d = tracedDecay(*thirds);
+    auto orNull = [](const std::array<double, kNumThirdOctaveBands>& v) {
+      nlohmann::json a = nlohmann::json::array();
+      for (double x : v) a.push_back(std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(nullptr));
+      return a;
+    };
+    t["decay"] = {{"edt_s", orNull(d.edtSeconds)}, {"t20_s", orNull(d.t20Seconds)}, {"t30_s", orNull(d.t30Seconds)}};
+    for (int p = 0; p < kThirdOctavePasses; ++p) {
+      OmniIrSettings ps = settings;
+      ps.air.bandShiftOctaves = thirdOctavePassShift(p);
+      nlohmann::json pass = nlohmann::json::parse(irReportJson(thirds->passes[size_t(p)], ps, !tracer->empty()));
+      pass["shift_octaves"] = thirdOctavePassShift(p);
+      t["passes"].push_back(std::move(pass));
+    }
+    t["combine_ms"] = thirds->combineMs;
+    stats["third_octave"] = std::move(t);
+  }
   stats["quality"] = o.quality;
   stats["receiver"] = o.receiver;
   stats["trace"] = o.trace;
@@ -183,7 +227,7 @@ int run(const IrOptions& o, const CLI::App& cmd) {
   if (stats["silent"].get<bool>()) warn("the IR is silent: nothing of the source reaches the listener", warnings);
 
   uint64_t clipped = 0;
-  if (!check(writeAudioFile(o.output, r.ir, &clipped))) return 2;
+  if (!check(writeAudioFile(o.output, irOut, &clipped))) return 2;
   if (clipped > 0)
     warn(std::to_string(clipped) + " samples beyond full scale were clipped in " + o.output +
              " (a source closer than 1 m; .wav keeps them as float)",
@@ -253,6 +297,13 @@ const Registrar registrar([](CLI::App& root) {
                   "Stop tracing once the late histogram's estimated error (every 10 ms window within 20 dB of its "
                   "peak) is below this many dB; rays_traced in --json says how many were (0 = all rays)")
       ->check(CLI::Range(0.0, 20.0))
+      ->capture_default_str();
+  cmd->add_option("--bands", o->bands,
+                  "Frequency bands: octave (125 Hz - 8 kHz) or third-octave (100 Hz - 10 kHz, 21 bands: three "
+                  "passes of the octave pipeline shifted by a third of an octave, combined; materials given in "
+                  "third octaves are used as such; about 3x the time; omni and ambisonic receivers; the per-band "
+                  "traced decay in --json's third_octave)")
+      ->check(CLI::IsMember({"octave", "third-octave"}))
       ->capture_default_str();
   cmd->callback([o, cmd] { setExitCode(run(*o, *cmd)); });
 });
