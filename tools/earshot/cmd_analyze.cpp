@@ -24,7 +24,22 @@ struct AnalyzeOptions {
   std::string path;
   bool json = false;
   int channel = -1;
+  std::string bands = "octave";
 };
+
+// Band b of `count` results (the last is broadband): octaves by
+// analysis::bandLabel, third octaves by their nominal names.
+std::string bandName(int b, size_t count) {
+  if (size_t(b) + 1 == count) return "broadband";
+  if (count != size_t(analysis::kThirdOctaveAnalysisBandCount)) return analysis::bandLabel(b);
+  const double f = kThirdOctaveNominalHz[size_t(b)];
+  char buf[32];
+  if (f >= 1000.0)
+    std::snprintf(buf, sizeof buf, "%g kHz", f / 1000.0);
+  else
+    std::snprintf(buf, sizeof buf, "%g Hz", f);
+  return buf;
+}
 
 std::string channelLabel(size_t index, size_t count) {
   if (count == 1) return "mono";
@@ -49,9 +64,9 @@ std::string cell(Metric m, double v) {
 
 nlohmann::ordered_json number(double v) { return std::isfinite(v) ? nlohmann::ordered_json(v) : nlohmann::ordered_json(nullptr); }
 
-nlohmann::ordered_json bandJson(int band, const BandMetrics& m) {
+nlohmann::ordered_json bandJson(const std::string& label, const BandMetrics& m) {
   nlohmann::ordered_json j;
-  j["band"] = analysis::bandLabel(band);
+  j["band"] = label;
   j["center_hz"] = m.bandCenterHz;
   nlohmann::ordered_json notes = nlohmann::ordered_json::object();
   for (Metric k : analysis::kAllMetrics) {
@@ -72,29 +87,30 @@ nlohmann::ordered_json bandJson(int band, const BandMetrics& m) {
 void printTable(const std::vector<BandMetrics>& bands) {
   std::printf("  %-10s %8s %8s %8s %8s %8s %7s %8s\n", "band", "EDT s", "T20 s", "T30 s", "C50 dB", "C80 dB", "D50",
               "Ts ms");
-  for (int b = 0; b < analysis::kAnalysisBandCount; ++b) {
+  for (int b = 0; b < int(bands.size()); ++b) {
     const BandMetrics& m = bands[size_t(b)];
-    std::printf("  %-10s %8s %8s %8s %8s %8s %7s %8s\n", analysis::bandLabel(b).c_str(),
+    std::printf("  %-10s %8s %8s %8s %8s %8s %7s %8s\n", bandName(b, bands.size()).c_str(),
                 cell(Metric::kEdt, m.edtS).c_str(), cell(Metric::kT20, m.t20S).c_str(),
                 cell(Metric::kT30, m.t30S).c_str(), cell(Metric::kC50, m.c50Db).c_str(),
                 cell(Metric::kC80, m.c80Db).c_str(), cell(Metric::kD50, m.d50).c_str(),
                 cell(Metric::kTs, m.tsS).c_str());
   }
   // Reasons, one line per distinct reason and band.
-  for (int b = 0; b < analysis::kAnalysisBandCount; ++b) {
+  for (int b = 0; b < int(bands.size()); ++b) {
     const BandMetrics& m = bands[size_t(b)];
+    const std::string label = bandName(b, bands.size());
     std::string last;
     std::string names;
     for (Metric k : analysis::kAllMetrics) {
       if (m.reason(k).empty()) continue;
       if (m.reason(k) != last && !names.empty()) {
-        std::printf("  n/a %s %s: %s\n", analysis::bandLabel(b).c_str(), names.c_str(), last.c_str());
+        std::printf("  n/a %s %s: %s\n", label.c_str(), names.c_str(), last.c_str());
         names.clear();
       }
       names += names.empty() ? analysis::metricName(k) : std::string(",") + analysis::metricName(k);
       last = m.reason(k);
     }
-    if (!names.empty()) std::printf("  n/a %s %s: %s\n", analysis::bandLabel(b).c_str(), names.c_str(), last.c_str());
+    if (!names.empty()) std::printf("  n/a %s %s: %s\n", label.c_str(), names.c_str(), last.c_str());
   }
 }
 
@@ -175,7 +191,9 @@ void runAnalyze(const AnalyzeOptions& o) {
     printError(o.path + ": no samples (empty audio file)");
     return;
   }
-  auto result = analysis::analyzeAudio(*audio, {}, o.channel);
+  analysis::AnalysisOptions options;
+  if (o.bands == "third-octave") options.bands = analysis::AnalysisOptions::Bands::kThirdOctave;
+  auto result = analysis::analyzeAudio(*audio, options, o.channel);
   if (!result) {
     printError(o.path + ": " + result.status().message());
     return;
@@ -204,7 +222,8 @@ void runAnalyze(const AnalyzeOptions& o) {
       cj["channel"] = c;
       cj["label"] = channelLabel(c, count);
       cj["bands"] = nlohmann::ordered_json::array();
-      for (int b = 0; b < analysis::kAnalysisBandCount; ++b) cj["bands"].push_back(bandJson(b, result->channels[i][size_t(b)]));
+      const std::vector<BandMetrics>& bands = result->channels[i];
+      for (int b = 0; b < int(bands.size()); ++b) cj["bands"].push_back(bandJson(bandName(b, bands.size()), bands[size_t(b)]));
       j["channels"].push_back(cj);
     }
     if (isBinaural) j["binaural"] = binauralJson(*binaural);
@@ -215,7 +234,7 @@ void runAnalyze(const AnalyzeOptions& o) {
               count == 1 ? "" : "s", audio->sampleRateHz, double(audio->frameCount()) / audio->sampleRateHz);
   for (size_t i = 0; i < result->channels.size(); ++i) {
     const size_t c = o.channel >= 0 ? size_t(o.channel) : i;
-    const BandMetrics& bb = result->channels[i][analysis::kBroadbandIndex];
+    const BandMetrics& bb = result->channels[i].back();  // broadband
     std::printf("channel %zu (%s): direct sound at %.2f ms\n", c, channelLabel(c, count).c_str(), bb.onsetS * 1000.0);
     printTable(result->channels[i]);
   }
@@ -226,13 +245,21 @@ const Registrar registrar([](CLI::App& root) {
   auto o = std::make_shared<AnalyzeOptions>();
   CLI::App* cmd = root.add_subcommand(
       "analyze",
-      "ISO 3382-1 parameters (EDT, T20, T30, C50, C80, D50, Ts) per octave band 125 Hz-8 kHz and broadband, per "
+      "ISO 3382-1 parameters (EDT, T20, T30, C50, C80, D50, Ts) per octave band 125 Hz-8 kHz (or third octave, "
+      "--bands) and broadband, per "
       "channel; for a 2-channel (left, right) IR also the binaural cues: ITD and ILD of the direct sound, IACC of "
       "the early (0-80 ms) and late (80 ms-end) parts per band");
   cmd->add_option("IR", o->path, "impulse response (WAV or any format libsndfile reads)")->required();
   cmd->add_flag("--json", o->json, "write a JSON object to stdout instead of the table");
   cmd->add_option("--channel", o->channel, "analyse only this channel (0 = left, 1 = right; no binaural cues)")
       ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--bands", o->bands,
+                  "bands of the ISO 3382-1 parameters: octave (125 Hz-8 kHz) or third-octave (100 Hz-10 kHz, 21 "
+                  "bands; zero-phase 1/3-octave filters, -36 dB at the neighbouring bands' centres, whose longer "
+                  "ringing makes decays under 45 / fc (EDT) and 36 / fc (T20, T30) n/a); the binaural cues stay in "
+                  "octaves")
+      ->check(CLI::IsMember({"octave", "third-octave"}))
+      ->capture_default_str();
   cmd->footer(
       "Binaural cues (2-channel IR, no --channel), times from the direct sound:\n"
       "  ITD  arrival(right) - arrival(left), us: positive = left ear leads (source on the left);\n"

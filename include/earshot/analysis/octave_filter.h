@@ -55,4 +55,16 @@ bool octaveBandAvailable(double rateHz, double centerHz);
  *  the energy outside is below -50 dB of the total. */
 size_t octaveBandGuardSamples(double rateHz, double centerHz);
 
+/** Fractional-octave bands, `bandwidthOctaves` wide (1/3: third octaves):
+ *  edges at centre x 2^(-+bandwidth / 2), -3 dB there, 0 dB at the centre.
+ *  Bandwidth 1 is the octave filter above; narrower bands are weighted in
+ *  the frequency domain (zero phase) by a Butterworth band-pass's shape on
+ *  the pre-warped axis with the skirts of a sixth-order band-pass run
+ *  forward and backward: a third octave passes its neighbours' centres at
+ *  about -36 dB. Same output layout (guards) as octaveBandFilter. */
+bool fractionalOctaveBandAvailable(double rateHz, double centerHz, double bandwidthOctaves);
+size_t fractionalOctaveBandGuardSamples(double rateHz, double centerHz, double bandwidthOctaves);
+void fractionalOctaveBandFilterInto(const float* signal, size_t count, double rateHz, double centerHz,
+                                    double bandwidthOctaves, std::vector<double>& out, size_t* preGuardSamples);
+
 }  // namespace earshot::analysis

@@ -92,6 +92,10 @@ struct AnalysisOptions {
   DirectSound direct = DirectSound::kInclude;
   double directBeforeS = 0.0005;
   double directAfterS = 0.0025;
+  /** Octaves (kAnalysisBandCount results) or third octaves
+   *  (kThirdOctaveAnalysisBandCount: thirdOctaveCenterHz(j), j < 21, then
+   *  broadband). */
+  enum class Bands { kOctave, kThirdOctave } bands = Bands::kOctave;
 };
 
 /** Parameters of a signal that is already band-limited (or broadband), with
@@ -111,10 +115,15 @@ inline BandMetrics analyzeBandSignal(const std::vector<float>& signal, double ra
 /** Number of results analyzeIr returns: kNumBands octave bands then broadband. */
 constexpr int kAnalysisBandCount = kNumBands + 1;
 constexpr int kBroadbandIndex = kNumBands;
+/** With AnalysisOptions::Bands::kThirdOctave: 21 third octaves then broadband (last). */
+constexpr int kThirdOctaveAnalysisBandCount = kNumThirdOctaveBands + 1;
 
 /** ISO 3382-1 parameters of a one-channel IR: element b < kNumBands is the
  *  octave band kBandCentersHz[b] (zero-phase octave filter, see
- *  octave_filter.h), element kBroadbandIndex is the unfiltered IR. The onset
+ *  octave_filter.h), element kBroadbandIndex is the unfiltered IR (with
+ *  third octaves, options.bands: 21 bands through 1/3-octave filters, which
+ *  ring longer: EDT below 45 / fc and T20/T30 below 36 / fc are n/a;
+ *  broadband last). The onset
  *  is detected once on the broadband IR and used for every band. A band's
  *  EDT below 12 / fc and T20/T30 below 8 / fc (125 Hz: 96 ms, 64 ms) are n/a:
  *  there the octave filter's own ringing biases them by over 1 JND. Errors
