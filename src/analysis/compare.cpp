@@ -2,6 +2,8 @@
 // (ISO 3382-1:2009, Annex A, Table A.1) and tolerance files.
 #include "earshot/analysis/compare.h"
 
+#include <algorithm>
+
 #include "earshot/io/input_file.h"
 
 #include <nlohmann/json.hpp>
@@ -56,6 +58,42 @@ std::string bandLabel(int band) {
     std::snprintf(buf, sizeof buf, "%g Hz", f);
   return buf;
 }
+
+Result<int> parseThirdOctaveBandName(const std::string& name) {
+  std::string s;
+  for (char c : name)
+    if (c != ' ') s.push_back(char(std::tolower(static_cast<unsigned char>(c))));
+  if (s == "broadband" || s == "bb" || s == "0" || s == "all") return kNumThirdOctaveBands;
+  double scale = 1.0;
+  if (s.size() > 2 && s.compare(s.size() - 2, 2, "hz") == 0) s.resize(s.size() - 2);
+  if (!s.empty() && s.back() == 'k') {
+    scale = 1000.0;
+    s.pop_back();
+  }
+  char* end = nullptr;
+  const double v = std::strtod(s.c_str(), &end);
+  if (!s.empty() && end == s.c_str() + s.size()) {
+    for (int j = 0; j < kNumThirdOctaveBands; ++j)
+      if (std::abs(v * scale - kThirdOctaveNominalHz[size_t(j)]) < 0.5) return j;
+  }
+  return invalidArgument("unknown third-octave band \"" + name.substr(0, 32) +
+                         "\" (expected a nominal centre 100, 125, 160 .. 10000 or broadband)");
+}
+
+std::string bandLabel(int band, size_t count) {
+  if (count != size_t(kThirdOctaveAnalysisBandCount)) return bandLabel(band);
+  if (band == kNumThirdOctaveBands) return "broadband";
+  if (band < 0 || band > kNumThirdOctaveBands) return "?";
+  const double f = kThirdOctaveNominalHz[size_t(band)];
+  char buf[32];
+  if (f >= 1000.0)
+    std::snprintf(buf, sizeof buf, "%g kHz", f / 1000.0);
+  else
+    std::snprintf(buf, sizeof buf, "%g Hz", f);
+  return buf;
+}
+
+int octaveOfThirdOctave(int j) { return std::clamp(int(std::lround(double(j - 1) / 3.0)), 0, kNumBands - 1); }
 
 Result<int> parseBandName(const std::string& name) {
   std::string s;
@@ -172,23 +210,29 @@ Result<ToleranceSpec> loadToleranceFile(const std::string& path) {
 
 Result<Comparison> compareMetrics(const std::vector<BandMetrics>& test, const std::vector<BandMetrics>& reference,
                                   const CompareOptions& options) {
-  if (test.size() != size_t(kAnalysisBandCount) || reference.size() != size_t(kAnalysisBandCount))
-    return invalidArgument("compareMetrics: expected " + std::to_string(kAnalysisBandCount) + " bands, got " +
+  const int count = int(test.size());
+  if (test.size() != reference.size() || (count != kAnalysisBandCount && count != kThirdOctaveAnalysisBandCount))
+    return invalidArgument("compareMetrics: expected " + std::to_string(kAnalysisBandCount) + " bands (or " +
+                           std::to_string(kThirdOctaveAnalysisBandCount) + ", third octaves) in both, got " +
                            std::to_string(test.size()) + " and " + std::to_string(reference.size()));
+  const bool thirds = count == kThirdOctaveAnalysisBandCount;
+  // The tolerance's band: an octave's own; a third octave's octave's.
+  auto toleranceBand = [&](int b) { return !thirds ? b : b == count - 1 ? kBroadbandIndex : octaveOfThirdOctave(b); };
   std::vector<int> bands = options.bands;
   if (bands.empty())
-    for (int b = 0; b < kAnalysisBandCount; ++b) bands.push_back(b);
+    for (int b = 0; b < count; ++b) bands.push_back(b);
   Comparison out;
   for (int b : bands) {
-    if (b < 0 || b >= kAnalysisBandCount) return invalidArgument("compareMetrics: band index " + std::to_string(b) + " is out of range");
+    if (b < 0 || b >= count) return invalidArgument("compareMetrics: band index " + std::to_string(b) + " is out of range");
+    const int tb = toleranceBand(b);
     for (Metric m : kAllMetrics) {
       MetricDifference row;
       row.metric = m;
       row.band = b;
       row.testValue = test[size_t(b)].value(m);
       row.referenceValue = reference[size_t(b)].value(m);
-      row.limitJnd = options.tolerance.limit(m, b);
-      if (!options.tolerance.isEnabled(m, b)) {
+      row.limitJnd = options.tolerance.limit(m, tb);
+      if (!options.tolerance.isEnabled(m, tb)) {
         row.note = "disabled by tolerance";
       } else if (std::isnan(row.referenceValue)) {
         row.note = "reference n/a: " + reference[size_t(b)].reason(m);

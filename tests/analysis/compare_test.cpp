@@ -153,5 +153,49 @@ TEST(Compare, BandNamesParse) {
   EXPECT_EQ(bandLabel(0), "125 Hz");
 }
 
+// Third octaves (issue 20): 21 bands and broadband compared, each third
+// octave under its octave's tolerance (files name octaves), names parsed by
+// their nominal centres; mixed band counts are an error.
+TEST(Compare, ThirdOctavesTakeTheirOctavesTolerance) {
+  std::vector<BandMetrics> ref(kThirdOctaveAnalysisBandCount), test;
+  for (auto& m : ref) {
+    m.edtS = m.t20S = m.t30S = 1.0;
+    m.c50Db = 0.0;
+    m.c80Db = 3.0;
+    m.d50 = 0.5;
+    m.tsS = 0.08;
+  }
+  test = ref;
+  test[5].t20S = 1.08;  // 315 Hz: 1.6 JND
+  auto tol = parseTolerance(R"({"metrics": {"T20": {"bands": {"250": 2.0}}}})", "tol");
+  ASSERT_TRUE(tol.isOk());
+  CompareOptions options;
+  options.tolerance = *tol;
+  auto c = compareMetrics(test, ref, options);
+  ASSERT_TRUE(c.isOk()) << c.status().message();
+  EXPECT_EQ(c->failures, 0) << "315 Hz lies in the 250 Hz octave, whose T20 limit is 2 JND";
+  EXPECT_NEAR(c->worstJnd, 1.6, 1e-9);
+  test[5].t20S = 1.0;
+  test[6].t20S = 1.08;  // 400 Hz: the 500 Hz octave, 1 JND
+  c = compareMetrics(test, ref, options);
+  ASSERT_TRUE(c.isOk());
+  ASSERT_EQ(c->failures, 1);
+  for (const MetricDifference& r : c->rows)
+    if (r.verdict == Verdict::kFail) {
+      EXPECT_EQ(r.band, 6);
+      EXPECT_EQ(bandLabel(r.band, ref.size()), "400 Hz");
+    }
+  EXPECT_EQ(octaveOfThirdOctave(0), 0);
+  EXPECT_EQ(octaveOfThirdOctave(2), 0);
+  EXPECT_EQ(octaveOfThirdOctave(3), 1);
+  EXPECT_EQ(octaveOfThirdOctave(20), kNumBands - 1);
+  EXPECT_EQ(*parseThirdOctaveBandName("3150"), 15);
+  EXPECT_EQ(*parseThirdOctaveBandName("1.25k"), 11);
+  EXPECT_EQ(*parseThirdOctaveBandName("broadband"), kNumThirdOctaveBands);
+  EXPECT_FALSE(parseThirdOctaveBandName("300").isOk());
+  EXPECT_EQ(bandLabel(kNumThirdOctaveBands, ref.size()), "broadband");
+  EXPECT_FALSE(compareMetrics(test, std::vector<BandMetrics>(kAnalysisBandCount), {}).isOk());
+}
+
 }  // namespace
 }  // namespace earshot::analysis

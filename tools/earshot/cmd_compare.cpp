@@ -30,6 +30,7 @@ struct CompareCliOptions {
   bool ignoreDirect = false;
   std::string window;
   int channel = -1;
+  bool thirdOctaves = false;
 };
 
 std::string value(Metric m, double v) {
@@ -83,7 +84,7 @@ void runCompare(const CompareCliOptions& o) {
     std::stringstream ss(o.bands);
     std::string item;
     while (std::getline(ss, item, ',')) {
-      auto b = analysis::parseBandName(item);
+      auto b = o.thirdOctaves ? analysis::parseThirdOctaveBandName(item) : analysis::parseBandName(item);
       if (!b) {
         printError("--bands: " + b.status().message());
         return;
@@ -92,6 +93,8 @@ void runCompare(const CompareCliOptions& o) {
     }
   }
   analysis::AnalysisOptions ao;
+  if (o.thirdOctaves) ao.bands = analysis::AnalysisOptions::Bands::kThirdOctave;
+  const size_t bandCount = size_t(o.thirdOctaves ? analysis::kThirdOctaveAnalysisBandCount : analysis::kAnalysisBandCount);
   if (!o.window.empty() && !parseWindow(o.window, ao.windowStartS, ao.windowEndS)) {
     printError("--window: '" + o.window + "' is not START,END in seconds with 0 <= START < END");
     return;
@@ -162,7 +165,7 @@ void runCompare(const CompareCliOptions& o) {
       cj["rows"] = nlohmann::ordered_json::array();
       for (const MetricDifference& r : c.rows) {
         nlohmann::ordered_json rj;
-        rj["band"] = analysis::bandLabel(r.band);
+        rj["band"] = analysis::bandLabel(r.band, bandCount);
         rj["metric"] = analysis::metricName(r.metric);
         rj["ir"] = number(r.testValue);
         rj["reference"] = number(r.referenceValue);
@@ -183,7 +186,7 @@ void runCompare(const CompareCliOptions& o) {
                   "limit", "verdict");
       for (const MetricDifference& r : c.rows) {
         const char* verdict = r.verdict == Verdict::kPass ? "ok" : r.verdict == Verdict::kFail ? "FAIL" : "skipped";
-        std::printf("  %-10s %-6s %12s %12s %8s %6.2f  %s%s%s\n", analysis::bandLabel(r.band).c_str(),
+        std::printf("  %-10s %-6s %12s %12s %8s %6.2f  %s%s%s\n", analysis::bandLabel(r.band, bandCount).c_str(),
                     analysis::metricName(r.metric), value(r.metric, r.testValue).c_str(),
                     value(r.metric, r.referenceValue).c_str(), jnd(r.differenceJnd).c_str(), r.limitJnd, verdict,
                     r.note.empty() ? "" : ": ", r.note.c_str());
@@ -193,7 +196,7 @@ void runCompare(const CompareCliOptions& o) {
       for (const MetricDifference& r : c.rows)
         if (r.verdict == Verdict::kFail)
           std::printf("FAIL channel %zu %s %s: %s vs %s = %s JND (limit %.2f)%s%s\n", ch, analysis::metricName(r.metric),
-                      analysis::bandLabel(r.band).c_str(), value(r.metric, r.testValue).c_str(),
+                      analysis::bandLabel(r.band, bandCount).c_str(), value(r.metric, r.testValue).c_str(),
                       value(r.metric, r.referenceValue).c_str(), jnd(r.differenceJnd).c_str(), r.limitJnd,
                       r.note.empty() ? "" : "; ", r.note.c_str());
     if (failures == 0)
@@ -211,7 +214,12 @@ const Registrar registrar([](CLI::App& root) {
   cmd->add_option("IR", o->irPath, "impulse response to judge")->required();
   cmd->add_option("REF", o->refPath, "reference impulse response")->required();
   cmd->add_flag("--json", o->json, "write a JSON object to stdout instead of the table");
-  cmd->add_option("--bands", o->bands, "bands to compare, e.g. 250,500,1000,broadband (default: all 7 and broadband)");
+  cmd->add_option("--bands", o->bands,
+                  "bands to compare, e.g. 250,500,1000,broadband (default: all 7 and broadband; with "
+                  "--third-octaves nominal third octaves, e.g. 315,400,broadband)");
+  cmd->add_flag("--third-octaves", o->thirdOctaves,
+                "compare in the 21 third octaves 100 Hz-10 kHz (earshot analyze --bands third-octave); each takes the "
+                "tolerance file's limit of the octave it lies in");
   cmd->add_option("--tolerance", o->tolerancePath,
                   "JSON file with limits in JND per metric and band, metrics disabled with false (default 1 JND)");
   cmd->add_flag("--align-direct", o->alignDirect,

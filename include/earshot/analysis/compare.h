@@ -56,12 +56,23 @@ Result<int> parseBandName(const std::string& name);
 /** "125 Hz" .. "8 kHz", "broadband". */
 std::string bandLabel(int band);
 
+/** Third octaves (AnalysisOptions::Bands::kThirdOctave; issue 20): index
+ *  j < 21 by its nominal name ("100" .. "10000", "1.25k", "3150 Hz"),
+ *  kNumThirdOctaveBands for broadband. Errors name the value. */
+Result<int> parseThirdOctaveBandName(const std::string& name);
+/** Band `band` of an analysis of `count` results (octaves or third octaves):
+ *  "100 Hz" .. "10 kHz" for third octaves, else as bandLabel. */
+std::string bandLabel(int band, size_t count);
+/** The octave band (index < kNumBands) a third octave lies in: whose
+ *  tolerance it takes from a ToleranceSpec (files name octaves). */
+int octaveOfThirdOctave(int thirdOctave);
+
 enum class Verdict { kPass, kFail, kSkipped };
 
 /** One metric in one band. */
 struct MetricDifference {
   Metric metric = Metric::kEdt;
-  int band = 0;                 ///< index < kAnalysisBandCount
+  int band = 0;                 ///< index into the analysis's bands (octaves or third octaves, broadband last)
   double testValue = kNaN;
   double referenceValue = kNaN;
   double differenceJnd = kNaN;  ///< signed, (test - reference) / JND
@@ -82,7 +93,10 @@ struct CompareOptions {
   ToleranceSpec tolerance;
 };
 
-/** Compares per-band results of analyzeIr (both kAnalysisBandCount long).
+/** Compares per-band results of analyzeIr (both kAnalysisBandCount long, or
+ *  both kThirdOctaveAnalysisBandCount: third octaves, each with the
+ *  tolerance of its octave, octaveOfThirdOctave; options.bands then index
+ *  third octaves).
  *  Rules: a metric n/a in the reference is skipped (noted); n/a in the test
  *  but not in the reference fails. Errors: wrong sizes, bad band index. */
 Result<Comparison> compareMetrics(const std::vector<BandMetrics>& test, const std::vector<BandMetrics>& reference,
