@@ -145,32 +145,22 @@ Result<std::shared_ptr<const BinauralModel>> BinauralModel::create(std::shared_p
   std::vector<kiss_fft_cpx> scratch(gridBins);
   std::vector<std::complex<double>> h[2] = {std::vector<std::complex<double>>(gridBins),
                                             std::vector<std::complex<double>>(gridBins)};
-  std::vector<BandArrayD> bandWeight2(gridBins);
-  for (size_t k = 0; k < gridBins; ++k) {
-    bandWeight2[k] = noiseBandWeights(double(k) * fs / double(grid));  // the late noise's bands
-    for (double& w : bandWeight2[k]) w *= w;
-  }
   m->mPower[0].assign(gridBins, 0.0);
   m->mPower[1].assign(gridBins, 0.0);
   m->mCross.assign(gridBins, 0.0);
-  std::vector<double> bandEnergy(count * 2 * kNumBands, 0.0);
   m->mGridPower.resize(count * 2 * gridBins);
-  BandArrayD diffuseBand[2] = {filledBands(0.0), filledBands(0.0)};
   for (size_t i = 0; i < count; ++i) {
     const hrtf::HrtfMeasurement meas = set->measurement(i);
     gridSpectrum(fft, padded, meas.left, taps, scratch, h[0].data());
     gridSpectrum(fft, padded, meas.right, taps, scratch, h[1].data());
     const double w = m->mMeasurementWeight[i];
     for (int ear = 0; ear < 2; ++ear) {
-      double* e = &bandEnergy[(i * 2 + size_t(ear)) * kNumBands];
       float* power = &m->mGridPower[(i * 2 + size_t(ear)) * gridBins];
       for (size_t k = 0; k < gridBins; ++k) {
         const double p = std::norm(h[ear][k]);
         power[k] = float(p);
-        for (int b = 0; b < kNumBands; ++b) e[b] += bandWeight2[k][b] * p;
         m->mPower[ear][k] += w * p;
       }
-      for (int b = 0; b < kNumBands; ++b) diffuseBand[ear][b] += w * e[b];
     }
     if (w > 0) {
       // The ears' delays as a phase on the cross-spectrum: e^(-2 pi i k d)
@@ -187,14 +177,7 @@ Result<std::shared_ptr<const BinauralModel>> BinauralModel::create(std::shared_p
       }
     }
   }
-  m->mRelativeBandEnergy.resize(bandEnergy.size());
-  for (size_t i = 0; i < count; ++i)
-    for (int ear = 0; ear < 2; ++ear)
-      for (int b = 0; b < kNumBands; ++b) {
-        const size_t at = (i * 2 + size_t(ear)) * kNumBands + size_t(b);
-        const double p = diffuseBand[ear][b];
-        m->mRelativeBandEnergy[at] = p > 0 ? float(bandEnergy[at] / p) : 1.0f;
-      }
+  m->mRelativeBandEnergy = m->relativeBandEnergyTable(0.0);
 
   // Cholesky factor of the diffuse-field cross-spectral matrix.
   m->mLeft.resize(gridBins);
@@ -227,12 +210,60 @@ Result<std::shared_ptr<const BinauralModel>> loadBinauralModel(const std::string
   return BinauralModel::create(*set);
 }
 
-BandArrayD BinauralModel::relativeBandEnergy(const Vec3f& headDirection, int ear) const {
+// [measurement][ear][band]: each measurement's band energies (through the
+// late noise's band weights at bands shifted by `shift`) over the ear's
+// diffuse-field band energy, from the grid powers.
+std::vector<float> BinauralModel::relativeBandEnergyTable(double shift) const {
+  const size_t count = mHrtf->measurementCount(), grid = mGridSize, gridBins = grid / 2 + 1;
+  const double bandFs = mHrtf->sampleRateHz() * std::exp2(-shift);  // as SpectralSynth: exactly fs for the octaves
+  std::vector<BandArrayD> bandWeight2(gridBins);
+  for (size_t k = 0; k < gridBins; ++k) {
+    bandWeight2[k] = noiseBandWeights(double(k) * bandFs / double(grid));  // the late noise's bands
+    for (double& w : bandWeight2[k]) w *= w;
+  }
+  std::vector<double> bandEnergy(count * 2 * kNumBands, 0.0);
+  BandArrayD diffuseBand[2] = {filledBands(0.0), filledBands(0.0)};
+  for (size_t i = 0; i < count; ++i) {
+    const double w = mMeasurementWeight[i];
+    for (int ear = 0; ear < 2; ++ear) {
+      double* e = &bandEnergy[(i * 2 + size_t(ear)) * kNumBands];
+      const float* power = &mGridPower[(i * 2 + size_t(ear)) * gridBins];
+      for (size_t k = 0; k < gridBins; ++k) {
+        const double p = double(power[k]);
+        for (int b = 0; b < kNumBands; ++b) e[b] += bandWeight2[k][b] * p;
+      }
+      for (int b = 0; b < kNumBands; ++b) diffuseBand[ear][b] += w * e[b];
+    }
+  }
+  std::vector<float> table(bandEnergy.size());
+  for (size_t i = 0; i < count; ++i)
+    for (int ear = 0; ear < 2; ++ear)
+      for (int b = 0; b < kNumBands; ++b) {
+        const size_t at = (i * 2 + size_t(ear)) * kNumBands + size_t(b);
+        const double p = diffuseBand[ear][b];
+        table[at] = p > 0 ? float(bandEnergy[at] / p) : 1.0f;
+      }
+  return table;
+}
+
+BandArrayD BinauralModel::relativeBandEnergy(const Vec3f& headDirection, int ear, double bandShiftOctaves) const {
+  const std::vector<float>* table = &mRelativeBandEnergy;
+  std::shared_ptr<const std::vector<float>> shifted;
+  if (bandShiftOctaves != 0.0) {
+    std::lock_guard<std::mutex> lock(mShiftedMutex);
+    for (const auto& [shift, t] : mShiftedBandEnergy)
+      if (shift == bandShiftOctaves) shifted = t;
+    if (!shifted) {
+      shifted = std::make_shared<const std::vector<float>>(relativeBandEnergyTable(bandShiftOctaves));
+      mShiftedBandEnergy.emplace_back(bandShiftOctaves, shifted);
+    }
+    table = shifted.get();
+  }
   const hrtf::InterpolationWeights w = mHrtf->weights(headDirection);
   BandArrayD out = filledBands(0.0);
   for (int k = 0; k < w.count; ++k)
     for (int b = 0; b < kNumBands; ++b)
-      out[b] += double(w.weight[k]) * mRelativeBandEnergy[(w.index[k] * 2 + size_t(ear)) * kNumBands + size_t(b)];
+      out[b] += double(w.weight[k]) * (*table)[(w.index[k] * 2 + size_t(ear)) * kNumBands + size_t(b)];
   return out;
 }
 
@@ -289,7 +320,7 @@ Result<AudioBuffer> synthesizeBinauralIr(const std::vector<Arrival>& arrivals, c
       const double a = std::min(1.0, len / mean);
       const Vec3f head(toHeadFrame(sum / len, orientation));
       for (int ear = 0; ear < 2; ++ear) {
-        const BandArrayD rel = model.relativeBandEnergy(head, ear);
+        const BandArrayD rel = model.relativeBandEnergy(head, ear, settings.bandShiftOctaves);
         for (int b = 0; b < kNumBands; ++b) gain[ear][b][bin] = float((1.0 - a) + a * rel[b]);
       }
     }

@@ -121,8 +121,6 @@ Status prepareIr(const RayTracer& tracer, const MaterialTable& materials, const 
   synth.noiseKey = noiseKeyOf(source, listener);
   synth.bandShiftOctaves = s.air.bandShiftOctaves;
   EARSHOT_RETURN_IF_ERROR(validate(synth));
-  if (binaural && s.air.bandShiftOctaves != 0.0)
-    return invalidArgument("third-octave bands: binaural IRs are not supported yet (omni and ambisonic are)");
   if (binaural && ambisonic) return invalidArgument("a receiver is binaural or ambisonic, not both");
   if (ambisonic && (ambisonic->order < 1 || ambisonic->order > kMaxAmbisonicOrder))
     return invalidArgument("ambisonic order " + std::to_string(ambisonic->order) + " is outside [1, " +

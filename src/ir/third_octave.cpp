@@ -69,7 +69,7 @@ double thirdOctavePassWeight(int pass, double hz) {
 Result<ThirdOctaveIrResult> computeIrThirdOctave(const RayTracer& tracer, const MaterialTable& materials,
                                                  const Vec3d& source, const Vec3d& listener,
                                                  const OmniIrSettings& settings, ThreadPool& pool,
-                                                 const AmbisonicReceiver* ambisonic) {
+                                                 const BinauralReceiver* binaural, const AmbisonicReceiver* ambisonic) {
   if (settings.air.bandShiftOctaves != 0.0)
     return invalidArgument("a third-octave IR sets each pass's band shift itself; air.bandShiftOctaves must be 0");
   ThirdOctaveIrResult out;
@@ -79,7 +79,7 @@ Result<ThirdOctaveIrResult> computeIrThirdOctave(const RayTracer& tracer, const 
     s.air.bandShiftOctaves = shift;
     s.directivity = shiftedDirectivity(settings.directivity, shift);
     const MaterialTable table = materials.atBandShift(shift);
-    auto r = computeIr(tracer, table, source, listener, s, pool, nullptr, ambisonic);
+    auto r = computeIr(tracer, table, source, listener, s, pool, binaural, ambisonic);
     if (!r.isOk()) return r.status();
     out.passes[size_t(p)] = std::move(r.value());
   }

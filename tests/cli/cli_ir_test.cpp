@@ -317,7 +317,6 @@ INSTANTIATE_TEST_SUITE_P(
         BadInput{"rays", "--rays 0 --source 1,0,0 --listener 0,0,0", "--rays"},
         BadInput{"converge", "--converge 25 --source 1,0,0 --listener 0,0,0", "--converge"},
         BadInput{"probes", "--tail-probes -1 --source 1,0,0 --listener 0,0,0", "--tail-probes"},
-        BadInput{"thirds_binaural", "--bands third-octave --source 1,0,0 --listener 0,0,0", "binaural"},
         BadInput{"thirds_shared", "--bands third-octave --receiver omni --trace shared --source 1,0,0 --listener 0,0,0",
                  "per-source"},
         BadInput{"bands", "--bands sixth --source 1,0,0 --listener 0,0,0", "--bands"}),

@@ -18,6 +18,7 @@
 #include "earshot/core/thread_pool.h"
 #include "earshot/hrtf/coordinates.h"
 #include "earshot/ir/binaural_synthesis.h"
+#include "earshot/ir/third_octave.h"
 #include "earshot/ir/ir_pipeline.h"
 
 namespace earshot {
@@ -236,6 +237,49 @@ TEST(BinauralIr, PulseSetGivesTheOmniIrInBothEarsInARoom) {
   const double peak = peakOf(r.omni.channels[0]);
   for (int ear = 0; ear < 2; ++ear)
     EXPECT_LE(maxDifference(r.binaural.channels[ear], r.omni.channels[0]), 1e-5 * peak) << "ear " << ear;
+}
+
+// Third octaves (issue 20) through the binaural path: with the pulse set
+// (an identity HRTF) each ear is the third-octave omni IR, so each pass's
+// diffuse-field band energies at its shifted bands are the identity's; and
+// the KU100's shifted tables average to one over the sphere, as the
+// octaves' do.
+TEST(BinauralIr, ThirdOctavePulseSetGivesTheOmniIrAndShiftedBandEnergiesAverageToOne) {
+  auto pulse = model(kPulse);
+  ASSERT_TRUE(pulse);
+  testing::Shoebox room(0.2f, 0.5f);
+  OmniIrSettings s;
+  s.rays = 1000;
+  s.bounces = 8;
+  ThreadPool pool(2);
+  BinauralReceiver receiver{pulse, {}};
+  auto omni = computeIrThirdOctave(*room.tracer, room.materials, {2, 3, 1.5}, {7, 4, 1.6}, s, pool);
+  auto bin = computeIrThirdOctave(*room.tracer, room.materials, {2, 3, 1.5}, {7, 4, 1.6}, s, pool, &receiver);
+  ASSERT_TRUE(omni.isOk()) << omni.status().message();
+  ASSERT_TRUE(bin.isOk()) << bin.status().message();
+  ASSERT_EQ(bin->ir.channelCount(), 2u);
+  const double peak = peakOf(omni->ir.channels[0]);
+  for (int ear = 0; ear < 2; ++ear)
+    EXPECT_LE(maxDifference(bin->ir.channels[ear], omni->ir.channels[0]), 1e-5 * peak) << "ear " << ear;
+
+  auto ku100 = model(kKu100);
+  ASSERT_TRUE(ku100);
+  const auto& weights = ku100->measurementWeights();
+  for (double shift : {-1.0 / 3.0, 1.0 / 3.0}) {
+    BandArrayD mean[2] = {filledBands(0.0), filledBands(0.0)};
+    for (size_t i = 0; i < weights.size(); ++i) {
+      const hrtf::HrtfMeasurement m = ku100->hrtf().measurement(i);  // its own direction: that measurement alone
+      for (int ear = 0; ear < 2; ++ear) {
+        const BandArrayD rel = ku100->relativeBandEnergy(m.headDirection, ear, shift);
+        for (int b = 0; b < kNumBands; ++b) mean[ear][size_t(b)] += weights[i] * rel[size_t(b)];
+      }
+    }
+    for (int ear = 0; ear < 2; ++ear)
+      for (int b = 0; b < kNumBands; ++b) EXPECT_NEAR(mean[ear][size_t(b)], 1.0, 0.02) << shift << " " << ear << " " << b;
+  }
+  // Shift 0 is the octave table itself.
+  const Vec3f left(0, 0, -1);
+  EXPECT_EQ(ku100->relativeBandEnergy(left, 0, 0.0), ku100->relativeBandEnergy(left, 0));
 }
 
 // Issue 4 interpolation: for a direction between two neighbouring

@@ -70,10 +70,6 @@ int run(const IrOptions& o, const CLI::App& cmd) {
     return 2;
   }
   const bool thirdOctave = o.bands == "third-octave";
-  if (thirdOctave && o.receiver == "binaural") {
-    printError("--bands third-octave: binaural IRs are not supported yet; use --receiver omni or ambisonic");
-    return 2;
-  }
   if (thirdOctave && o.trace != "per-source") {
     printError("--bands third-octave: traces per source (--trace per-source)");
     return 2;
@@ -177,7 +173,7 @@ int run(const IrOptions& o, const CLI::App& cmd) {
   Result<std::vector<OmniIrResult>> result = std::vector<OmniIrResult>{};
   Result<ThirdOctaveIrResult> thirds = ThirdOctaveIrResult{};
   if (thirdOctave) {
-    thirds = computeIrThirdOctave(*tracer, materials, source, listener, settings, pool, ambisonic.get());
+    thirds = computeIrThirdOctave(*tracer, materials, source, listener, settings, pool, binaural.get(), ambisonic.get());
     if (!check(thirds.status())) return 2;
   } else {
     IrRequest request;
@@ -301,7 +297,7 @@ const Registrar registrar([](CLI::App& root) {
   cmd->add_option("--bands", o->bands,
                   "Frequency bands: octave (125 Hz - 8 kHz) or third-octave (100 Hz - 10 kHz, 21 bands: three "
                   "passes of the octave pipeline shifted by a third of an octave, combined; materials given in "
-                  "third octaves are used as such; about 3x the time; omni and ambisonic receivers; the per-band "
+                  "third octaves are used as such; about 3x the time; every receiver; the per-band "
                   "traced decay in --json's third_octave)")
       ->check(CLI::IsMember({"octave", "third-octave"}))
       ->capture_default_str();

@@ -32,6 +32,7 @@
 #include <array>
 #include <complex>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -100,8 +101,11 @@ class BinauralModel {
   double hrtfSpectrum(const Vec3f& headDirection, int ear, std::vector<std::complex<float>>& out) const;
 
   /** Band energy of the HRTF toward `headDirection` over the diffuse-field band
-   *  energy of that ear (1 on average over the sphere). ear 0 left, 1 right. */
-  BandArrayD relativeBandEnergy(const Vec3f& headDirection, int ear) const;
+   *  energy of that ear (1 on average over the sphere). ear 0 left, 1 right.
+   *  bandShiftOctaves: of the bands shifted so (a third-octave pass,
+   *  third_octave.h), from the same grid powers; each shift's table is made
+   *  on its first use (~0.05 s for the shipped set) and kept. */
+  BandArrayD relativeBandEnergy(const Vec3f& headDirection, int ear, double bandShiftOctaves = 0.0) const;
 
  private:
   BinauralModel() = default;
@@ -118,6 +122,10 @@ class BinauralModel {
   std::vector<std::complex<double>> mCross;
   std::vector<double> mMeasurementWeight;
   std::vector<float> mRelativeBandEnergy;  // [measurement][ear][band]
+  // mRelativeBandEnergy of shifted bands, by shift (made on first use).
+  mutable std::mutex mShiftedMutex;
+  mutable std::vector<std::pair<double, std::shared_ptr<const std::vector<float>>>> mShiftedBandEnergy;
+  std::vector<float> relativeBandEnergyTable(double bandShiftOctaves) const;
   std::vector<float> mGridPower;           // [measurement][ear][grid bin]: |H|^2 with the onset removed
 };
 

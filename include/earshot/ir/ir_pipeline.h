@@ -35,7 +35,7 @@ struct OmniIrSettings {
   uint64_t seed = 1;
   double speedOfSound = 343.0;
   /** Also the bands': air.bandShiftOctaves != 0 shifts every band of the
-   *  IR (air absorption and synthesis; the materials table must be shifted
+   *  IR (air absorption, synthesis, a binaural model's band energies; the materials table must be shifted
    *  to match, MaterialTable::atBandShift): one pass of computeIrThirdOctave. */
   AirConditions air;
   double binSeconds = 0.001;

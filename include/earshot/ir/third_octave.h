@@ -19,9 +19,9 @@
  *  noises are the same white noise, so the crossovers join coherent
  *  signals.
  *
- *  Cost: three IRs and a transform of the IR per pass and channel. Omni and
- *  ambisonic receivers; binaural is not supported yet (the HRTF model's
- *  diffuse-field band energies are per octave). */
+ *  Cost: three IRs and a transform of the IR per pass and channel. Omni,
+ *  binaural (the HRTF model's diffuse-field band energies at each pass's
+ *  bands: BinauralModel::relativeBandEnergy) and ambisonic receivers. */
 #include <array>
 
 #include "earshot/core/bands.h"
@@ -60,6 +60,7 @@ struct ThirdOctaveIrResult {
 Result<ThirdOctaveIrResult> computeIrThirdOctave(const RayTracer& tracer, const MaterialTable& materials,
                                                  const Vec3d& source, const Vec3d& listener,
                                                  const OmniIrSettings& settings, ThreadPool& pool,
+                                                 const BinauralReceiver* binaural = nullptr,
                                                  const AmbisonicReceiver* ambisonic = nullptr);
 
 /** Third-octave band j's traced decay (tracedDecay of its pass, at its band). */
