@@ -26,6 +26,7 @@
 #include "earshot/io/input_file.h"
 #include "earshot/ir/ir_pipeline.h"
 #include "earshot/ir/ir_report.h"
+#include "earshot/ir/third_octave.h"
 #include "earshot/materials/material.h"
 #include "earshot/offline/render_scene.h"
 #include "earshot/render/scene_file.h"
@@ -202,6 +203,7 @@ struct IrOptions {
   std::string quality;
   std::string receiver;
   TraceMode trace = TraceMode::kPerSource;
+  bool thirdOctave = false;  ///< bands="third-octave": computeIrThirdOctave per source
 };
 
 IrOptions makeRequest(const std::string& receiver, const std::array<double, 3>& forward,
@@ -210,8 +212,11 @@ IrOptions makeRequest(const std::string& receiver, const std::array<double, 3>& 
                       std::optional<uint32_t> tailProbes, uint64_t seed, double sampleRate,
                       std::optional<double> lengthSeconds, const std::string& air, const std::string& hrtf,
                       double receiverRadius, double convergeDb, bool flutterCones, int order,
-                      const std::string& trace) {
+                      const std::string& trace, const std::string& bands) {
   IrOptions q;
+  if (bands != "octave" && bands != "third-octave")
+    throw py::value_error("bands: expected 'octave' or 'third-octave', got '" + bands.substr(0, 32) + "'");
+  q.thirdOctave = bands == "third-octave";
   auto mode = traceModeFromString(trace);
   if (!mode.isOk()) throw py::value_error("trace: expected 'per-source', 'shared' or 'auto', got '" + trace.substr(0, 32) + "'");
   q.trace = *mode;
@@ -263,6 +268,8 @@ IrOptions makeRequest(const std::string& receiver, const std::array<double, 3>& 
   s.receiverRadiusMeters = receiverRadius;
   if (!(convergeDb >= 0 && convergeDb <= 20)) throw py::value_error("converge: expected 0 .. 20 dB");
   s.convergenceDb = convergeDb;
+  if (q.thirdOctave && q.trace != TraceMode::kPerSource)
+    throw py::value_error("bands: 'third-octave' traces per source (trace='per-source')");
   if (convergeDb > 0 && q.trace != TraceMode::kPerSource)
     throw py::value_error("converge: works with trace='per-source' only (a shared trace traces every ray)");
   s.flutterCones = flutterCones;
@@ -322,6 +329,20 @@ std::vector<IrOut> computeGroup(SceneData& scene, const IrOptions& q, const std:
     if (listenerOutside) outs[k].warnings.push_back("listener lies outside the closed volume of " + scene.name);
     if (checkInside && enclosureOf(*scene.tracer, true, requests[k].source) == Enclosure::kOutside)
       outs[k].warnings.push_back("source lies outside the closed volume of " + scene.name);
+  }
+  if (q.thirdOctave) {
+    // Three passes per source, each traced from the source (third_octave.h).
+    for (size_t k = 0; k < sources.size(); ++k) {
+      auto r = computeIrThirdOctave(*scene.tracer, scene.materials, requests[k].source, listener, s, pool, bin.get(),
+                                    amb.get());
+      if (!r.isOk()) {
+        outs[k].status = r.status();
+        continue;
+      }
+      outs[k].report = thirdOctaveReportJson(*r, s, !scene.tracer->empty());
+      outs[k].ir = std::move(r->ir);
+    }
+    return outs;
   }
   auto r = computeIrs(*scene.tracer, scene.materials, listener, requests, s, q.trace, pool, bin.get(), amb.get());
   if (!r.isOk()) return fail(r.status());
@@ -686,32 +707,34 @@ PYBIND11_MODULE(_earshot, m) {
               std::optional<uint32_t> ismOrder, std::optional<double> binMs, std::optional<uint32_t> tailProbes,
               uint64_t seed, double sampleRate, std::optional<double> length, const std::string& air,
               const std::string& hrtf, double receiverRadius, double converge, bool flutterCones, unsigned threads,
-              int order, const std::string& trace) {
+              int order, const std::string& trace, const std::string& bands) {
              const IrOptions q = makeRequest(receiver, forward, up, quality, rays, bounces, ismOrder, binMs, tailProbes,
                                              seed, sampleRate, length, air, hrtf, receiverRadius, converge,
-                                             flutterCones, order, trace);
+                                             flutterCones, order, trace, bands);
              return irOne(s, source, listener, q, threads);
            },
            py::arg("source"), py::arg("listener"), py::arg("receiver"), py::arg("forward"), py::arg("up"), py::arg("quality"), py::arg("rays"),
            py::arg("bounces"), py::arg("ismOrder"), py::arg("binMs"), py::arg("tailProbes"), py::arg("seed"),
            py::arg("sampleRate"), py::arg("length"), py::arg("air"), py::arg("hrtf"), py::arg("receiverRadius"),
-           py::arg("converge"), py::arg("flutterCones"), py::arg("threads"), py::arg("order"), py::arg("trace"))
+           py::arg("converge"), py::arg("flutterCones"), py::arg("threads"), py::arg("order"), py::arg("trace"),
+           py::arg("bands"))
       .def("ir_batch",
            [](SceneData& s, const std::vector<std::pair<P3, P3>>& pairs, const std::string& receiver,
               const P3& forward, const P3& up, const std::string& quality, std::optional<uint32_t> rays,
               std::optional<uint32_t> bounces, std::optional<uint32_t> ismOrder, std::optional<double> binMs,
               std::optional<uint32_t> tailProbes, uint64_t seed, double sampleRate, std::optional<double> length,
               const std::string& air, const std::string& hrtf, double receiverRadius, double converge,
-              bool flutterCones, unsigned threads, int order, const std::string& trace) {
+              bool flutterCones, unsigned threads, int order, const std::string& trace, const std::string& bands) {
              const IrOptions q = makeRequest(receiver, forward, up, quality, rays, bounces, ismOrder, binMs, tailProbes,
                                              seed, sampleRate, length, air, hrtf, receiverRadius, converge,
-                                             flutterCones, order, trace);
+                                             flutterCones, order, trace, bands);
              return irBatch(s, pairs, q, threads);
            },
            py::arg("pairs"), py::arg("receiver"), py::arg("forward"), py::arg("up"), py::arg("quality"), py::arg("rays"),
            py::arg("bounces"), py::arg("ismOrder"), py::arg("binMs"), py::arg("tailProbes"), py::arg("seed"),
            py::arg("sampleRate"), py::arg("length"), py::arg("air"), py::arg("hrtf"), py::arg("receiverRadius"),
-           py::arg("converge"), py::arg("flutterCones"), py::arg("threads"), py::arg("order"), py::arg("trace"));
+           py::arg("converge"), py::arg("flutterCones"), py::arg("threads"), py::arg("order"), py::arg("trace"),
+           py::arg("bands"));
 
   m.def("_analyze", &analyze);
   m.def("_binaural", &binaural);

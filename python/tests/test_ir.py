@@ -39,6 +39,26 @@ def test_ir_equals_the_cli(tmp_path, shoebox, receiver):
     assert set(r.time_ms) == set(stats["time_ms"])
 
 
+@pytest.mark.parametrize("receiver", ["omni", "binaural"])
+def test_third_octave_ir_equals_the_cli(tmp_path, shoebox, receiver):
+    x, rate, stats = cli_ir(tmp_path, SHOEBOX, "--material-map", SHOEBOX_MAP, "--source", "2,3.5,1.5",
+                            "--listener", "7,3.5,1.5", "--receiver", receiver, "--forward", "-1,0,0", "--up", "0,0,1",
+                            "--seed", 3, "--rays", 2000, "--bands", "third-octave", "--threads", 2)
+    r = shoebox.ir(SRC, LIS, receiver=receiver, forward=(-1, 0, 0), up=(0, 0, 1), seed=3, rays=2000,
+                   bands="third-octave", threads=1)
+    assert np.array_equal(r.samples, x)
+    assert r.params["bands"] == "third-octave" and r.stats["bands"] == "third-octave"
+    assert r.stats["third_octave"]["decay"] == stats["third_octave"]["decay"]
+    assert len(r.stats["third_octave"]["decay"]["t20_s"]) == 21
+    assert [p["shift_octaves"] for p in r.stats["third_octave"]["passes"]] == [-1 / 3, 0.0, 1 / 3]
+    # A batch's pair i is ir(seed=seed + i), as with octaves.
+    b = shoebox.ir_batch([(SRC, LIS), ((3.0, 2.0, 1.2), LIS)], receiver=receiver, forward=(-1, 0, 0), up=(0, 0, 1),
+                         seed=2, rays=2000, bands="third-octave", threads=2)
+    assert np.array_equal(b[1].samples, r.samples) is False
+    assert np.array_equal(b[0].samples, shoebox.ir(SRC, LIS, receiver=receiver, forward=(-1, 0, 0), up=(0, 0, 1),
+                                                   seed=2, rays=2000, bands="third-octave").samples)
+
+
 def test_ambisonic_ir_equals_the_cli(tmp_path, shoebox):
     """receiver='ambisonic' (issue 15): `earshot ir --receiver ambisonic`'s
     IR bit for bit, (order+1)^2 channels, W the omni IR."""
@@ -203,6 +223,9 @@ def test_from_arrays_with_material_dicts():
     (dict(trace="both"), ValueError, "trace"),
     (dict(trace=1), TypeError, "trace"),
     (dict(trace="shared", converge=0.5), ValueError, "converge"),
+    (dict(bands="sixth"), ValueError, "bands"),
+    (dict(bands=3), TypeError, "bands"),
+    (dict(bands="third-octave", trace="shared"), ValueError, "per-source"),
 ])
 def test_bad_arguments_raise(shoebox, kwargs, exc, text):
     args = dict(source=SRC, listener=LIS, quality="draft")

@@ -1,6 +1,10 @@
 // The JSON report of one computed IR (ir_report.h).
 #include "earshot/ir/ir_report.h"
 
+#include <cmath>
+
+#include "earshot/ir/third_octave.h"
+
 #include <algorithm>
 
 #include <nlohmann/json.hpp>
@@ -68,6 +72,35 @@ std::string irReportJson(const OmniIrResult& r, const OmniIrSettings& settings, 
   stats["silent"] = silent;
   // NaN (a decay the energies do not span) is written as null.
   return stats.dump();
+}
+
+std::string thirdOctaveReportJson(const ThirdOctaveIrResult& result, const OmniIrSettings& settings,
+                                  bool geometryTraced) {
+  nlohmann::json report = nlohmann::json::parse(irReportJson(result.passes[1], settings, geometryTraced));
+  report["bands"] = "third-octave";
+  nlohmann::json t;
+  std::vector<double> centers;
+  for (int j = 0; j < kNumThirdOctaveBands; ++j) centers.push_back(thirdOctaveCenterHz(j));
+  t["bands_hz"] = std::vector<double>(kThirdOctaveNominalHz.begin(), kThirdOctaveNominalHz.end());
+  t["centers_hz"] = centers;
+  const ThirdOctaveDecay d = tracedDecay(result);
+  auto orNull = [](const std::array<double, kNumThirdOctaveBands>& v) {
+    nlohmann::json a = nlohmann::json::array();
+    for (double x : v) a.push_back(std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(nullptr));
+    return a;
+  };
+  t["decay"] = {{"edt_s", orNull(d.edtSeconds)}, {"t20_s", orNull(d.t20Seconds)}, {"t30_s", orNull(d.t30Seconds)}};
+  t["passes"] = nlohmann::json::array();
+  for (int p = 0; p < kThirdOctavePasses; ++p) {
+    OmniIrSettings ps = settings;
+    ps.air.bandShiftOctaves = thirdOctavePassShift(p);
+    nlohmann::json pass = nlohmann::json::parse(irReportJson(result.passes[size_t(p)], ps, geometryTraced));
+    pass["shift_octaves"] = thirdOctavePassShift(p);
+    t["passes"].push_back(std::move(pass));
+  }
+  t["combine_ms"] = result.combineMs;
+  report["third_octave"] = std::move(t);
+  return report.dump();
 }
 
 }  // namespace earshot

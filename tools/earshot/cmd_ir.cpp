@@ -190,32 +190,10 @@ int run(const IrOptions& o, const CLI::App& cmd) {
 
   // The result's own report (shared with the Python package), then what
   // only the command knows.
-  nlohmann::json report = nlohmann::json::parse(irReportJson(r, settings, !tracer->empty()));
+  nlohmann::json report = nlohmann::json::parse(thirdOctave ? thirdOctaveReportJson(*thirds, settings, !tracer->empty())
+                                                            : irReportJson(r, settings, !tracer->empty()));
   for (auto& [key, value] : report.items()) stats[key] = std::move(value);
-  stats["bands"] = o.bands;
-  if (thirdOctave) {
-    nlohmann::json t;
-    std::vector<double> centers, nominal(kThirdOctaveNominalHz.begin(), kThirdOctaveNominalHz.end());
-    for (int j = 0; j < kNumThirdOctaveBands; ++j) centers.push_back(thirdOctaveCenterHz(j));
-    t["bands_hz"] = nominal;
-    t["centers_hz"] = centers;
-    const ThirdOctaveDecay d = tracedDecay(*thirds);
-    auto orNull = [](const std::array<double, kNumThirdOctaveBands>& v) {
-      nlohmann::json a = nlohmann::json::array();
-      for (double x : v) a.push_back(std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(nullptr));
-      return a;
-    };
-    t["decay"] = {{"edt_s", orNull(d.edtSeconds)}, {"t20_s", orNull(d.t20Seconds)}, {"t30_s", orNull(d.t30Seconds)}};
-    for (int p = 0; p < kThirdOctavePasses; ++p) {
-      OmniIrSettings ps = settings;
-      ps.air.bandShiftOctaves = thirdOctavePassShift(p);
-      nlohmann::json pass = nlohmann::json::parse(irReportJson(thirds->passes[size_t(p)], ps, !tracer->empty()));
-      pass["shift_octaves"] = thirdOctavePassShift(p);
-      t["passes"].push_back(std::move(pass));
-    }
-    t["combine_ms"] = thirds->combineMs;
-    stats["third_octave"] = std::move(t);
-  }
+  if (!thirdOctave) stats["bands"] = o.bands;
   stats["quality"] = o.quality;
   stats["receiver"] = o.receiver;
   stats["trace"] = o.trace;

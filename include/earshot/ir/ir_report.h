@@ -21,4 +21,13 @@ namespace earshot {
  *  traced, and the counts say so. */
 std::string irReportJson(const OmniIrResult& result, const OmniIrSettings& settings, bool geometryTraced);
 
+struct ThirdOctaveIrResult;
+/** A third-octave IR's report (third_octave.h): irReportJson of the
+ *  unshifted pass, plus "bands": "third-octave" and "third_octave":
+ *  {bands_hz (nominal), centers_hz, decay: {edt_s, t20_s, t30_s} (21 each,
+ *  null where the energies do not span the metric), passes: [each pass's
+ *  irReportJson with its shift_octaves], combine_ms}. */
+std::string thirdOctaveReportJson(const ThirdOctaveIrResult& result, const OmniIrSettings& settings,
+                                  bool geometryTraced);
+
 }  // namespace earshot
