@@ -255,6 +255,9 @@ BandArrayD BinauralModel::relativeBandEnergy(const Vec3f& headDirection, int ear
       if (shift == bandShiftOctaves) shifted = t;
     if (!shifted) {
       shifted = std::make_shared<const std::vector<float>>(relativeBandEnergyTable(bandShiftOctaves));
+      // A third-octave IR uses two shifts; any other shift a caller asks
+      // for is kept too, but only the newest few (each ~0.3 MB).
+      if (mShiftedBandEnergy.size() >= 4) mShiftedBandEnergy.erase(mShiftedBandEnergy.begin());
       mShiftedBandEnergy.emplace_back(bandShiftOctaves, shifted);
     }
     table = shifted.get();
