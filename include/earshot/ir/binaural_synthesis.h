@@ -104,7 +104,7 @@ class BinauralModel {
    *  energy of that ear (1 on average over the sphere). ear 0 left, 1 right.
    *  bandShiftOctaves: of the bands shifted so (a third-octave pass,
    *  third_octave.h), from the same grid powers; each shift's table is made
-   *  on its first use (~0.05 s for the shipped set) and kept (the newest 4). */
+   *  on its first use (~4 ms for the shipped set) and kept (the newest 4). */
   BandArrayD relativeBandEnergy(const Vec3f& headDirection, int ear, double bandShiftOctaves = 0.0) const;
 
  private:
