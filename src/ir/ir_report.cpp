@@ -99,6 +99,20 @@ std::string thirdOctaveReportJson(const ThirdOctaveIrResult& result, const OmniI
     t["passes"].push_back(std::move(pass));
   }
   t["combine_ms"] = result.combineMs;
+  // The top level's IR and times are the combined IR's: its length and
+  // silence, each stage's time summed over the passes, and the combination.
+  for (auto& [stage, ms] : report["time_ms"].items()) {
+    double sum = 0;
+    for (const auto& pass : t["passes"]) sum += pass["time_ms"][stage].get<double>();
+    ms = sum;
+  }
+  report["time_ms"]["combine"] = result.combineMs;
+  report["ir_samples"] = result.ir.frameCount();
+  report["ir_seconds"] = double(result.ir.frameCount()) / settings.sampleRateHz;
+  bool silent = true;
+  for (const auto& ch : result.ir.channels)
+    for (float v : ch) silent = silent && v == 0.0f;
+  report["silent"] = silent;
   report["third_octave"] = std::move(t);
   return report.dump();
 }

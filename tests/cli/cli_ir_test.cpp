@@ -72,6 +72,13 @@ TEST(CliIr, ThirdOctaveIrAnalyseAndCompare) {
   ASSERT_EQ(t["bands_hz"].size(), 21u);
   ASSERT_EQ(t["passes"].size(), 3u);
   EXPECT_EQ(t["passes"][0]["shift_octaves"].get<double>(), -1.0 / 3.0);
+  auto wav = readAudioFile(dir / "a.wav");
+  ASSERT_TRUE(wav.isOk());
+  EXPECT_EQ(stats["ir_samples"].get<size_t>(), wav->frameCount());
+  double traceMs = 0;
+  for (const auto& p : t["passes"]) traceMs += p["time_ms"]["trace"].get<double>();
+  EXPECT_DOUBLE_EQ(stats["time_ms"]["trace"].get<double>(), traceMs);
+  EXPECT_TRUE(stats["time_ms"].contains("combine"));
   const auto& t20 = t["decay"]["t20_s"];
   ASSERT_EQ(t20.size(), 21u);
   // 315 Hz (index 5) decays several times faster than its neighbours.

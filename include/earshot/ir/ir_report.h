@@ -26,7 +26,9 @@ struct ThirdOctaveIrResult;
  *  unshifted pass, plus "bands": "third-octave" and "third_octave":
  *  {bands_hz (nominal), centers_hz, decay: {edt_s, t20_s, t30_s} (21 each,
  *  null where the energies do not span the metric), passes: [each pass's
- *  irReportJson with its shift_octaves], combine_ms}. */
+ *  irReportJson with its shift_octaves], combine_ms}; the top level's
+ *  ir_samples, ir_seconds and silent are the combined IR's, its time_ms
+ *  each stage's sum over the passes plus "combine". */
 std::string thirdOctaveReportJson(const ThirdOctaveIrResult& result, const OmniIrSettings& settings,
                                   bool geometryTraced);
 
