@@ -47,10 +47,10 @@ ToleranceSpec::ToleranceSpec(double jnd) {
   for (auto& row : enabled) row.fill(true);
 }
 
-std::string bandLabel(int band) {
-  if (band == kBroadbandIndex) return "broadband";
-  if (band < 0 || band >= kNumBands) return "?";
-  const double f = kBandCentersHz[size_t(band)];
+namespace {
+
+// "125 Hz", "1.25 kHz".
+std::string frequencyLabel(double f) {
   char buf[32];
   if (f >= 1000.0)
     std::snprintf(buf, sizeof buf, "%g kHz", f / 1000.0);
@@ -59,11 +59,14 @@ std::string bandLabel(int band) {
   return buf;
 }
 
-Result<int> parseThirdOctaveBandName(const std::string& name) {
+// A band name as a frequency in Hz ("125", "125Hz", "1.25k"); *broadband
+// for "broadband", "bb", "0", "all"; NaN if it is neither.
+double bandNameHz(const std::string& name, bool* broadband) {
   std::string s;
   for (char c : name)
     if (c != ' ') s.push_back(char(std::tolower(static_cast<unsigned char>(c))));
-  if (s == "broadband" || s == "bb" || s == "0" || s == "all") return kNumThirdOctaveBands;
+  *broadband = s == "broadband" || s == "bb" || s == "0" || s == "all";
+  if (*broadband) return std::nan("");
   double scale = 1.0;
   if (s.size() > 2 && s.compare(s.size() - 2, 2, "hz") == 0) s.resize(s.size() - 2);
   if (!s.empty() && s.back() == 'k') {
@@ -72,10 +75,23 @@ Result<int> parseThirdOctaveBandName(const std::string& name) {
   }
   char* end = nullptr;
   const double v = std::strtod(s.c_str(), &end);
-  if (!s.empty() && end == s.c_str() + s.size()) {
-    for (int j = 0; j < kNumThirdOctaveBands; ++j)
-      if (std::abs(v * scale - kThirdOctaveNominalHz[size_t(j)]) < 0.5) return j;
-  }
+  return !s.empty() && end == s.c_str() + s.size() ? v * scale : std::nan("");
+}
+
+}  // namespace
+
+std::string bandLabel(int band) {
+  if (band == kBroadbandIndex) return "broadband";
+  if (band < 0 || band >= kNumBands) return "?";
+  return frequencyLabel(kBandCentersHz[size_t(band)]);
+}
+
+Result<int> parseThirdOctaveBandName(const std::string& name) {
+  bool broadband = false;
+  const double hz = bandNameHz(name, &broadband);
+  if (broadband) return kNumThirdOctaveBands;
+  for (int j = 0; j < kNumThirdOctaveBands; ++j)
+    if (std::abs(hz - kThirdOctaveNominalHz[size_t(j)]) < 0.5) return j;
   return invalidArgument("unknown third-octave band \"" + name.substr(0, 32) +
                          "\" (expected a nominal centre 100, 125, 160 .. 10000 or broadband)");
 }
@@ -84,34 +100,17 @@ std::string bandLabel(int band, size_t count) {
   if (count != size_t(kThirdOctaveAnalysisBandCount)) return bandLabel(band);
   if (band == kNumThirdOctaveBands) return "broadband";
   if (band < 0 || band > kNumThirdOctaveBands) return "?";
-  const double f = kThirdOctaveNominalHz[size_t(band)];
-  char buf[32];
-  if (f >= 1000.0)
-    std::snprintf(buf, sizeof buf, "%g kHz", f / 1000.0);
-  else
-    std::snprintf(buf, sizeof buf, "%g Hz", f);
-  return buf;
+  return frequencyLabel(kThirdOctaveNominalHz[size_t(band)]);
 }
 
 int octaveOfThirdOctave(int j) { return std::clamp(int(std::lround(double(j - 1) / 3.0)), 0, kNumBands - 1); }
 
 Result<int> parseBandName(const std::string& name) {
-  std::string s;
-  for (char c : name)
-    if (c != ' ') s.push_back(char(std::tolower(static_cast<unsigned char>(c))));
-  if (s == "broadband" || s == "bb" || s == "0" || s == "all") return kBroadbandIndex;
-  double scale = 1.0;
-  if (s.size() > 2 && s.compare(s.size() - 2, 2, "hz") == 0) s.resize(s.size() - 2);
-  if (!s.empty() && s.back() == 'k') {
-    scale = 1000.0;
-    s.pop_back();
-  }
-  char* end = nullptr;
-  const double v = std::strtod(s.c_str(), &end);
-  if (!s.empty() && end == s.c_str() + s.size()) {
-    for (int b = 0; b < kNumBands; ++b)
-      if (std::abs(v * scale - kBandCentersHz[size_t(b)]) < 0.5) return b;
-  }
+  bool broadband = false;
+  const double hz = bandNameHz(name, &broadband);
+  if (broadband) return kBroadbandIndex;
+  for (int b = 0; b < kNumBands; ++b)
+    if (std::abs(hz - kBandCentersHz[size_t(b)]) < 0.5) return b;
   return invalidArgument("unknown band \"" + name + "\" (expected 125, 250, 500, 1000, 2000, 4000, 8000 or broadband)");
 }
 

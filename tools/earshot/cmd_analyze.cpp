@@ -27,20 +27,6 @@ struct AnalyzeOptions {
   std::string bands = "octave";
 };
 
-// Band b of `count` results (the last is broadband): octaves by
-// analysis::bandLabel, third octaves by their nominal names.
-std::string bandName(int b, size_t count) {
-  if (size_t(b) + 1 == count) return "broadband";
-  if (count != size_t(analysis::kThirdOctaveAnalysisBandCount)) return analysis::bandLabel(b);
-  const double f = kThirdOctaveNominalHz[size_t(b)];
-  char buf[32];
-  if (f >= 1000.0)
-    std::snprintf(buf, sizeof buf, "%g kHz", f / 1000.0);
-  else
-    std::snprintf(buf, sizeof buf, "%g Hz", f);
-  return buf;
-}
-
 std::string channelLabel(size_t index, size_t count) {
   if (count == 1) return "mono";
   if (count == 2) return index == 0 ? "left" : "right";
@@ -89,7 +75,7 @@ void printTable(const std::vector<BandMetrics>& bands) {
               "Ts ms");
   for (int b = 0; b < int(bands.size()); ++b) {
     const BandMetrics& m = bands[size_t(b)];
-    std::printf("  %-10s %8s %8s %8s %8s %8s %7s %8s\n", bandName(b, bands.size()).c_str(),
+    std::printf("  %-10s %8s %8s %8s %8s %8s %7s %8s\n", analysis::bandLabel(b, bands.size()).c_str(),
                 cell(Metric::kEdt, m.edtS).c_str(), cell(Metric::kT20, m.t20S).c_str(),
                 cell(Metric::kT30, m.t30S).c_str(), cell(Metric::kC50, m.c50Db).c_str(),
                 cell(Metric::kC80, m.c80Db).c_str(), cell(Metric::kD50, m.d50).c_str(),
@@ -98,7 +84,7 @@ void printTable(const std::vector<BandMetrics>& bands) {
   // Reasons, one line per distinct reason and band.
   for (int b = 0; b < int(bands.size()); ++b) {
     const BandMetrics& m = bands[size_t(b)];
-    const std::string label = bandName(b, bands.size());
+    const std::string label = analysis::bandLabel(b, bands.size());
     std::string last;
     std::string names;
     for (Metric k : analysis::kAllMetrics) {
@@ -223,7 +209,7 @@ void runAnalyze(const AnalyzeOptions& o) {
       cj["label"] = channelLabel(c, count);
       cj["bands"] = nlohmann::ordered_json::array();
       const std::vector<BandMetrics>& bands = result->channels[i];
-      for (int b = 0; b < int(bands.size()); ++b) cj["bands"].push_back(bandJson(bandName(b, bands.size()), bands[size_t(b)]));
+      for (int b = 0; b < int(bands.size()); ++b) cj["bands"].push_back(bandJson(analysis::bandLabel(b, bands.size()), bands[size_t(b)]));
       j["channels"].push_back(cj);
     }
     if (isBinaural) j["binaural"] = binauralJson(*binaural);
