@@ -29,6 +29,7 @@
 #include "earshot/materials/material.h"
 #include "earshot/propagation/air_absorption.h"
 #include "earshot/scene/ray_tracer.h"
+#include "band_mask_util.h"
 
 namespace earshot {
 namespace {
@@ -99,41 +100,23 @@ TEST(ThirdOctave, MaterialsAndAirAtShiftedBands) {
   EXPECT_FALSE(validate(air).isOk());
 }
 
-// Raised-cosine from 0 (at lo) to 1 (at lo + width), on log2 frequency.
-double rise(double log2f, double lo, double width) {
-  const double u = (log2f - lo) / width;
-  if (u <= 0) return 0.0;
-  if (u >= 1) return 1.0;
-  return 0.5 - 0.5 * std::cos(kPi * u);
+using testing::energyMetrics;
+using testing::rise;
+
+// The mask of third octave j described at the top (on log2 frequency).
+double thirdMask(int j, double lf) {
+  constexpr double kEdge = 1.0 / 24.0;
+  const double c = std::log2(thirdOctaveCenterHz(j));
+  const double own = 0.5 / 3.0 - 0.5 * kThirdOctaveCrossoverOctaves;  // +-1/12 octave
+  // The lowest and highest bands reach to 0 Hz and to Nyquist: there the
+  // third octave itself bounds them (as band_exact_test.cpp's octaves).
+  const double lo = j > 0 ? c - own : c - 1.0 / 6.0, hi = j < kNumThirdOctaveBands - 1 ? c + own : c + 1.0 / 6.0;
+  return rise(lf, lo, kEdge) * (1.0 - rise(lf, hi - kEdge, kEdge));
 }
 
 // Third octave j of x, through the mask described at the top.
 std::vector<float> bandOnly(const std::vector<float>& x, double fs, int j) {
-  size_t n = 1024;  // zero-padded: the mask's ringing must not wrap onto the tail
-  while (n < 2 * x.size()) n *= 2;
-  std::unique_ptr<kiss_fftr_state, decltype(&kiss_fftr_free)> fwd(kiss_fftr_alloc(int(n), 0, nullptr, nullptr),
-                                                                    &kiss_fftr_free),
-      inv(kiss_fftr_alloc(int(n), 1, nullptr, nullptr), &kiss_fftr_free);
-  std::vector<float> in(n, 0.0f), out(n);
-  std::copy(x.begin(), x.end(), in.begin());
-  std::vector<kiss_fft_cpx> spec(n / 2 + 1);
-  kiss_fftr(fwd.get(), in.data(), spec.data());
-  constexpr double kEdge = 1.0 / 24.0;
-  const double c = std::log2(thirdOctaveCenterHz(j));
-  const double own = 0.5 / 3.0 - 0.5 * kThirdOctaveCrossoverOctaves;  // +-1/12 octave
-  for (size_t k = 0; k < spec.size(); ++k) {
-    const double f = double(k) * fs / double(n);
-    const double lf = f > 0 ? std::log2(f) : -1e9;
-    // The lowest and highest bands reach to 0 Hz and to Nyquist: there the
-    // third octave itself bounds them (as band_exact_test.cpp's octaves).
-    const double lo = j > 0 ? c - own : c - 1.0 / 6.0, hi = j < kNumThirdOctaveBands - 1 ? c + own : c + 1.0 / 6.0;
-    const double m = rise(lf, lo, kEdge) * (1.0 - rise(lf, hi - kEdge, kEdge));
-    spec[k].r = float(spec[k].r * m / double(n));
-    spec[k].i = float(spec[k].i * m / double(n));
-  }
-  kiss_fftri(inv.get(), spec.data(), out.data());
-  out.resize(x.size());
-  return out;
+  return testing::masked(x, fs, [j](double lf) { return thirdMask(j, lf); });
 }
 
 // `count` source/listener pairs in the 10 x 7 x 3 m box, over 2 m apart,
@@ -156,11 +139,6 @@ std::vector<std::pair<Vec3d, Vec3d>> offSymmetryPairs(size_t count) {
   return pairs;
 }
 
-BandMetrics energyMetrics(const std::vector<double>& e, double rateHz) {
-  std::vector<float> amplitude(e.size());
-  for (size_t i = 0; i < e.size(); ++i) amplitude[i] = float(std::sqrt(e[i]));
-  return analysis::analyzeBandSignal(amplitude.data(), amplitude.size(), rateHz, -1, 0, analysis::NoiseTreatment::kNone);
-}
 
 // Must show (issue 20, item 2 with item 1's criterion): for a room
 // absorbing (0.25) in one third octave only, that band's output EDT and T20
@@ -209,29 +187,10 @@ TEST(ThirdOctave, OneAbsorbingThirdOctaveKeepsItsOwnDecay) {
       if (output.size() < y.size()) output.resize(y.size(), 0.0);
       for (size_t k = 0; k < y.size(); ++k) output[k] += double(y[k]) * y[k];
     }
-    // The mask's own energy response (zero-phase, centred), in histogram bins.
-    {
-      const size_t len = size_t(2 * fs), mid = len / 2;
-      std::vector<float> impulse(len, 0.0f);
-      impulse[mid] = 1.0f;
-      const std::vector<float> hm = bandOnly(impulse, fs, absorbing);
-      const long half = long(0.4 * binRate);  // +-400 ms of kernel (the 100 Hz mask is ~12 Hz wide)
-      std::vector<double> kernel(size_t(2 * half + 1), 0.0);
-      double sum = 0;
-      for (size_t i = 0; i < len; ++i) {
-        const long bin = std::lround((double(i) - double(mid)) / fs * binRate);
-        if (bin < -half || bin > half) continue;
-        kernel[size_t(bin + half)] += double(hm[i]) * hm[i];
-        sum += double(hm[i]) * hm[i];
-      }
-      std::vector<double> smooth(traced.size(), 0.0);
-      for (size_t i = 0; i < traced.size(); ++i)
-        for (long k = -half; k <= half; ++k) {
-          const long j = long(i) + k;
-          if (j >= 0 && size_t(j) < traced.size()) smooth[size_t(j)] += traced[i] * kernel[size_t(k + half)] / sum;
-        }
-      traced.swap(smooth);
-    }
+    // The mask's own energy response (zero-phase, centred), in histogram
+    // bins, +-400 ms of it (the 100 Hz mask is ~12 Hz wide).
+    testing::smoothByMaskResponse(traced, binRate, fs, 2.0, 0.4,
+                                  [absorbing](double lf) { return thirdMask(absorbing, lf); });
     const BandMetrics want = energyMetrics(traced, binRate), got = energyMetrics(output, fs);
     const double edtErr = got.edtS / want.edtS - 1.0, t20Err = got.t20S / want.t20S - 1.0;
     const std::string what = std::to_string(int(kThirdOctaveNominalHz[size_t(absorbing)])) + " Hz absorbing";
