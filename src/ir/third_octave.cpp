@@ -78,8 +78,9 @@ Result<ThirdOctaveIrResult> computeIrThirdOctave(const RayTracer& tracer, const 
     OmniIrSettings s = settings;
     s.air.bandShiftOctaves = shift;
     s.directivity = shiftedDirectivity(settings.directivity, shift);
-    const MaterialTable table = materials.atBandShift(shift);
-    auto r = computeIr(tracer, table, source, listener, s, pool, binaural, ambisonic);
+    MaterialTable shifted;  // the unshifted pass reads the caller's table, not a copy
+    if (shift != 0.0) shifted = materials.atBandShift(shift);
+    auto r = computeIr(tracer, shift != 0.0 ? shifted : materials, source, listener, s, pool, binaural, ambisonic);
     if (!r.isOk()) return r.status();
     out.passes[size_t(p)] = std::move(r.value());
   }
