@@ -15,6 +15,7 @@
 
 #include <algorithm>
 #include <memory>
+#include <mutex>
 #include <vector>
 
 namespace earshot::analysis {
@@ -237,7 +238,25 @@ size_t fractionalGuard(double rateHz, double centerHz, double bandwidthOctaves, 
 
 size_t fractionalOctaveBandGuardSamples(double rateHz, double centerHz, double bandwidthOctaves) {
   if (bandwidthOctaves == 1.0) return octaveBandGuardSamples(rateHz, centerHz);
-  return fractionalGuard(rateHz, centerHz, bandwidthOctaves, 1e-5);
+  // Each guard is an inverse transform of 2^17 points: kept for the bands
+  // in use (21 third octaves at a rate or two), so that analysing many IRs
+  // pays for it once.
+  struct Entry {
+    double rate, center, bandwidth;
+    size_t guard;
+  };
+  static std::mutex mutex;
+  static std::vector<Entry> cache;
+  {
+    std::lock_guard<std::mutex> lock(mutex);
+    for (const Entry& e : cache)
+      if (e.rate == rateHz && e.center == centerHz && e.bandwidth == bandwidthOctaves) return e.guard;
+  }
+  const size_t guard = fractionalGuard(rateHz, centerHz, bandwidthOctaves, 1e-5);
+  std::lock_guard<std::mutex> lock(mutex);
+  if (cache.size() >= 128) cache.erase(cache.begin());
+  cache.push_back({rateHz, centerHz, bandwidthOctaves, guard});
+  return guard;
 }
 
 void fractionalOctaveBandFilterInto(const float* signal, size_t count, double rateHz, double centerHz,
