@@ -5,6 +5,7 @@ analysis (`earshot analyze` / `earshot compare`), the same numbers.
     a = earshot.analysis.analyze(ir, 48000)     # ir: (frames,) or (channels, frames)
     a["T30"]            # array (channels, 8): 125 Hz .. 8 kHz octaves, then broadband; NaN where n/a
     a.na_reasons        # {(channel, metric, band_hz): why}
+    a.bands_hz          # the bands' centres (0: broadband); bands="third-octave": 21 + broadband
     earshot.analysis.compare(test, reference, 48000, tolerance=1.0)["within_tolerance"]
 
 Bands: BANDS_HZ = (125, 250, 500, 1000, 2000, 4000, 8000, 0), 0 meaning
@@ -61,7 +62,7 @@ class Analysis:
     def __init__(self, raw, sample_rate):
         self.sample_rate = sample_rate
         self.bands = raw
-        self.bands_hz = _np.array(BANDS_HZ)
+        self.bands_hz = _np.array([b["band_hz"] for b in raw[0]]) if raw else _np.array(BANDS_HZ)
         self._values = {m: _np.array([[b[m] for b in ch] for ch in raw], dtype=float) for m in METRICS}
         self.na_reasons = {}
         for c, ch in enumerate(raw):
@@ -86,20 +87,25 @@ class Analysis:
 
 
 def analyze(samples, sample_rate, *, noise="lundeby", window=(0.0, _math.inf), window_origin="emission",
-            exclude_direct=False):
+            exclude_direct=False, bands="octave"):
     """ISO 3382-1 parameters of each channel of `samples` ((frames,) or
     (channels, frames)). noise: 'lundeby' (measured IRs: truncate at the
     noise, compensate) or 'none' (exact, noise-free data). window: (start,
     end) seconds from the emission (window_origin 'emission') or the direct
-    sound ('direct'); exclude_direct zeroes the direct sound. Raises
-    ValueError for silent, non-finite or too short signals."""
+    sound ('direct'); exclude_direct zeroes the direct sound. bands:
+    'octave' (BANDS_HZ) or 'third-octave' (21 third octaves 100 Hz - 10 kHz
+    at their exact centres, then broadband 0; `earshot analyze --bands
+    third-octave`); the result's bands_hz says which. Raises ValueError for
+    silent, non-finite or too short signals."""
+    if not isinstance(bands, str):
+        raise TypeError("bands: expected 'octave' or 'third-octave'")
     a = _samples("samples", samples)
     r = _rate(sample_rate)
     try:
         w0, w1 = (float(window[0]), float(window[1]))
     except (TypeError, ValueError, IndexError):
         raise TypeError("window: expected (start_s, end_s)") from None
-    return Analysis(_earshot._analyze(a, r, noise, w0, w1, window_origin, bool(exclude_direct)), r)
+    return Analysis(_earshot._analyze(a, r, noise, w0, w1, window_origin, bool(exclude_direct), bands), r)
 
 
 def binaural(samples, sample_rate):

@@ -507,8 +507,10 @@ analysis::AnalysisOptions analysisOptions(const std::string& noise, double windo
 
 py::list analyze(py::array_t<float, py::array::c_style | py::array::forcecast> samples, double rate,
                  const std::string& noise, double windowStart, double windowEnd, const std::string& origin,
-                 bool excludeDirect) {
-  const auto opts = analysisOptions(noise, windowStart, windowEnd, origin, excludeDirect);
+                 bool excludeDirect, const std::string& bands) {
+  auto opts = analysisOptions(noise, windowStart, windowEnd, origin, excludeDirect);
+  if (bands == "third-octave") opts.bands = analysis::AnalysisOptions::Bands::kThirdOctave;
+  else if (bands != "octave") throw py::value_error("bands: expected 'octave' or 'third-octave'");
   AudioBuffer b = bufferFrom(samples, rate);
   Result<analysis::IrAnalysis> r = Status::ok();
   {
