@@ -546,24 +546,24 @@ Result<std::vector<BandMetrics>> analyzeIr(const std::vector<float>& ir, double 
       finishBand(b, y, guard);
       out[size_t(b)].bandCenterHz = centerOf(b);
     }
-    available.clear();
-  }
-  for (size_t i = 0; i < available.size(); i += 2) {
-    const int b = available[i];
-    const double fc = kBandCentersHz[size_t(b)];
-    if (i + 1 < available.size()) {
-      const int b2 = available[i + 1];
-      const size_t guard = octaveBandGuardSamples(rateHz, std::min(fc, kBandCentersHz[size_t(b2)]));
-      octaveBandFilterPairInto(src.data(), n, rateHz, fc, kBandCentersHz[size_t(b2)], guard, y, y2);
-      finishBand(b, y, guard);
-      finishBand(b2, y2, guard);
-      out[size_t(b2)].bandCenterHz = kBandCentersHz[size_t(b2)];
-    } else {
-      size_t guard = 0;
-      octaveBandFilterInto(src.data(), n, rateHz, fc, y, &guard);
-      finishBand(b, y, guard);
+  } else {
+    for (size_t i = 0; i < available.size(); i += 2) {
+      const int b = available[i];
+      const double fc = kBandCentersHz[size_t(b)];
+      if (i + 1 < available.size()) {
+        const int b2 = available[i + 1];
+        const size_t guard = octaveBandGuardSamples(rateHz, std::min(fc, kBandCentersHz[size_t(b2)]));
+        octaveBandFilterPairInto(src.data(), n, rateHz, fc, kBandCentersHz[size_t(b2)], guard, y, y2);
+        finishBand(b, y, guard);
+        finishBand(b2, y2, guard);
+        out[size_t(b2)].bandCenterHz = kBandCentersHz[size_t(b2)];
+      } else {
+        size_t guard = 0;
+        octaveBandFilterInto(src.data(), n, rateHz, fc, y, &guard);
+        finishBand(b, y, guard);
+      }
+      out[size_t(b)].bandCenterHz = fc;
     }
-    out[size_t(b)].bandCenterHz = fc;
   }
   y.assign(src.begin(), src.end());
   applyWindow(y, 0);
