@@ -332,7 +332,9 @@ TEST(OctaveFilter, PassesItsCentreAndHalfPowerAtTheEdges) {
 }
 
 // Third octaves (issue 20): a steady sine's gain at the centre (0 dB), at
-// the edges (half power) and at the neighbouring third octaves' centres (the
+// the edges (half power, exact by design on the pre-warped axis; measured
+// -3.0102 to -3.0104 dB, 0.05 dB allowed for the sine's finite length as
+// the octave test does) and at the neighbouring third octaves' centres (the
 // skirts: what a band passes of its neighbours; measured -35 to -39 dB).
 TEST(ThirdOctaveAnalysis, FilterPassesItsCentreHalfPowerAtTheEdgesAndDampsItsNeighbours) {
   auto gainDb = [](double fc, double f) {
@@ -351,8 +353,8 @@ TEST(ThirdOctaveAnalysis, FilterPassesItsCentreHalfPowerAtTheEdgesAndDampsItsNei
   for (int j : {1, 10, 19}) {  // 125 Hz, 1 kHz, 8 kHz
     const double fc = thirdOctaveCenterHz(j);
     EXPECT_NEAR(gainDb(fc, fc), 0.0, 0.05) << fc;
-    EXPECT_NEAR(gainDb(fc, fc * std::exp2(-1.0 / 6.0)), -3.0, 0.3) << fc;
-    EXPECT_NEAR(gainDb(fc, fc * std::exp2(1.0 / 6.0)), -3.0, 0.3) << fc;
+    EXPECT_NEAR(gainDb(fc, fc * std::exp2(-1.0 / 6.0)), -3.01, 0.05) << fc;
+    EXPECT_NEAR(gainDb(fc, fc * std::exp2(1.0 / 6.0)), -3.01, 0.05) << fc;
     const double below = gainDb(fc, fc * std::exp2(-1.0 / 3.0)), above = gainDb(fc, fc * std::exp2(1.0 / 3.0));
     EXPECT_LT(below, -30.0) << fc;
     EXPECT_LT(above, -30.0) << fc;
