@@ -46,6 +46,7 @@ std::string irReportJson(const OmniIrResult& r, const OmniIrSettings& settings, 
   if (settings.convergenceDb > 0) stats["estimated_error_db"] = st.estimatedErrorDb;
   stats["shadow_rays"] = st.shadowRays;
   stats["shadow_rays_skipped"] = st.shadowRaysSkipped;
+  stats["shadow_rays_rouletted"] = st.shadowRaysRouletted;
   stats["specular_detections_left_to_image_sources"] = st.specularExcluded;
   stats["energy_escaped_fraction"] = st.energyEscaped;
   stats["receiver_radius_m"] = st.receiverRadiusMeters;

@@ -136,6 +136,7 @@ struct Detector {
   double radius = 0;
   bool probesDetected = false;  // a sphere of at least kMinProbeSphere
   float sphereR2 = 0, invSphereVolume = 0;
+  float neeRouletteR2 = 0;      // shared trace: sharedShadowRoulette x R^2 (0: no roulette)
   bool shadowsNeeded = true;    // not a convex room around it
   const PlaneSequenceSet* excluded = nullptr;
   uint32_t excludedMaxOrder = 0;
@@ -152,7 +153,7 @@ struct alignas(64) DetectorSums {
   std::vector<int64_t> perOrder;             // [order][band]
   std::vector<int64_t> probeHist;            // [bin][band]: what tail probes past their cut deposit
   int64_t late[kNumBands] = {};
-  uint64_t shadows = 0, shadowsSkipped = 0, excluded = 0;
+  uint64_t shadows = 0, shadowsSkipped = 0, shadowsRouletted = 0, excluded = 0;
 };
 
 // One per worker thread. NOTE: cache-line aligned: side by side in a vector,
@@ -488,6 +489,9 @@ Status validate(const ReflectionSettings& s) {
     return invalidArgument("receiver radius " + std::to_string(s.receiverRadiusMeters) + " m is outside [0, 1000]");
   if (!(s.convergenceDb >= 0 && s.convergenceDb <= 20))
     return invalidArgument("convergence target " + std::to_string(s.convergenceDb) + " dB is outside [0, 20]");
+  if (!(s.sharedShadowRoulette >= 0 && s.sharedShadowRoulette <= 1e6))
+    return invalidArgument("shared shadow-ray roulette " + std::to_string(s.sharedShadowRoulette) +
+                           " is outside [0, 1e6]");
   if (!(s.minDistanceMeters > 0 && s.minDistanceMeters <= 10))
     return invalidArgument("minimum distance " + std::to_string(s.minDistanceMeters) + " m is outside (0, 10]");
   return validate(s.air);
@@ -526,6 +530,7 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
     anyProbeDetector |= dt.probesDetected;
     dt.sphereR2 = float(R * R);
     dt.invSphereVolume = float(1.0 / (4.0 / 3.0 * kPi * R * R * R));
+    dt.neeRouletteR2 = reciprocal ? float(settings.sharedShadowRoulette * R * R) : 0.0f;
     // A convex room around the detector blocks no path from its surface to
     // it: next-event estimation needs no occlusion test.
     dt.shadowsNeeded = !tracer.convexAround(dt.position);
@@ -680,6 +685,7 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
   // falls below it. The decision depends on completed rounds only: the
   // same whatever the thread count.
   const bool directional = !reciprocal && !settings.directivity.isOmni();
+  const bool roulettedShadows = reciprocal && settings.sharedShadowRoulette > 0;
   const BandArrayD directivityMeanSquares = settings.directivity.meanSquares();
   const uint32_t rounds = !reciprocal && settings.convergenceDb > 0 ? std::min(kConvergenceRounds, settings.rays) : 1u;
   uint32_t traced = 0;
@@ -695,7 +701,7 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
       struct NeeCandidate {
         uint32_t detector, shadowIndex;
         Vec3f toL;
-        float d, d2, cosL;
+        float d, d2, cosL, gain;
       };
       std::vector<NeeCandidate> nee(nd);
       std::vector<Ray> shadowRays(nd);
@@ -706,6 +712,9 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
       for (uint32_t k = first; k < last; ++k) {
         const uint32_t rayIndex = residue + k * rounds;
         Pcg32 rng(settings.seed, rayIndex);
+        // The shared trace's shadow-ray roulette draws from a stream of its
+        // own: the ray's path is the same with or without it.
+        Pcg32 neeRng(settings.seed ^ 0x6e65652d726f756cULL, rayIndex);
         Vec3d direction;
         double startEnergy;
         sampler.ray(rayIndex, direction, startEnergy);
@@ -828,6 +837,9 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
             // The detectors facing this hit; their shadow rays go to Embree
             // together (one origin: a coherent stream).
             size_t facing = 0;
+            // One number per reflection, whatever the sources: each source's
+            // roulette depends on it and on the source alone.
+            const float u = roulettedShadows ? neeRng.uniform() : 0.0f;
             for (size_t r = 0; any && r < nd; ++r) {
               const Detector& dt = detectors[r];
               const Vec3f toL(dt.position - p);
@@ -835,12 +847,24 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
               const float cosL = dot(n, toL);
               if (!(cosL > 0)) continue;
               const float d = std::sqrt(d2);
+              float gain = 1.0f;
+              if (dt.neeRouletteR2 > 0) {
+                const float pSend = dt.neeRouletteR2 * (cosL / d) / std::max(d2, minD2);
+                if (pSend < 1.0f) {
+                  if (!(u < pSend)) {
+                    ++a.det[r].shadowsRouletted;
+                    continue;
+                  }
+                  gain = 1.0f / pSend;
+                }
+              }
               NeeCandidate& c = nee[facing++];
               c.detector = uint32_t(r);
               c.toL = toL;
               c.d = d;
               c.d2 = d2;
               c.cosL = cosL;
+              c.gain = gain;
               if (dt.shadowsNeeded) {
                 shadowRays[c.shadowIndex = shadowCount++] = Ray{p + offset, 0.0f, toL / d, d - eps};
               } else {
@@ -866,7 +890,7 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
                 ++ds.shadowsSkipped;
               }
               if (visible) {
-                const float w = (c.cosL / c.d) / (float(kPi) * std::max(c.d2, minD2));
+                const float w = c.gain * (c.cosL / c.d) / (float(kPi) * std::max(c.d2, minD2));
                 detect(ds, dt, pathLength + c.d, scattered, w, -c.toL / c.d, first, order + 1, false);
               }
             }
@@ -963,6 +987,7 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
       for (int b = 0; b < kNumBands; ++b) addSat(t.late[b], o.late[b]);
       t.shadows += o.shadows;
       t.shadowsSkipped += o.shadowsSkipped;
+      t.shadowsRouletted += o.shadowsRouletted;
       t.excluded += o.excluded;
     }
     for (size_t i = 0; i < total.aliveDiff.size(); ++i) addSat(total.aliveDiff[i], acc[w].aliveDiff[i]);
@@ -1055,6 +1080,7 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
     for (int b = 0; b < kNumBands; ++b) result.stats.energyLate[b] = double(t.late[b]) * unit;
     result.stats.shadowRays = t.shadows;
     result.stats.shadowRaysSkipped = t.shadowsSkipped;
+    result.stats.shadowRaysRouletted = t.shadowsRouletted;
     result.stats.specularExcluded = t.excluded;
   }
   return results;

@@ -32,6 +32,7 @@ struct BenchTraceOptions {
   int runs = 15;
   bool embree = true;
   unsigned sharedSources = 0;
+  double shadowRoulette = ReflectionSettings{}.sharedShadowRoulette;
 };
 
 // `count` sources spread over the benchmarks' ring (ringPosition).
@@ -46,6 +47,7 @@ int runShared(const BenchTraceOptions& o, const RayTracer& tracer, const Materia
   ReflectionSettings s;
   s.rays = o.rays;
   s.bounces = o.bounces;
+  s.sharedShadowRoulette = o.shadowRoulette;
   const Vec3d lis{o.listener[0], o.listener[1], o.listener[2]};
   const std::vector<Vec3d> positions = ringSources(tracer, o.sharedSources);
   std::vector<SharedTraceSource> sources(positions.size());
@@ -187,6 +189,11 @@ const Registrar registrar([](CLI::App& root) {
                   "Instead: one shared listener-centred trace for this many sources (on a ring at 0.6 of the "
                   "scene's half extents, z up) beside a trace from each of them, same run (median of up to 5)")
       ->check(CLI::Range(1u, 4096u));
+  cmd->add_option("--shadow-roulette", o->shadowRoulette,
+                  "With --shared-sources: the shared trace's shadow-ray roulette (a source gets a reflection's "
+                  "shadow ray with probability min(1, this x R^2 cos / d^2); 0: every shadow ray)")
+      ->check(CLI::Range(0.0, 1e6))
+      ->capture_default_str();
   cmd->add_flag("!--no-embree-limit", o->embree,
                 "Skip the Embree limit (the same queries replayed through plain Embree calls, every mode)");
   cmd->callback([o] { setExitCode(run(*o)); });

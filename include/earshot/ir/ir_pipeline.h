@@ -46,6 +46,8 @@ struct OmniIrSettings {
   uint32_t tailProbes = kEveryRay;
   bool russianRoulette = true;     ///< end rays 60 dB down (unbiased; ReflectionSettings)
   bool flutterCones = true;        ///< sample flutter axes densely (ReflectionSettings::flutterCones)
+  /** A shared trace's roulette on shadow rays (ReflectionSettings::sharedShadowRoulette); 0: every shadow ray. */
+  double sharedShadowRoulette = ReflectionSettings{}.sharedShadowRoulette;
   /** > 0: stop tracing when the late histogram's estimated error is below
    *  this (dB; ReflectionSettings::convergenceDb). 0: every ray. */
   double convergenceDb = 0.0;

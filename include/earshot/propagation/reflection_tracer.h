@@ -97,6 +97,20 @@ struct ReflectionSettings {
    *  of a flutter echo, which carry a specular room's late decay, are
    *  sampled densely. Not with convergenceDb or fewer than 1024 rays. */
   bool flutterCones = true;
+  /** A shared trace's next-event estimation (traceReflectionsShared): a
+   *  reflection sends a source its shadow ray with probability
+   *  min(1, this x R^2 cos(theta) / d^2) (R: the source's detection sphere;
+   *  d, theta: the distance and angle from the reflecting surface to it) and
+   *  the detection counts 1/p times: unbiased (Russian roulette on shadow
+   *  rays). With 1, a reflection farther from a source than its sphere's
+   *  radius detects about as often, and with about the weight, as a ray
+   *  through the sphere does. The default 2: in a furnished room with 32
+   *  sources 11x fewer shadow rays (5.8 M -> 0.52 M), the trace 2.4x faster;
+   *  the window energies' standard error at most 1.16x (SharedTrace.ShadowRoulette*). The decision for a source depends on it alone
+   *  and on a random number per reflection: a source's result is the same
+   *  with or without others in the trace. 0: every reflection sends every
+   *  facing source a shadow ray. Not used by traceReflections. [0, 1e6] */
+  double sharedShadowRoulette = 2.0;
 };
 
 /** Reflections a tail probe makes past the bounce limit, at most. */
@@ -146,6 +160,7 @@ struct ReflectionStats {
   uint64_t segmentsTraced = 0;        ///< intersection queries
   uint64_t shadowRays = 0;            ///< occlusion queries
   uint64_t shadowRaysSkipped = 0;     ///< not needed: a convex room around the listener (RayTracer::convexAround)
+  uint64_t shadowRaysRouletted = 0;   ///< not sent: a shared trace's roulette (ReflectionSettings::sharedShadowRoulette)
   BandArrayD energyEscaped{};         ///< fraction of emitted energy that escaped, per band
   BandArrayD energyLate{};            ///< detected energy arriving after maxTimeSeconds
   std::vector<BandArrayD> detectedPerOrder;  ///< detected energy by reflection order (index 0 unused)
