@@ -108,7 +108,7 @@ struct IrJob {
 // Checks, the direct sound and the image sources.
 Status prepareIr(const RayTracer& tracer, const MaterialTable& materials, const Vec3d& source, const Vec3d& listener,
                  const OmniIrSettings& s, const BinauralReceiver* binaural, const AmbisonicReceiver* ambisonic,
-                 IrJob& job) {
+                 IrJob& job, const std::vector<PlaneSequence>* candidates = nullptr) {
   job.start = std::chrono::steady_clock::now();
   if (!isFinite(source) || !isFinite(listener)) return invalidArgument("source or listener position is not finite");
   if (!withinCoordinateRange(source) || !withinCoordinateRange(listener))
@@ -158,6 +158,7 @@ Status prepareIr(const RayTracer& tracer, const MaterialTable& materials, const 
     is.air = s.air;
     is.seed = s.seed;
     is.candidateRays = std::min<uint32_t>(s.rays, 16384);
+    is.candidates = candidates;
     auto r = findImageSources(tracer, materials, source, listener, is);
     if (!r.isOk()) return r.status();
     job.ism = std::move(r.value());
@@ -203,6 +204,7 @@ ReflectionSettings reflectionSettingsOf(const OmniIrSettings& s, const IrJob& jo
   rs.tailProbes = s.completeTail ? s.tailProbes : 0;
   rs.russianRoulette = s.russianRoulette;
   rs.flutterCones = s.flutterCones;
+  rs.sharedShadowRoulette = s.sharedShadowRoulette;
   rs.convergenceDb = s.convergenceDb;
   if (s.lengthSeconds > 0) rs.maxTimeSeconds = s.lengthSeconds;
   rs.excludedSpecular = job.hasImageSources ? &job.ism.found : nullptr;
@@ -321,9 +323,25 @@ Result<std::vector<OmniIrResult>> computeIrs(const RayTracer& tracer, const Mate
   // source's tail and synthesis (one per thread).
   std::vector<IrJob> jobs(requests.size());
   std::vector<Status> status(requests.size());
+  // Where the image sources' candidates come from rays (many planes), the
+  // listener's rays find them once for every source (imageSourceCandidates).
+  std::vector<PlaneSequence> candidates;
+  const bool listenerCandidates = !tracer.empty() && s.imageSourceOrder > 0 && isFinite(listener) &&
+                                  tracer.planes().planes.size() > ImageSourceSettings{}.maxPlanesExhaustive;
+  double candidatesMs = 0;
+  if (listenerCandidates) {
+    const auto t = std::chrono::steady_clock::now();
+    ImageSourceSettings is;
+    is.maxOrder = std::min(s.imageSourceOrder, kMaxImageSourceOrder);
+    is.seed = s.seed;
+    is.candidateRays = std::min<uint32_t>(s.rays, 16384);
+    candidates = imageSourceCandidates(tracer, listener, is, true);
+    candidatesMs = msSince(t) / double(requests.size());  // each source is charged its part
+  }
   pool.parallelFor(requests.size(), [&](size_t i, unsigned) {
     status[i] = prepareIr(tracer, materials, requests[i].source, listener, settingsOf(requests[i]), binaural,
-                          ambisonic, jobs[i]);
+                          ambisonic, jobs[i], listenerCandidates ? &candidates : nullptr);
+    jobs[i].out.timings.imageSourcesMs += candidatesMs;
   });
   for (size_t i = 0; i < requests.size(); ++i)
     if (!status[i].isOk()) return named(i, status[i]);

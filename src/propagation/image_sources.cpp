@@ -132,6 +132,48 @@ Status validate(const ImageSourceSettings& s) {
   return validate(s.air);
 }
 
+std::vector<PlaneSequence> imageSourceCandidates(const RayTracer& tracer, const Vec3d& from,
+                                                 const ImageSourceSettings& settings, bool fromListener) {
+  PlaneSequenceSet candidates;
+  const uint32_t maxOrder = std::min(settings.maxOrder, kMaxImageSourceOrder);
+  if (maxOrder > 0 && !tracer.empty() && isFinite(from)) {
+    const float eps = tracer.surfaceEpsilon();
+    Pcg32 rng(settings.seed, 0xC0FFEEULL);
+    const double rotation = rng.uniformDouble();  // spin the Fibonacci sphere per seed
+    const double c = std::cos(rotation * 6.283185307179586), s = std::sin(rotation * 6.283185307179586);
+    for (uint32_t i = 0; i < settings.candidateRays; ++i) {
+      Vec3d d = fibonacciDirection(i, settings.candidateRays);
+      d = {c * d.x - s * d.y, s * d.x + c * d.y, d.z};
+      Ray ray{from, 0.0f, Vec3f(d), 1e30f};
+      PlaneSequence seq;
+      seq.fill(kUnused);
+      for (uint32_t k = 0; k < maxOrder; ++k) {
+        Hit hit;
+        if (!tracer.intersect(ray, hit)) break;
+        seq[k] = tracer.planeOf(hit.triangle);
+        if (k > 0 && seq[k] == seq[k - 1]) break;
+        if (fromListener) {
+          // The path from the source runs through these planes backwards.
+          PlaneSequence reversed;
+          reversed.fill(kUnused);
+          for (uint32_t j = 0; j <= k; ++j) reversed[j] = seq[k - j];
+          candidates.insert(reversed);
+        } else {
+          candidates.insert(seq);
+        }
+        Vec3f n = hit.normal;
+        if (dot(n, ray.direction) > 0) n = -n;
+        ray.origin = ray.origin + Vec3d(ray.direction) * double(hit.t) + Vec3d(n * eps);
+        ray.direction = normalize(ray.direction - n * (2.0f * dot(ray.direction, n)));
+      }
+    }
+  }
+  // Deterministic order: sorted.
+  std::vector<PlaneSequence> sorted(candidates.begin(), candidates.end());
+  std::sort(sorted.begin(), sorted.end());
+  return sorted;
+}
+
 Result<ImageSourceResult> findImageSources(const RayTracer& tracer, const MaterialTable& materials, const Vec3d& source,
                                            const Vec3d& listener, const ImageSourceSettings& settings) {
   EARSHOT_RETURN_IF_ERROR(validate(settings));
@@ -166,37 +208,13 @@ Result<ImageSourceResult> findImageSources(const RayTracer& tracer, const Materi
     };
     recurse(recurse, 0);
   } else {
-    // Candidate sequences from specular rays.
     result.exhaustive = false;
-    PlaneSequenceSet candidates;
-    const float eps = tracer.surfaceEpsilon();
-    Pcg32 rng(settings.seed, 0xC0FFEEULL);
-    const double rotation = rng.uniformDouble();  // spin the Fibonacci sphere per seed
-    for (uint32_t i = 0; i < settings.candidateRays; ++i) {
-      Vec3d d = fibonacciDirection(i, settings.candidateRays);
-      const double c = std::cos(rotation * 6.283185307179586), s = std::sin(rotation * 6.283185307179586);
-      d = {c * d.x - s * d.y, s * d.x + c * d.y, d.z};
-      Ray ray{source, 0.0f, Vec3f(d), 1e30f};
-      PlaneSequence seq;
-      seq.fill(kUnused);
-      for (uint32_t k = 0; k < settings.maxOrder; ++k) {
-        Hit hit;
-        if (!tracer.intersect(ray, hit)) break;
-        seq[k] = tracer.planeOf(hit.triangle);
-        if (k > 0 && seq[k] == seq[k - 1]) break;
-        candidates.insert(seq);
-        Vec3f n = hit.normal;
-        if (dot(n, ray.direction) > 0) n = -n;
-        ray.origin = ray.origin + Vec3d(ray.direction) * double(hit.t) + Vec3d(n * eps);
-        ray.direction = normalize(ray.direction - n * (2.0f * dot(ray.direction, n)));
-      }
-    }
-    // Deterministic order: sort the candidates.
-    std::vector<PlaneSequence> sorted(candidates.begin(), candidates.end());
-    std::sort(sorted.begin(), sorted.end());
-    for (const auto& seq : sorted) {
+    std::vector<PlaneSequence> own;
+    if (!settings.candidates) own = imageSourceCandidates(tracer, source, settings, false);
+    for (const auto& seq : settings.candidates ? *settings.candidates : own) {
       uint32_t order = 0;
       while (order < kMaxImageSourceOrder && seq[order] != kUnused) ++order;
+      if (order == 0 || order > settings.maxOrder) continue;
       consider(seq, order);
     }
   }

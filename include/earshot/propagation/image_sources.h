@@ -60,6 +60,12 @@ struct ImageSourceSettings {
   /** true: reflection factor sqrt((1 - alpha)(1 - s)), the specular part
    *  (the stochastic tracer renders the scattered rest). false: sqrt(1 - alpha). */
   bool specularPartOnly = true;
+  /** Candidates found beforehand (imageSourceCandidates; sorted, each in
+   *  order from the source), used instead of rays from the source when the
+   *  planes are too many for the exhaustive search: a trace shared by many
+   *  sources finds them once, from the listener. Not owned; null: rays from
+   *  the source. */
+  const std::vector<PlaneSequence>* candidates = nullptr;
 };
 
 struct ImageSourceResult {
@@ -71,6 +77,15 @@ struct ImageSourceResult {
 };
 
 Status validate(const ImageSourceSettings& settings);
+
+/** Candidate plane sequences up to settings.maxOrder: those of
+ *  settings.candidateRays specular rays from `from` (a Fibonacci sphere spun
+ *  by settings.seed), sorted. `fromListener`: `from` is the listener, and
+ *  each sequence is reversed (in order from the source, as findImageSources
+ *  takes them). Specular paths are reversible: a path source -> planes ->
+ *  listener is a candidate when some ray from either end follows it. */
+std::vector<PlaneSequence> imageSourceCandidates(const RayTracer& tracer, const Vec3d& from,
+                                                 const ImageSourceSettings& settings, bool fromListener);
 
 Result<ImageSourceResult> findImageSources(const RayTracer& tracer, const MaterialTable& materials, const Vec3d& source,
                                            const Vec3d& listener, const ImageSourceSettings& settings);
