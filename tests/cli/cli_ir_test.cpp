@@ -13,6 +13,7 @@
 #include "cli_test_util.h"
 #include "earshot/core/bands.h"
 #include "earshot/io/wav.h"
+#include "earshot/propagation/reflection_tracer.h"
 
 namespace earshot {
 namespace {
@@ -171,6 +172,14 @@ TEST(CliIr, SharedTraceIsReportedAndRefusesConvergence) {
                         " --source 2,3.5,1.5 --listener 7,3.5,1.5 --trace shared --converge 1 -o " + dir / "bad.wav");
   EXPECT_EQ(bad.exitCode, 2);
   EXPECT_NE(bad.output.find("--converge works with --trace per-source only"), std::string::npos) << bad.output;
+  EXPECT_FALSE(std::filesystem::exists(dir / "bad.wav"));
+  // The shared trace's shadow-ray roulette: reported, and refused per source.
+  EXPECT_EQ(s["settings"]["shared_shadow_roulette"], ReflectionSettings{}.sharedShadowRoulette);
+  auto perSource = runEarshot("ir " + kShoebox + " --material-map " + kShoeboxMap +
+                              " --source 2,3.5,1.5 --listener 7,3.5,1.5 --shadow-roulette 1 -o " + dir / "bad.wav");
+  EXPECT_EQ(perSource.exitCode, 2);
+  EXPECT_NE(perSource.output.find("--shadow-roulette applies to --trace shared only"), std::string::npos)
+      << perSource.output;
   EXPECT_FALSE(std::filesystem::exists(dir / "bad.wav"));
 }
 

@@ -50,6 +50,7 @@ struct IrOptions {
   uint32_t tailProbes = kEveryRay;
   double convergeDb = 0.0;
   std::string trace = "per-source";
+  double shadowRoulette = ReflectionSettings{}.sharedShadowRoulette;
   bool noFlutterCones = false;
   std::string bands = "octave";
 };
@@ -92,6 +93,7 @@ int run(const IrOptions& o, const CLI::App& cmd) {
   if (cmd.count("--tail-probes")) settings.tailProbes = o.tailProbes;
   settings.convergenceDb = o.convergeDb;
   settings.flutterCones = !o.noFlutterCones;
+  settings.sharedShadowRoulette = o.shadowRoulette;
   settings.sampleRateHz = o.rate;
   settings.seed = o.seed;
   settings.air = *air;
@@ -169,6 +171,9 @@ int run(const IrOptions& o, const CLI::App& cmd) {
   const TraceMode traceMode = *traceModeFromString(o.trace);
   if (traceMode == TraceMode::kShared && o.convergeDb > 0 &&
       !check(invalidArgument("--converge works with --trace per-source only (a shared trace traces every ray)")))
+    return 2;
+  if (traceMode != TraceMode::kShared && cmd.count("--shadow-roulette") &&
+      !check(invalidArgument("--shadow-roulette applies to --trace shared only")))
     return 2;
   Result<std::vector<OmniIrResult>> result = std::vector<OmniIrResult>{};
   Result<ThirdOctaveIrResult> thirds = ThirdOctaveIrResult{};
@@ -266,6 +271,12 @@ const Registrar registrar([](CLI::App& root) {
                   "shared (rays leave the listener, the source detects them: the runtime's one trace for many "
                   "sources; by reciprocity the same energies)")
       ->check(CLI::IsMember({"per-source", "shared"}))
+      ->capture_default_str();
+  cmd->add_option("--shadow-roulette", o->shadowRoulette,
+                  "--trace shared: a reflection sends the source its shadow ray with probability min(1, this x R^2 "
+                  "cos / d^2) (R: the source's detection sphere), the detection counting 1/p (unbiased; fewer "
+                  "shadow rays, a little more noise; shadow_rays_rouletted in --json; 0 = every shadow ray)")
+      ->check(CLI::Range(0.0, 1e6))
       ->capture_default_str();
   cmd->add_option("--converge", o->convergeDb,
                   "Stop tracing once the late histogram's estimated error (every 10 ms window within 20 dB of its "
