@@ -7,6 +7,8 @@
 #include <new>
 #include <string>
 
+#include <Eigen/Core>
+
 #include "earshot/core/math.h"
 #include "earshot/ir/band_filter_bank.h"
 #include "spectral_synth.h"
@@ -43,12 +45,17 @@ struct MinPhaseWorkspace {
         inverse(kiss_fftr_alloc(int(grid), 1, nullptr, nullptr)),
         spectrum(grid / 2 + 1),
         cepstrum(grid),
-        power(grid / 2 + 1) {}
+        power(grid / 2 + 1),
+        phase(grid / 2 + 1),
+        trig(2 * (grid / 2 + 1)),
+        local(3 * (grid / 2 + 1)) {}
   bool ok() const { return forward && inverse; }
   detail::FftrPtr forward, inverse;
   std::vector<kiss_fft_cpx> spectrum;
   std::vector<float> cepstrum;
-  std::vector<float> power;
+  std::vector<float> power, phase;
+  std::vector<float> trig;   // cosines, then sines
+  std::vector<float> local;  // a neighbour's phase not yet in the model's table, per neighbour
 };
 
 // Below this power (-200 dB) the log magnitude is clamped.
@@ -56,27 +63,15 @@ constexpr double kPowerFloor = 1e-20;
 
 }  // namespace
 
-double BinauralModel::spectrumInto(const Vec3f& headDirection, int ear, void* workspace,
-                                   std::complex<float>* out) const {
+// The minimum phase of measurement i's ear: the folded real cepstrum of its
+// log magnitude (Oppenheim & Schafer, sec. 13.8), transformed back; the
+// imaginary part is the phase.
+void BinauralModel::minimumPhaseOf(size_t i, int ear, void* workspace, float* out) const {
   auto& ws = *static_cast<MinPhaseWorkspace*>(workspace);
   const size_t grid = mGridSize, gridBins = grid / 2 + 1;
-  const hrtf::InterpolationWeights w = mHrtf->weights(headDirection);
-  double delay = 0.0;
-  // Float throughout (the grid spectra are float; log and exp in float are
-  // several times faster and exact to ~1e-7 of the magnitude).
-  std::fill(ws.power.begin(), ws.power.end(), 0.0f);
-  for (int j = 0; j < w.count; ++j) {
-    const float wj = w.weight[j];
-    const float* pj = &mGridPower[(w.index[j] * 2 + size_t(ear)) * gridBins];
-    for (size_t k = 0; k < gridBins; ++k) ws.power[k] += wj * pj[k];
-  }
+  const float* power = &mGridPower[(i * 2 + size_t(ear)) * gridBins];
   for (size_t k = 0; k < gridBins; ++k)
-    ws.spectrum[k] = {0.5f * std::log(std::max(ws.power[k], float(kPowerFloor))), 0.0f};
-  for (int j = 0; j < w.count; ++j) {
-    const hrtf::HrtfMeasurement m = mHrtf->measurement(w.index[j]);
-    delay += double(w.weight[j]) * (ear == 0 ? m.leftDelaySeconds : m.rightDelaySeconds);
-  }
-  // Real cepstrum of the log magnitude, folded onto positive quefrencies.
+    ws.spectrum[k] = {0.5f * std::log(std::max(power[k], float(kPowerFloor))), 0.0f};
   kiss_fftri(ws.inverse.get(), ws.spectrum.data(), ws.cepstrum.data());
   const float scale = 1.0f / float(grid);
   ws.cepstrum[0] *= scale;
@@ -84,10 +79,64 @@ double BinauralModel::spectrumInto(const Vec3f& headDirection, int ear, void* wo
   ws.cepstrum[grid / 2] *= scale;
   std::fill(ws.cepstrum.begin() + std::ptrdiff_t(grid / 2 + 1), ws.cepstrum.end(), 0.0f);
   kiss_fftr(ws.forward.get(), ws.cepstrum.data(), ws.spectrum.data());
-  for (size_t k = 0; k < gridBins; ++k) {
-    const float m = std::exp(ws.spectrum[k].r);
-    out[k] = {m * std::cos(ws.spectrum[k].i), m * std::sin(ws.spectrum[k].i)};
+  for (size_t k = 0; k < gridBins; ++k) out[k] = ws.spectrum[k].i;
+}
+
+// Measurement i's minimum phase for `ear`: from the model's table, made on
+// first use. The thread that claims an entry (0 -> 1) fills it and
+// publishes it (-> 2, release); another thread that finds it unpublished
+// computes its own copy into `scratch` (the same numbers) instead of waiting.
+const float* BinauralModel::phaseOf(size_t i, int ear, void* workspace, float* scratch) const {
+  const size_t gridBins = mGridSize / 2 + 1, slot = i * 2 + size_t(ear);
+  std::atomic<uint8_t>& state = mPhaseState[slot];
+  float* entry = &mGridPhase[slot * gridBins];
+  if (state.load(std::memory_order_acquire) == 2) return entry;
+  minimumPhaseOf(i, ear, workspace, scratch);
+  uint8_t expected = 0;
+  if (state.compare_exchange_strong(expected, 1, std::memory_order_acq_rel)) {
+    std::copy(scratch, scratch + gridBins, entry);
+    state.store(2, std::memory_order_release);
   }
+  return scratch;
+}
+
+double BinauralModel::spectrumInto(const Vec3f& headDirection, int ear, void* workspace,
+                                   std::complex<float>* out) const {
+  auto& ws = *static_cast<MinPhaseWorkspace*>(workspace);
+  const size_t grid = mGridSize, gridBins = grid / 2 + 1;
+  const hrtf::InterpolationWeights w = mHrtf->weights(headDirection);
+  double delay = 0.0;
+  // Float throughout (the grid spectra are float; exact to ~1e-7 of the
+  // magnitude). The magnitude is the neighbours' power averaged with the
+  // weights; the phase their minimum phases averaged with the same weights,
+  // which is exactly the minimum phase of their log magnitudes averaged (the
+  // cepstral construction is linear in the log magnitude), and close to the
+  // averaged power's where neighbours differ little. Each measurement's
+  // phase is made once (phaseOf): no transforms per arrival.
+  std::fill(ws.power.begin(), ws.power.end(), 0.0f);
+  std::fill(ws.phase.begin(), ws.phase.end(), 0.0f);
+  for (int j = 0; j < w.count; ++j) {
+    const float wj = w.weight[j];
+    const float* pj = &mGridPower[(w.index[j] * 2 + size_t(ear)) * gridBins];
+    for (size_t k = 0; k < gridBins; ++k) ws.power[k] += wj * pj[k];
+    const float* phj = phaseOf(w.index[j], ear, workspace, &ws.local[size_t(j) * gridBins]);
+    for (size_t k = 0; k < gridBins; ++k) ws.phase[k] += wj * phj[k];
+  }
+  for (int j = 0; j < w.count; ++j) {
+    const hrtf::HrtfMeasurement m = mHrtf->measurement(w.index[j]);
+    delay += double(w.weight[j]) * (ear == 0 ? m.leftDelaySeconds : m.rightDelaySeconds);
+  }
+  // Vectorised square root, sine and cosine (Eigen's packet math).
+  using Array = Eigen::Array<float, Eigen::Dynamic, 1>;
+  const Eigen::Map<const Array> power(ws.power.data(), Eigen::Index(gridBins));
+  const Eigen::Map<const Array> phase(ws.phase.data(), Eigen::Index(gridBins));
+  Eigen::Map<Array> magnitude(ws.power.data(), Eigen::Index(gridBins));
+  magnitude = power.max(float(kPowerFloor)).sqrt();
+  Eigen::Map<Array> cosine(ws.trig.data(), Eigen::Index(gridBins));
+  Eigen::Map<Array> sine(ws.trig.data() + gridBins, Eigen::Index(gridBins));
+  cosine = phase.cos();
+  sine = phase.sin();
+  for (size_t k = 0; k < gridBins; ++k) out[k] = {ws.power[k] * cosine[Eigen::Index(k)], ws.power[k] * sine[Eigen::Index(k)]};
   return delay;
 }
 
@@ -149,6 +198,11 @@ Result<std::shared_ptr<const BinauralModel>> BinauralModel::create(std::shared_p
   m->mPower[1].assign(gridBins, 0.0);
   m->mCross.assign(gridBins, 0.0);
   m->mGridPower.resize(count * 2 * gridBins);
+  // Each measurement's minimum phase, made on first use (phaseOf): not
+  // zeroed here (untouched pages cost nothing), published per entry.
+  m->mGridPhase.reset(new float[count * 2 * gridBins]);
+  m->mPhaseState.reset(new std::atomic<uint8_t>[count * 2]);
+  for (size_t i = 0; i < count * 2; ++i) m->mPhaseState[i].store(0, std::memory_order_relaxed);
   for (size_t i = 0; i < count; ++i) {
     const hrtf::HrtfMeasurement meas = set->measurement(i);
     gridSpectrum(fft, padded, meas.left, taps, scratch, h[0].data());

@@ -30,6 +30,8 @@
  *  Conventions (docs/design.md): channel 0 left, channel 1 right; time 0 is the
  *  emission; amplitudes are the omni pressure filtered by the HRTF. */
 #include <array>
+#include <atomic>
+#include <cstdint>
 #include <complex>
 #include <memory>
 #include <mutex>
@@ -92,9 +94,11 @@ class BinauralModel {
    *  grid (gridSize() / 2 + 1 values), and that ear's onset delay (seconds,
    *  hrtf_set.h convention). Interpolated in the frequency domain: the
    *  power spectra of the measurements lookup() would combine are averaged
-   *  with its weights, and the result made minimum-phase (folded real
+   *  with its weights, and so are their minimum phases (folded real
    *  cepstrum; Oppenheim & Schafer, Discrete-Time Signal Processing, 3rd ed.,
-   *  sec. 13.8); the delays are interpolated with the same weights. Unlike
+   *  sec. 13.8; each measurement's made once, on first use): the minimum
+   *  phase of their averaged log magnitude. The delays are interpolated with
+   *  the same weights. Unlike
    *  averaging HRIRs in the time domain, this keeps each band's energy the
    *  average of the neighbours' even where their responses differ in phase
    *  (the shadowed ear). Allocates; not for the audio thread. */
@@ -127,6 +131,13 @@ class BinauralModel {
   mutable std::vector<std::pair<double, std::shared_ptr<const std::vector<float>>>> mShiftedBandEnergy;
   std::vector<float> relativeBandEnergyTable(double bandShiftOctaves) const;
   std::vector<float> mGridPower;           // [measurement][ear][grid bin]: |H|^2 with the onset removed
+  // [measurement][ear][grid bin]: the minimum phase of mGridPower's
+  // magnitude, each entry made on its first use and published by
+  // mPhaseState (0 not made, 1 being made, 2 ready): a cache, hence mutable.
+  mutable std::unique_ptr<float[]> mGridPhase;
+  mutable std::unique_ptr<std::atomic<uint8_t>[]> mPhaseState;
+  void minimumPhaseOf(size_t measurement, int ear, void* workspace, float* out) const;
+  const float* phaseOf(size_t measurement, int ear, void* workspace, float* scratch) const;
 };
 
 /** Loads a SOFA HRTF set at `sampleRateHz` (an empty path: the shipped
