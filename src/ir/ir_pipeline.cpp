@@ -108,7 +108,7 @@ struct IrJob {
 // Checks, the direct sound and the image sources.
 Status prepareIr(const RayTracer& tracer, const MaterialTable& materials, const Vec3d& source, const Vec3d& listener,
                  const OmniIrSettings& s, const BinauralReceiver* binaural, const AmbisonicReceiver* ambisonic,
-                 IrJob& job, const std::vector<PlaneSequence>* candidates = nullptr) {
+                 IrJob& job, const std::vector<PlaneSequence>* candidates = nullptr, ThreadPool* pool = nullptr) {
   job.start = std::chrono::steady_clock::now();
   if (!isFinite(source) || !isFinite(listener)) return invalidArgument("source or listener position is not finite");
   if (!withinCoordinateRange(source) || !withinCoordinateRange(listener))
@@ -159,7 +159,8 @@ Status prepareIr(const RayTracer& tracer, const MaterialTable& materials, const 
     is.seed = s.seed;
     is.candidateRays = std::min<uint32_t>(s.rays, 16384);
     is.candidates = candidates;
-    auto r = findImageSources(tracer, materials, source, listener, is);
+    // On the pool's threads when one is given (the same paths whatever the threads).
+    auto r = findImageSources(tracer, materials, source, listener, is, pool);
     if (!r.isOk()) return r.status();
     job.ism = std::move(r.value());
     job.hasImageSources = true;
@@ -265,7 +266,7 @@ Result<OmniIrResult> computeIr(const RayTracer& tracer, const MaterialTable& mat
                                const Vec3d& listener, const OmniIrSettings& s, ThreadPool& pool,
                                const BinauralReceiver* binaural, const AmbisonicReceiver* ambisonic) {
   IrJob job;
-  EARSHOT_RETURN_IF_ERROR(prepareIr(tracer, materials, source, listener, s, binaural, ambisonic, job));
+  EARSHOT_RETURN_IF_ERROR(prepareIr(tracer, materials, source, listener, s, binaural, ambisonic, job, nullptr, &pool));
   std::optional<Result<ReflectionResult>> traced;
   if (tracesReflections(tracer, s)) {
     traced = traceReflections(tracer, materials, source, listener, reflectionSettingsOf(s, job), pool);
@@ -335,7 +336,7 @@ Result<std::vector<OmniIrResult>> computeIrs(const RayTracer& tracer, const Mate
     is.maxOrder = std::min(s.imageSourceOrder, kMaxImageSourceOrder);
     is.seed = s.seed;
     is.candidateRays = std::min<uint32_t>(s.rays, 16384);
-    candidates = imageSourceCandidates(tracer, listener, is, true);
+    candidates = imageSourceCandidates(tracer, listener, is, true, &pool);
     candidatesMs = msSince(t) / double(requests.size());  // each source is charged its part
   }
   pool.parallelFor(requests.size(), [&](size_t i, unsigned) {

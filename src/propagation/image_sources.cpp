@@ -7,6 +7,7 @@
 #include <string>
 
 #include "earshot/core/random.h"
+#include "earshot/core/thread_pool.h"
 #include "earshot/propagation/reflection_tracer.h"
 #include "earshot/scene/ray_tracer.h"
 
@@ -133,15 +134,24 @@ Status validate(const ImageSourceSettings& s) {
 }
 
 std::vector<PlaneSequence> imageSourceCandidates(const RayTracer& tracer, const Vec3d& from,
-                                                 const ImageSourceSettings& settings, bool fromListener) {
-  PlaneSequenceSet candidates;
+                                                 const ImageSourceSettings& settings, bool fromListener,
+                                                 ThreadPool* pool) {
   const uint32_t maxOrder = std::min(settings.maxOrder, kMaxImageSourceOrder);
-  if (maxOrder > 0 && !tracer.empty() && isFinite(from)) {
-    const float eps = tracer.surfaceEpsilon();
-    Pcg32 rng(settings.seed, 0xC0FFEEULL);
-    const double rotation = rng.uniformDouble();  // spin the Fibonacci sphere per seed
-    const double c = std::cos(rotation * 6.283185307179586), s = std::sin(rotation * 6.283185307179586);
-    for (uint32_t i = 0; i < settings.candidateRays; ++i) {
+  if (maxOrder == 0 || tracer.empty() || !isFinite(from) || settings.candidateRays == 0) return {};
+  const float eps = tracer.surfaceEpsilon();
+  Pcg32 rng(settings.seed, 0xC0FFEEULL);
+  const double rotation = rng.uniformDouble();  // spin the Fibonacci sphere per seed
+  const double c = std::cos(rotation * 6.283185307179586), s = std::sin(rotation * 6.283185307179586);
+  // The rays in a fixed number of chunks, each into its own set: the union
+  // is the same whatever the threads.
+  constexpr uint32_t kChunks = 16;
+  const uint32_t perChunk = (settings.candidateRays + kChunks - 1) / kChunks;
+  std::vector<PlaneSequenceSet> found(kChunks);
+  auto chunk = [&](size_t task, unsigned) {
+    PlaneSequenceSet& candidates = found[task];
+    const uint32_t first = uint32_t(task) * perChunk;
+    const uint32_t last = std::min(settings.candidateRays, first + perChunk);
+    for (uint32_t i = first; i < last; ++i) {
       Vec3d d = fibonacciDirection(i, settings.candidateRays);
       d = {c * d.x - s * d.y, s * d.x + c * d.y, d.z};
       Ray ray{from, 0.0f, Vec3f(d), 1e30f};
@@ -167,15 +177,21 @@ std::vector<PlaneSequence> imageSourceCandidates(const RayTracer& tracer, const 
         ray.direction = normalize(ray.direction - n * (2.0f * dot(ray.direction, n)));
       }
     }
+  };
+  if (pool && pool->threadCount() > 1) {
+    pool->parallelFor(kChunks, chunk);
+  } else {
+    for (size_t t = 0; t < kChunks; ++t) chunk(t, 0);
   }
+  for (size_t t = 1; t < kChunks; ++t) found[0].insert(found[t].begin(), found[t].end());
   // Deterministic order: sorted.
-  std::vector<PlaneSequence> sorted(candidates.begin(), candidates.end());
+  std::vector<PlaneSequence> sorted(found[0].begin(), found[0].end());
   std::sort(sorted.begin(), sorted.end());
   return sorted;
 }
 
 Result<ImageSourceResult> findImageSources(const RayTracer& tracer, const MaterialTable& materials, const Vec3d& source,
-                                           const Vec3d& listener, const ImageSourceSettings& settings) {
+                                           const Vec3d& listener, const ImageSourceSettings& settings, ThreadPool* pool) {
   EARSHOT_RETURN_IF_ERROR(validate(settings));
   if (!isFinite(source) || !isFinite(listener)) return invalidArgument("source or listener position is not finite");
   const auto start = std::chrono::steady_clock::now();
@@ -210,12 +226,16 @@ Result<ImageSourceResult> findImageSources(const RayTracer& tracer, const Materi
   } else {
     result.exhaustive = false;
     std::vector<PlaneSequence> own;
-    if (!settings.candidates) own = imageSourceCandidates(tracer, source, settings, false);
-    for (const auto& seq : settings.candidates ? *settings.candidates : own) {
+    if (!settings.candidates) own = imageSourceCandidates(tracer, source, settings, false, pool);
+    const std::vector<PlaneSequence>& list = settings.candidates ? *settings.candidates : own;
+    auto orderOf = [&](const PlaneSequence& seq) {
       uint32_t order = 0;
       while (order < kMaxImageSourceOrder && seq[order] != kUnused) ++order;
-      if (order == 0 || order > settings.maxOrder) continue;
-      consider(seq, order);
+      return order == 0 || order > settings.maxOrder ? 0u : order;
+    };
+    for (const auto& seq : list) {
+      const uint32_t order = orderOf(seq);
+      if (order > 0) consider(seq, order);
     }
   }
   std::sort(result.paths.begin(), result.paths.end(), [](const SpecularPath& a, const SpecularPath& b) {

@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include "earshot/core/math.h"
+#include "earshot/core/thread_pool.h"
 #include "earshot/propagation/direct_path.h"
 #include "earshot/propagation/image_sources.h"
 #include "earshot/scene/ray_tracer.h"
@@ -191,8 +192,18 @@ TEST(ImageSources, ListenerCandidatesFindWhatTheSourcesFindAmidFurniture) {
     EXPECT_LE(onlyA + onlyB, 1u);
     EXPECT_NEAR(energy(*b) / energy(*a), 1.0, 0.01);
     paths += a->paths.size();
+    // On a pool's threads: the same candidates and paths.
+    ThreadPool two(2);
+    auto c = findImageSources(**tracer, materials, source, listener, s, &two);
+    ASSERT_TRUE(c.isOk());
+    EXPECT_EQ(c->found, a->found);
+    EXPECT_EQ(c->candidates, a->candidates);
+    ASSERT_EQ(c->paths.size(), a->paths.size());
+    for (size_t i = 0; i < a->paths.size(); ++i) EXPECT_EQ(c->paths[i].lengthMeters, a->paths[i].lengthMeters);
   }
   EXPECT_GT(paths, 6u * 30u);  // furniture: many paths per source
+  ThreadPool two(2);
+  EXPECT_EQ(imageSourceCandidates(**tracer, listener, s, true, &two), fromListener);
 }
 
 }  // namespace earshot

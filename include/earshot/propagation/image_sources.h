@@ -24,6 +24,7 @@
 namespace earshot {
 
 class RayTracer;
+class ThreadPool;
 
 constexpr uint32_t kMaxImageSourceOrder = 4;
 
@@ -83,11 +84,18 @@ Status validate(const ImageSourceSettings& settings);
  *  by settings.seed), sorted. `fromListener`: `from` is the listener, and
  *  each sequence is reversed (in order from the source, as findImageSources
  *  takes them). Specular paths are reversible: a path source -> planes ->
- *  listener is a candidate when some ray from either end follows it. */
+ *  listener is a candidate when some ray from either end follows it.
+ *  `pool` (optional; not from inside its own parallelFor) shares the rays
+ *  between threads: the same candidates whatever the thread count. */
 std::vector<PlaneSequence> imageSourceCandidates(const RayTracer& tracer, const Vec3d& from,
-                                                 const ImageSourceSettings& settings, bool fromListener);
+                                                 const ImageSourceSettings& settings, bool fromListener,
+                                                 ThreadPool* pool = nullptr);
 
+/** The image-source paths from `source` to `listener`. `pool` (optional;
+ *  not from inside its own parallelFor): candidates from rays are found on
+ *  its threads, with the same result whatever the thread count. */
 Result<ImageSourceResult> findImageSources(const RayTracer& tracer, const MaterialTable& materials, const Vec3d& source,
-                                           const Vec3d& listener, const ImageSourceSettings& settings);
+                                           const Vec3d& listener, const ImageSourceSettings& settings,
+                                           ThreadPool* pool = nullptr);
 
 }  // namespace earshot
