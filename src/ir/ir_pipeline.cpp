@@ -215,8 +215,19 @@ ReflectionSettings reflectionSettingsOf(const OmniIrSettings& s, const IrJob& jo
 
 // Tail completion and synthesis; `traced` null when nothing was traced
 // (`shared`: by a shared trace, whose detector is the source).
+// The tail completion's settings (calibrationStartSeconds: after the image sources, per IR).
+TailCompletionSettings tailSettingsOf(const OmniIrSettings& s) {
+  TailCompletionSettings ts;
+  ts.lengthSeconds = s.lengthSeconds;
+  ts.speedOfSound = s.speedOfSound;
+  ts.air = s.air;
+  return ts;
+}
+
+// `rates`: the tail's rates made once for a shared trace's sources (or null).
 Status finishIr(IrJob& job, ReflectionResult* traced, bool shared, const OmniIrSettings& s,
-                const BinauralReceiver* binaural, const AmbisonicReceiver* ambisonic) {
+                const BinauralReceiver* binaural, const AmbisonicReceiver* ambisonic,
+                const TailRates* rates = nullptr, double ratesMs = 0.0) {
   OmniIrResult& out = job.out;
   const EnergyHistogram* late = nullptr;
   if (traced) {
@@ -232,19 +243,16 @@ Status finishIr(IrJob& job, ReflectionResult* traced, bool shared, const OmniIrS
     out.timings.traceMs = r.stats.traceMs;
     auto t = std::chrono::steady_clock::now();
     if (s.completeTail) {
-      TailCompletionSettings ts;
-      ts.lengthSeconds = s.lengthSeconds;
-      ts.speedOfSound = s.speedOfSound;
-      ts.air = s.air;
+      TailCompletionSettings ts = tailSettingsOf(s);
       for (const SpecularPath& p : out.early) ts.calibrationStartSeconds = std::max(ts.calibrationStartSeconds, p.delaySeconds);
-      auto c = completeTail(r.histogram, r.tail, ts, &out.tail);
+      auto c = completeTail(r.histogram, r.tail, ts, &out.tail, rates);
       if (!c.isOk()) return c.status();
       out.late = std::move(c.value());
       if (!out.tail.extended) out.skipped.push_back("tail completion: no ray reached the bounce limit");
     } else {
       out.late = std::move(r.histogram);
     }
-    out.timings.tailMs = msSince(t);
+    out.timings.tailMs = msSince(t) + ratesMs;
     late = &out.late;
   }
 
@@ -377,10 +385,22 @@ Result<std::vector<OmniIrResult>> computeIrs(const RayTracer& tracer, const Mate
       // The trace's time is shared: each source is charged its part.
       for (ReflectionResult& t : traced) t.stats.traceMs /= double(traced.size());
     }
+    // The tail's decay rates and cut rays are the listener's rays': made
+    // once for the group (the same bits as each source making them).
+    std::optional<TailRates> rates;
+    double ratesMs = 0;
+    if (!traced.empty() && s.completeTail) {
+      const auto t = std::chrono::steady_clock::now();
+      auto made = tailRates(traced.front().tail, traced.front().histogram.binSeconds(),
+                            traced.front().histogram.binCount(), tailSettingsOf(s));
+      if (!made.isOk()) return made.status();
+      rates = std::move(made.value());
+      ratesMs = msSince(t) / double(traced.size());
+    }
     pool.parallelFor(g1 - g0, [&](size_t k, unsigned) {
       const size_t i = g0 + k;
-      status[i] =
-          finishIr(jobs[i], traced.empty() ? nullptr : &traced[k], true, settingsOf(requests[i]), binaural, ambisonic);
+      status[i] = finishIr(jobs[i], traced.empty() ? nullptr : &traced[k], true, settingsOf(requests[i]), binaural,
+                           ambisonic, rates ? &*rates : nullptr, ratesMs);
     });
   }
   for (size_t i = 0; i < requests.size(); ++i) {

@@ -14,20 +14,27 @@ constexpr double kFitWindowSeconds = 0.05;
 constexpr double kProbeSpreadFraction = 0.1;
 }  // namespace
 
-Result<EnergyHistogram> completeTail(const EnergyHistogram& h, const TailData& tail,
-                                     const TailCompletionSettings& settings, TailInfo* infoOut) {
+Status validateTailSettings(const TailCompletionSettings& settings) {
   if (!(settings.lengthSeconds >= 0 && settings.lengthSeconds <= 600))
     return invalidArgument("tail length " + std::to_string(settings.lengthSeconds) + " s is outside [0, 600]");
   if (!(settings.dynamicRangeDb > 0 && settings.dynamicRangeDb <= 200))
     return invalidArgument("tail dynamic range " + std::to_string(settings.dynamicRangeDb) + " dB is outside (0, 200]");
-  TailInfo info;
-  const double dt = h.binSeconds();
-  const size_t traced = h.binCount();
+  return Status::ok();
+}
+
+Result<TailRates> tailRates(const TailData& tail, double dt, size_t traced, const TailCompletionSettings& settings) {
+  EARSHOT_RETURN_IF_ERROR(validateTailSettings(settings));
+  if (!(dt > 0)) return invalidArgument("tail rates: histogram bin is not positive");
+  TailRates r;
+  r.binSeconds = dt;
+  r.tracedBins = traced;
+  r.settings = settings;
+  TailInfo& info = r.info;
   const BandArrayD m = airEnergyAttenuationPerMeter(settings.air);  // energy, 1/m
 
   // 1. Decay rates: solve the renewal equation F(delta) = 1 by bisection
   // (F increases with delta).
-  BandArrayD delta{};
+  BandArrayD& delta = r.delta;
   bool haveRates = !tail.pathEnergy.empty();
   for (int b = 0; b < kNumBands && haveRates; ++b) {
     double total = 0, kept = 0, length = 0;
@@ -77,15 +84,14 @@ Result<EnergyHistogram> completeTail(const EnergyHistogram& h, const TailData& t
   // directions.
   double lastCut = 0;
   for (const CutRay& c : tail.cutRays) lastCut = std::max(lastCut, double(c.pathMeters) / settings.speedOfSound);
-  const bool anyCut = !tail.cutRays.empty() && haveRates;
+  r.anyCut = !tail.cutRays.empty() && haveRates;
   double slowest = 1e30;
   for (int b = 0; b < kNumBands; ++b) slowest = std::min(slowest, delta[b]);
 
-  // Length of the histogram to fill.
-  size_t bins = traced;
+  // Length of the histogram to fill (0: where the traced histogram ends).
   if (settings.lengthSeconds > 0) {
-    bins = std::max<size_t>(1, size_t(std::ceil(settings.lengthSeconds / dt)));
-  } else if (anyCut) {
+    r.bins = std::max<size_t>(1, size_t(std::ceil(settings.lengthSeconds / dt)));
+  } else if (r.anyCut) {
     // The probes' decay may be slower than the population's rate: cover
     // where they were still in flight, and where the last of them ended.
     double lastProbe = 0;
@@ -96,39 +102,62 @@ Result<EnergyHistogram> completeTail(const EnergyHistogram& h, const TailData& t
       lastProbe = std::max(lastProbe, double(c.pathMeters) / settings.speedOfSound);
     const double end = std::min(settings.maxAutoSeconds, std::max(lastCut, lastProbe) +
                                                              settings.dynamicRangeDb / 10.0 * std::log(10.0) / slowest);
-    bins = std::max(bins, size_t(std::ceil(end / dt)));
-  } else {
-    bins = size_t(std::max(1L, h.lastNonEmptyBin() + 1));
+    r.bins = std::max(traced, size_t(std::ceil(end / dt)));
   }
+
+  if (r.anyCut) {
+    // Energy (air applied) joining the virtual population in each bin: rays
+    // cut by the bounce limit (and all of it), or probes stopped by their
+    // own limits. One exponential per ray and band.
+    const size_t bins = r.bins;
+    auto join = [&](const std::vector<CutRay>& rays, std::vector<BandArrayD>& joining, BandArrayD* total) {
+      joining.assign(bins, BandArrayD{});
+      for (const CutRay& c : rays) {
+        const size_t bin = size_t(double(c.pathMeters) / settings.speedOfSound / dt);
+        for (int b = 0; b < kNumBands; ++b) {
+          const double e = double(c.energy[b]) * std::exp(-m[b] * c.pathMeters);
+          if (total) (*total)[b] += e;
+          if (bin < bins) joining[bin][b] += e;
+        }
+      }
+    };
+    join(tail.cutRays, r.cut, &r.cutTotal);
+    join(tail.probeEnds, r.probeEnds, nullptr);
+  }
+  return r;
+}
+
+Result<EnergyHistogram> completeTail(const EnergyHistogram& h, const TailData& tail,
+                                     const TailCompletionSettings& settings, TailInfo* infoOut,
+                                     const TailRates* given) {
+  EARSHOT_RETURN_IF_ERROR(validateTailSettings(settings));
+  const double dt = h.binSeconds();
+  const size_t traced = h.binCount();
+  TailRates own;
+  const TailRates* rates = given;
+  if (!rates || rates->binSeconds != dt || rates->tracedBins != traced || !rates->settings.sameRatesAs(settings)) {
+    auto made = tailRates(tail, dt, traced, settings);
+    if (!made.isOk()) return made.status();
+    own = std::move(made.value());
+    rates = &own;
+  }
+  TailInfo info = rates->info;
+  const BandArrayD& delta = rates->delta;
+  const bool anyCut = rates->anyCut;
+  const size_t bins = rates->bins > 0 ? rates->bins : size_t(std::max(1L, h.lastNonEmptyBin() + 1));
 
   std::vector<BandArrayD> virtualEnergy(bins, BandArrayD{});
   // Of it, the part carried on at the population's rate (beyond the probes'
   // ends, or all of it without probes), and what the probes deposited, scaled.
   std::vector<BandArrayD> extrapolated(bins, BandArrayD{}), probeDeposits(bins, BandArrayD{});
   if (anyCut) {
-    // Energy (air applied) joining the virtual population in each bin: rays
-    // cut by the bounce limit, or probes stopped by their own limits.
-    auto joiningOf = [&](const std::vector<CutRay>& rays) {
-      std::vector<BandArrayD> joining(bins, BandArrayD{});
-      for (const CutRay& c : rays) {
-        const size_t bin = size_t(double(c.pathMeters) / settings.speedOfSound / dt);
-        if (bin >= bins) continue;
-        for (int b = 0; b < kNumBands; ++b) joining[bin][b] += double(c.energy[b]) * std::exp(-m[b] * c.pathMeters);
-      }
-      return joining;
-    };
-    BandArrayD cutTotal{};  // all the energy the rays were cut with
-    for (const CutRay& c : tail.cutRays)
-      for (int b = 0; b < kNumBands; ++b) cutTotal[b] += double(c.energy[b]) * std::exp(-m[b] * c.pathMeters);
-    const std::vector<BandArrayD> cut = joiningOf(tail.cutRays);
-    const std::vector<BandArrayD> probeEnds = joiningOf(tail.probeEnds);
     for (int b = 0; b < kNumBands; ++b) {
       // With tail probes: their measured energy in flight, scaled from the
       // energy they were cut with to all cut rays' (beyond the probes' own
       // end, at the population's rate). Without: every cut ray at that rate.
       const bool probed = !tail.probeAlive.empty() && tail.probeCutEnergy[b] > 0;
-      const double scale = probed ? cutTotal[b] / tail.probeCutEnergy[b] : 1.0;
-      const std::vector<BandArrayD>& joining = probed ? probeEnds : cut;
+      const double scale = probed ? rates->cutTotal[b] / tail.probeCutEnergy[b] : 1.0;
+      const std::vector<BandArrayD>& joining = probed ? rates->probeEnds : rates->cut;
       info.probed[b] = probed;
       const double step = std::exp(-delta[b] * dt);
       double v = 0;

@@ -197,6 +197,44 @@ TEST(TailCompletion, OpenSceneGetsAShortTail) {
       << openInfo.lengthSeconds << " s outdoors vs " << closedInfo.lengthSeconds << " s in the room";
 }
 
+// A shared trace's sources share the rays' tail data: the rates made once
+// (tailRates) give each source's completion the same bits as its own would;
+// rates made for other settings or another histogram length are not used.
+TEST(TailCompletion, RatesMadeOnceForASharedTraceGiveTheSameBits) {
+  Room room(0.2f, 0.5f);
+  ThreadPool pool(2);
+  ReflectionSettings s;
+  s.rays = 4096;
+  std::vector<SharedTraceSource> sources(3);
+  sources[0].position = {2, 3.5, 1.5};
+  sources[1].position = {8, 1.5, 1.0};
+  sources[2].position = {4, 6, 2.2};
+  auto r = traceReflectionsShared(*room.tracer, room.materials, kListener, sources, s, pool);
+  ASSERT_TRUE(r.isOk()) << r.status().message();
+  TailCompletionSettings t;
+  t.calibrationStartSeconds = 0.02;
+  const EnergyHistogram& h0 = r->front().histogram;
+  auto rates = tailRates(r->front().tail, h0.binSeconds(), h0.binCount(), t);
+  ASSERT_TRUE(rates.isOk());
+  EXPECT_TRUE(rates->anyCut);
+  TailCompletionSettings longer = t;
+  longer.lengthSeconds = 3.0;
+  auto otherRates = tailRates(r->front().tail, h0.binSeconds(), h0.binCount(), longer);
+  ASSERT_TRUE(otherRates.isOk());
+  for (const ReflectionResult& one : *r) {
+    TailInfo own, given, ignored;
+    auto a = completeTail(one.histogram, one.tail, t, &own);
+    auto b = completeTail(one.histogram, one.tail, t, &given, &*rates);
+    auto c = completeTail(one.histogram, one.tail, t, &ignored, &*otherRates);
+    ASSERT_TRUE(a.isOk() && b.isOk() && c.isOk());
+    EXPECT_EQ(a->data(), b->data());
+    EXPECT_EQ(a->data(), c->data());
+    EXPECT_EQ(own.kappa, given.kappa);
+    EXPECT_EQ(own.decayRatePerSecond, given.decayRatePerSecond);
+    EXPECT_EQ(own.lengthSeconds, given.lengthSeconds);
+  }
+}
+
 TEST(TailCompletion, ExplicitLengthIsHonoured) {
   Room room(0.2f, 1.0f);
   ThreadPool pool(1);

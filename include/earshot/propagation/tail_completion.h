@@ -30,6 +30,7 @@
  *  4 kHz 0.33 (energy in flight x kappa: 1.1 and 0.9). Without probes, V(t)
  *  is all cut rays at delta. */
 #include <array>
+#include <vector>
 
 #include "earshot/core/status.h"
 #include "earshot/propagation/air_absorption.h"
@@ -49,6 +50,13 @@ struct TailCompletionSettings {
   /** Detections before this time are not used to calibrate kappa (the early
    *  specular paths rendered as image sources are missing from them). */
   double calibrationStartSeconds = 0.0;
+  /** Every field but calibrationStartSeconds, which TailRates do not use, equal. */
+  bool sameRatesAs(const TailCompletionSettings& o) const {
+    return lengthSeconds == o.lengthSeconds && dynamicRangeDb == o.dynamicRangeDb &&
+           maxAutoSeconds == o.maxAutoSeconds && speedOfSound == o.speedOfSound && air.enabled == o.air.enabled &&
+           air.temperatureC == o.air.temperatureC && air.humidityPercent == o.air.humidityPercent &&
+           air.pressureKpa == o.air.pressureKpa && air.bandShiftOctaves == o.air.bandShiftOctaves;
+  }
 };
 
 struct TailInfo {
@@ -66,7 +74,32 @@ struct TailInfo {
 };
 
 /** Returns the completed histogram (a new, possibly longer one). */
+/** What completeTail derives from the rays' tail data alone: the decay
+ *  rates (the renewal equation) and the energy the cut rays and the
+ *  probes' ends join the virtual population with, per bin. The same for
+ *  every source of a shared trace (TailData is the listener's rays'): made
+ *  once there (tailRates) and given to each source's completeTail. */
+struct TailRates {
+  double binSeconds = 0.0;           ///< of the histograms they serve
+  size_t tracedBins = 0;
+  TailCompletionSettings settings;   ///< they were made with
+  TailInfo info;                     ///< the rate fields: decayRatePerSecond, t60Seconds, meanLoss, meanFreePathMeters
+  BandArrayD delta{};
+  bool anyCut = false;
+  size_t bins = 0;                   ///< the completed length; 0: where each histogram's last detection is
+  BandArrayD cutTotal{};             ///< all the energy the rays were cut with (air applied)
+  std::vector<BandArrayD> cut, probeEnds;  ///< per bin: energy joining (air applied)
+};
+
+/** The rates of `tail` for histograms of `tracedBins` bins of `binSeconds`. */
+Result<TailRates> tailRates(const TailData& tail, double binSeconds, size_t tracedBins,
+                            const TailCompletionSettings& settings);
+
+/** `rates` (optional): tailRates of this `tail` and settings, made once for
+ *  many histograms; ignored (made again) when made for another bin, length
+ *  or settings. The result is the same bits either way. */
 Result<EnergyHistogram> completeTail(const EnergyHistogram& histogram, const TailData& tail,
-                                     const TailCompletionSettings& settings, TailInfo* info = nullptr);
+                                     const TailCompletionSettings& settings, TailInfo* info = nullptr,
+                                     const TailRates* rates = nullptr);
 
 }  // namespace earshot
