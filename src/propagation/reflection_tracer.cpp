@@ -136,7 +136,7 @@ struct Detector {
   double radius = 0;
   bool probesDetected = false;  // a sphere of at least kMinProbeSphere
   float sphereR2 = 0, invSphereVolume = 0;
-  float neeRouletteR2 = 0;      // shared trace: sharedShadowRoulette x R^2 (0: no roulette)
+  float neeRouletteR2 = 0;      // shared trace needing shadow rays: sharedShadowRoulette x R^2 (0: no roulette)
   bool shadowsNeeded = true;    // not a convex room around it
   const PlaneSequenceSet* excluded = nullptr;
   uint32_t excludedMaxOrder = 0;
@@ -530,10 +530,11 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
     anyProbeDetector |= dt.probesDetected;
     dt.sphereR2 = float(R * R);
     dt.invSphereVolume = float(1.0 / (4.0 / 3.0 * kPi * R * R * R));
-    dt.neeRouletteR2 = reciprocal ? float(settings.sharedShadowRoulette * R * R) : 0.0f;
     // A convex room around the detector blocks no path from its surface to
     // it: next-event estimation needs no occlusion test.
     dt.shadowsNeeded = !tracer.convexAround(dt.position);
+    // The roulette saves shadow rays: none where none are needed.
+    dt.neeRouletteR2 = reciprocal && dt.shadowsNeeded ? float(settings.sharedShadowRoulette * R * R) : 0.0f;
     dt.directional = reciprocal && !dt.directivity.isOmni();
     dt.meanSquares = dt.directivity.meanSquares();
   }

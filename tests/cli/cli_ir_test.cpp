@@ -173,8 +173,11 @@ TEST(CliIr, SharedTraceIsReportedAndRefusesConvergence) {
   EXPECT_EQ(bad.exitCode, 2);
   EXPECT_NE(bad.output.find("--converge works with --trace per-source only"), std::string::npos) << bad.output;
   EXPECT_FALSE(std::filesystem::exists(dir / "bad.wav"));
-  // The shared trace's shadow-ray roulette: reported, and refused per source.
+  // The shared trace's shadow-ray roulette: reported, not played where no
+  // shadow ray is needed (the shoebox is convex), and refused per source.
   EXPECT_EQ(s["settings"]["shared_shadow_roulette"], ReflectionSettings{}.sharedShadowRoulette);
+  EXPECT_GT(s["shadow_rays_skipped"].get<uint64_t>(), 0u);
+  EXPECT_EQ(s["shadow_rays_rouletted"], 0);
   auto perSource = runEarshot("ir " + kShoebox + " --material-map " + kShoeboxMap +
                               " --source 2,3.5,1.5 --listener 7,3.5,1.5 --shadow-roulette 1 -o " + dir / "bad.wav");
   EXPECT_EQ(perSource.exitCode, 2);

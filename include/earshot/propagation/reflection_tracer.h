@@ -109,7 +109,8 @@ struct ReflectionSettings {
    *  the window energies' standard error at most 1.16x (SharedTrace.ShadowRoulette*). The decision for a source depends on it alone
    *  and on a random number per reflection: a source's result is the same
    *  with or without others in the trace. 0: every reflection sends every
-   *  facing source a shadow ray. Not used by traceReflections. [0, 1e6] */
+   *  facing source a shadow ray. Not used by traceReflections, nor for a
+   *  source in a room convex around it (no shadow rays). [0, 1e6] */
   double sharedShadowRoulette = 2.0;
 };
 
