@@ -51,8 +51,12 @@ TEST(ThirdOctave, PassWeightsSumToOneAndEachBandOwnsASixthOfAnOctave) {
     const double c = thirdOctaveCenterHz(j);
     // Its own sixth of an octave: weight one; beyond a quarter octave: none.
     for (double x : {-1.0 / 12.0 + 1e-9, 0.0, 1.0 / 12.0 - 1e-9}) EXPECT_DOUBLE_EQ(thirdOctaveBandWeight(j, c * std::exp2(x)), 1.0);
-    if (j > 0) EXPECT_EQ(thirdOctaveBandWeight(j, c * std::exp2(-0.25 - 1e-9)), 0.0);
-    if (j < kNumThirdOctaveBands - 1) EXPECT_EQ(thirdOctaveBandWeight(j, c * std::exp2(0.25 + 1e-9)), 0.0);
+    if (j > 0) {
+      EXPECT_EQ(thirdOctaveBandWeight(j, c * std::exp2(-0.25 - 1e-9)), 0.0);
+    }
+    if (j < kNumThirdOctaveBands - 1) {
+      EXPECT_EQ(thirdOctaveBandWeight(j, c * std::exp2(0.25 + 1e-9)), 0.0);
+    }
   }
   EXPECT_NEAR(thirdOctaveCenterHz(0), 99.21, 0.01);
   EXPECT_NEAR(thirdOctaveCenterHz(20), 10079.4, 0.1);
