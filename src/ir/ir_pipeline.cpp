@@ -105,6 +105,16 @@ struct IrJob {
   std::chrono::steady_clock::time_point start;
 };
 
+ImageSourceSettings imageSourceSettingsOf(const OmniIrSettings& s) {
+  ImageSourceSettings is;
+  is.maxOrder = s.imageSourceOrder;
+  is.speedOfSound = s.speedOfSound;
+  is.air = s.air;
+  is.seed = s.seed;
+  is.candidateRays = std::min<uint32_t>(s.rays, 16384);
+  return is;
+}
+
 // Checks, the direct sound and the image sources.
 Status prepareIr(const RayTracer& tracer, const MaterialTable& materials, const Vec3d& source, const Vec3d& listener,
                  const OmniIrSettings& s, const BinauralReceiver* binaural, const AmbisonicReceiver* ambisonic,
@@ -152,12 +162,7 @@ Status prepareIr(const RayTracer& tracer, const MaterialTable& materials, const 
   // Early specular reflections.
   if (!tracer.empty() && s.imageSourceOrder > 0) {
     t = std::chrono::steady_clock::now();
-    ImageSourceSettings is;
-    is.maxOrder = s.imageSourceOrder;
-    is.speedOfSound = s.speedOfSound;
-    is.air = s.air;
-    is.seed = s.seed;
-    is.candidateRays = std::min<uint32_t>(s.rays, 16384);
+    ImageSourceSettings is = imageSourceSettingsOf(s);
     is.candidates = candidates;
     // On the pool's threads when one is given (the same paths whatever the threads).
     auto r = findImageSources(tracer, materials, source, listener, is, pool);
@@ -213,8 +218,6 @@ ReflectionSettings reflectionSettingsOf(const OmniIrSettings& s, const IrJob& jo
   return rs;
 }
 
-// Tail completion and synthesis; `traced` null when nothing was traced
-// (`shared`: by a shared trace, whose detector is the source).
 // The tail completion's settings (calibrationStartSeconds: after the image sources, per IR).
 TailCompletionSettings tailSettingsOf(const OmniIrSettings& s) {
   TailCompletionSettings ts;
@@ -224,7 +227,10 @@ TailCompletionSettings tailSettingsOf(const OmniIrSettings& s) {
   return ts;
 }
 
-// `rates`: the tail's rates made once for a shared trace's sources (or null).
+// Tail completion and synthesis; `traced` null when nothing was traced
+// (`shared`: by a shared trace, whose detector is the source). `rates`: the
+// tail's rates made once for a shared trace's sources (or null), their time
+// `ratesMs` charged to this IR.
 Status finishIr(IrJob& job, ReflectionResult* traced, bool shared, const OmniIrSettings& s,
                 const BinauralReceiver* binaural, const AmbisonicReceiver* ambisonic,
                 const TailRates* rates = nullptr, double ratesMs = 0.0) {
@@ -335,15 +341,12 @@ Result<std::vector<OmniIrResult>> computeIrs(const RayTracer& tracer, const Mate
   // Where the image sources' candidates come from rays (many planes), the
   // listener's rays find them once for every source (imageSourceCandidates).
   std::vector<PlaneSequence> candidates;
+  const ImageSourceSettings is = imageSourceSettingsOf(s);
   const bool listenerCandidates = !tracer.empty() && s.imageSourceOrder > 0 && isFinite(listener) &&
-                                  tracer.planes().planes.size() > ImageSourceSettings{}.maxPlanesExhaustive;
+                                  tracer.planes().planes.size() > is.maxPlanesExhaustive;
   double candidatesMs = 0;
   if (listenerCandidates) {
     const auto t = std::chrono::steady_clock::now();
-    ImageSourceSettings is;
-    is.maxOrder = std::min(s.imageSourceOrder, kMaxImageSourceOrder);
-    is.seed = s.seed;
-    is.candidateRays = std::min<uint32_t>(s.rays, 16384);
     candidates = imageSourceCandidates(tracer, listener, is, true, &pool);
     candidatesMs = msSince(t) / double(requests.size());  // each source is charged its part
   }

@@ -14,6 +14,7 @@ constexpr double kFitWindowSeconds = 0.05;
 constexpr double kProbeSpreadFraction = 0.1;
 }  // namespace
 
+namespace {
 Status validateTailSettings(const TailCompletionSettings& settings) {
   if (!(settings.lengthSeconds >= 0 && settings.lengthSeconds <= 600))
     return invalidArgument("tail length " + std::to_string(settings.lengthSeconds) + " s is outside [0, 600]");
@@ -21,6 +22,7 @@ Status validateTailSettings(const TailCompletionSettings& settings) {
     return invalidArgument("tail dynamic range " + std::to_string(settings.dynamicRangeDb) + " dB is outside (0, 200]");
   return Status::ok();
 }
+}  // namespace
 
 Result<TailRates> tailRates(const TailData& tail, double dt, size_t traced, const TailCompletionSettings& settings) {
   EARSHOT_RETURN_IF_ERROR(validateTailSettings(settings));

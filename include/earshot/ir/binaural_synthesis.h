@@ -65,7 +65,9 @@ Vec3d toHeadFrame(const Vec3d& worldDirection, const ListenerOrientation& orient
 /** What binaural synthesis needs of an HRTF set, prepared once per set:
  *  the diffuse-field filters and the per-measurement band energies.
  *  Immutable; share it as std::shared_ptr<const BinauralModel> between
- *  threads (all members const). */
+ *  threads (all members const; what it makes on first use, each
+ *  measurement's minimum phase and shifted band energies, is published
+ *  thread-safely and is the same whichever thread makes it). */
 class BinauralModel {
  public:
   /** Prepares a model for `hrtf` (about 20-100 ms for a few thousand
