@@ -123,11 +123,12 @@ TEST(SharedTrace, ReciprocalEnergiesMatchTheTraceFromEachSource) {
 // The shared trace's shadow-ray roulette (sharedShadowRoulette, at its
 // default): unbiased (per source, band and window, the means of 8 seeds
 // with and without it agree within 3 standard errors of their difference
-// plus 1 %), with far fewer shadow rays (5x at least), and a bounded loss of
-// precision: the seeds' standard error in the 0-50 and 50-150 ms windows at
-// most 2x what every shadow ray gives, and under 3 % of the mean. Measured
-// at the default 2: 16.6x fewer, standard error at most 1.16x and 1.5 %;
-// at 1: 33x fewer, 1.59x; at 0.5: 66x, 1.69x.
+// plus 1 %), with far fewer shadow rays (10x at least), and a bounded loss
+// of precision: the seeds' standard error in the 0-50 and 50-150 ms windows
+// at most 1.3x what every shadow ray gives, and under 2 % of the mean.
+// Measured at the default 2: 16.6x fewer, standard error at most 1.16x and
+// 1.5 %; at 1: 33x fewer, 1.59x (a default this noisy fails here); at 0.5:
+// 66x, 1.69x.
 TEST(SharedTrace, ShadowRouletteIsUnbiasedWithFarFewerShadowRays) {
   PartitionRoom room;
   ThreadPool pool(2);
@@ -179,10 +180,10 @@ TEST(SharedTrace, ShadowRouletteIsUnbiasedWithFarFewerShadowRays) {
               roulette, (unsigned long long)shadows[0], (unsigned long long)shadows[1],
               double(shadows[0]) / double(std::max<uint64_t>(1, shadows[1])), worstSeRatio[0], worstSeRatio[1],
               worstSeRatio[2], worstSe[0], worstSe[1], worstSe[2], worstBias[0], worstBias[1], worstBias[2]);
-  EXPECT_GT(shadows[0], 5 * shadows[1]);
+  EXPECT_GT(shadows[0], 10 * shadows[1]);
   for (int w = 0; w < 2; ++w) {
-    EXPECT_LT(worstSeRatio[w], 2.0) << "window " << w;
-    EXPECT_LT(worstSe[w], 0.03) << "window " << w;
+    EXPECT_LT(worstSeRatio[w], 1.3) << "window " << w;
+    EXPECT_LT(worstSe[w], 0.02) << "window " << w;
   }
 }
 
