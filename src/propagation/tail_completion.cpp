@@ -36,7 +36,7 @@ Result<TailRates> tailRates(const TailData& tail, double dt, size_t traced, cons
 
   // 1. Decay rates: solve the renewal equation F(delta) = 1 by bisection
   // (F increases with delta).
-  BandArrayD& delta = r.delta;
+  BandArrayD& delta = info.decayRatePerSecond;
   bool haveRates = !tail.pathEnergy.empty();
   for (int b = 0; b < kNumBands && haveRates; ++b) {
     double total = 0, kept = 0, length = 0;
@@ -71,7 +71,6 @@ Result<TailRates> tailRates(const TailData& tail, double dt, size_t traced, cons
       }
       delta[b] = std::max(0.5 * (lo + hi), 1e-3);
     }
-    info.decayRatePerSecond[b] = delta[b];
     info.t60Seconds[b] = kNepersPer60Db / delta[b];
   }
 
@@ -144,7 +143,7 @@ Result<EnergyHistogram> completeTail(const EnergyHistogram& h, const TailData& t
     rates = &own;
   }
   TailInfo info = rates->info;
-  const BandArrayD& delta = rates->delta;
+  const BandArrayD& delta = rates->info.decayRatePerSecond;
   const bool anyCut = rates->anyCut;
   const size_t bins = rates->bins > 0 ? rates->bins : size_t(std::max(1L, h.lastNonEmptyBin() + 1));
 

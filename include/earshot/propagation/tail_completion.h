@@ -83,8 +83,7 @@ struct TailRates {
   double binSeconds = 0.0;           ///< of the histograms they serve
   size_t tracedBins = 0;
   TailCompletionSettings settings;   ///< they were made with
-  TailInfo info;                     ///< the rate fields: decayRatePerSecond, t60Seconds, meanLoss, meanFreePathMeters
-  BandArrayD delta{};
+  TailInfo info;                     ///< the rate fields: decayRatePerSecond (delta), t60Seconds, meanLoss, meanFreePathMeters
   bool anyCut = false;
   size_t bins = 0;                   ///< the completed length; 0: where each histogram's last detection is
   BandArrayD cutTotal{};             ///< all the energy the rays were cut with (air applied)
