@@ -195,23 +195,32 @@ TEST(SharedTrace, EachSourceAsIfTracedAloneAndIndependentOfThreads) {
   PartitionRoom room;
   ReflectionSettings s = settingsFor(3);
   s.rays = 4096;
-  std::vector<SharedTraceSource> sources(kSources.size());
-  for (size_t i = 0; i < kSources.size(); ++i) {
-    sources[i].position = kSources[i];
+  // Six sources: the trace tests its detectors four at a time, so a second,
+  // partly filled group of four is tested too.
+  std::vector<Vec3d> positions = kSources;
+  positions.push_back({2.2, 2.4, 2.6});
+  positions.push_back({9.0, 1.2, 1.8});
+  std::vector<SharedTraceSource> sources(positions.size());
+  for (size_t i = 0; i < positions.size(); ++i) {
+    sources[i].position = positions[i];
     sources[i].receiverRadiusMeters = 0.8;  // every sphere detects the tail probes
   }
   ThreadPool one(1), two(2);
   auto all = traceReflectionsShared(*room.tracer, room.materials, kListener, sources, s, two);
   auto allOneThread = traceReflectionsShared(*room.tracer, room.materials, kListener, sources, s, one);
   ASSERT_TRUE(all.isOk() && allOneThread.isOk());
-  for (size_t i = 0; i < kSources.size(); ++i) {
+  for (size_t i = 0; i < sources.size(); ++i) {
     auto alone = traceReflectionsShared(*room.tracer, room.materials, kListener, {sources[i]}, s, two);
     ASSERT_TRUE(alone.isOk());
     EXPECT_EQ((*all)[i].histogram.data(), alone->front().histogram.data()) << "source " << i;
     EXPECT_EQ((*all)[i].tail.probeDetected, alone->front().tail.probeDetected) << "source " << i;
     EXPECT_EQ((*all)[i].histogram.data(), (*allOneThread)[i].histogram.data()) << "source " << i;
     EXPECT_EQ((*all)[i].stats.segmentsTraced, alone->front().stats.segmentsTraced);
+    EXPECT_EQ((*all)[i].stats.shadowRays, alone->front().stats.shadowRays) << "source " << i;
+    EXPECT_EQ((*all)[i].stats.shadowRaysRouletted, alone->front().stats.shadowRaysRouletted) << "source " << i;
+    EXPECT_EQ((*all)[i].stats.specularExcluded, alone->front().stats.specularExcluded) << "source " << i;
     EXPECT_GT((*all)[i].stats.shadowRays, 0u);
+    EXPECT_GT((*all)[i].stats.shadowRaysRouletted, 0u);
   }
 }
 
