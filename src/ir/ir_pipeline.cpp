@@ -309,7 +309,8 @@ TraceMode effectiveTraceMode(TraceMode mode, size_t sources) {
 Result<std::vector<OmniIrResult>> computeIrs(const RayTracer& tracer, const MaterialTable& materials,
                                              const Vec3d& listener, const std::vector<IrRequest>& requests,
                                              const OmniIrSettings& s, TraceMode mode, ThreadPool& pool,
-                                             const BinauralReceiver* binaural, const AmbisonicReceiver* ambisonic) {
+                                             const BinauralReceiver* binaural, const AmbisonicReceiver* ambisonic,
+                                             SharedTracePaths* paths) {
   if (requests.size() > kMaxSharedTraceSources)
     return invalidArgument(std::to_string(requests.size()) + " sources, over " + std::to_string(kMaxSharedTraceSources));
   auto settingsOf = [&](const IrRequest& r) {
@@ -382,7 +383,8 @@ Result<std::vector<OmniIrResult>> computeIrs(const RayTracer& tracer, const Mate
         src.excludedMaxOrder = rs.excludedMaxOrder;
         src.receiverRadiusMeters = rs.receiverRadiusMeters;
       }
-      auto r = traceReflectionsShared(tracer, materials, listener, sources, reflectionSettingsOf(s, jobs[g0]), pool);
+      auto r = traceReflectionsShared(tracer, materials, listener, sources, reflectionSettingsOf(s, jobs[g0]), pool,
+                                      paths);
       if (!r.isOk()) return r.status();
       traced = std::move(r.value());
       // The trace's time is shared: each source is charged its part.

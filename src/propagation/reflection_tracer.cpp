@@ -293,6 +293,46 @@ class PendingAdds {
   std::vector<int64_t> mValues;
 };
 
+// What the detectors need of a ray's path, recorded as it is traced: the
+// segments a sphere may detect (after a specular reflection or a
+// transmission, and a tail probe's past its cut) and the reflections whose
+// diffuse part next-event estimation sends to each detector. They depend on
+// the emitter, the scene and the settings alone (not on the detectors), so
+// a shared trace can keep them for its next trace from the same place
+// (SharedTracePaths), and detect other sources in them without tracing.
+struct SegmentEvent {
+  Vec3d origin;
+  Vec3f direction, first;  // first: the ray's first direction (a shared trace's arrival direction)
+  float length = 0;        // to the hit (1e30 when it escaped)
+  float pathLength = 0;    // at its origin
+  float energy[kNumBands];
+  uint32_t order = 0;
+  uint32_t planes = ~0u;   // PathEvents::planes index: the specular planes so far (a purely specular path), else ~0u
+  bool probing = false;
+};
+struct ReflectionEvent {
+  Vec3d p, shadowOrigin;   // the hit, and the shadow rays' origin (off the surface)
+  Vec3f n, first;          // the normal facing the incoming ray; the ray's first direction
+  float pathLength = 0;    // to the hit
+  float scattered[kNumBands];
+  float u = 0;             // the shadow-ray roulette's number
+  uint32_t order = 0;      // of the reflection's incoming segment
+};
+struct PathEvents {
+  std::vector<SegmentEvent> segments;
+  std::vector<ReflectionEvent> reflections;
+  std::vector<PlaneSequence> planes;
+  size_t bytes() const {
+    return segments.capacity() * sizeof(SegmentEvent) + reflections.capacity() * sizeof(ReflectionEvent) +
+           planes.capacity() * sizeof(PlaneSequence);
+  }
+  void clear() {
+    segments.clear();
+    reflections.clear();
+    planes.clear();
+  }
+};
+
 // One detector's sums, per worker thread.
 struct alignas(64) DetectorSums {
   std::vector<int64_t> hist;                 // [bin][kStride]
@@ -645,6 +685,51 @@ Status validate(const ReflectionSettings& s) {
 
 namespace {
 
+// What a trace's paths depend on besides the detectors (SharedTracePaths).
+struct PathKey {
+  uint64_t tracer = 0;
+  Vec3d emitter{};
+  std::vector<float> materials;  // each material's reflect, transmit and scatter factors
+  BandArrayD air{};              // energy attenuation per metre
+  uint32_t rays = 0, bounces = 0, tailProbes = 0;
+  uint64_t seed = 0;
+  double speedOfSound = 0, binSeconds = 0, maxTimeSeconds = 0, shadowRoulette = 0;
+  bool russianRoulette = false, flutterCones = false;
+  bool operator==(const PathKey& o) const {
+    return tracer == o.tracer && emitter.x == o.emitter.x && emitter.y == o.emitter.y && emitter.z == o.emitter.z &&
+           materials == o.materials && air == o.air && rays == o.rays && bounces == o.bounces &&
+           tailProbes == o.tailProbes && seed == o.seed && speedOfSound == o.speedOfSound &&
+           binSeconds == o.binSeconds && maxTimeSeconds == o.maxTimeSeconds && shadowRoulette == o.shadowRoulette &&
+           russianRoulette == o.russianRoulette && flutterCones == o.flutterCones;
+  }
+};
+
+}  // namespace
+
+struct SharedTracePaths::Impl {
+  size_t budget = kSharedTracePathsBudgetBytes;
+  bool valid = false;
+  PathKey key;
+  std::vector<PathEvents> tasks;  // per task of the trace
+  ReflectionStats stats;          // the trace's counts (what every detector shares)
+  TailData tail;                  // the listener's rays' tail data
+  size_t bytes = 0;
+  void clear() {
+    valid = false;
+    tasks = {};
+    tail = {};
+    bytes = 0;
+  }
+};
+
+SharedTracePaths::SharedTracePaths() : mImpl(std::make_unique<Impl>()) {}
+SharedTracePaths::SharedTracePaths(size_t budgetBytes) : mImpl(std::make_unique<Impl>()) { mImpl->budget = budgetBytes; }
+SharedTracePaths::~SharedTracePaths() = default;
+size_t SharedTracePaths::bytes() const { return mImpl->bytes; }
+void SharedTracePaths::clear() { mImpl->clear(); }
+
+namespace {
+
 // The trace behind traceReflections (one detector, the listener; rays from
 // the source) and traceReflectionsShared (rays from the listener, a
 // detector per source: reciprocity). `reciprocal`: each detection's arrival
@@ -653,7 +738,8 @@ namespace {
 // callers; one result per detector.
 std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialTable& materials, const Vec3d& emitter,
                                         std::vector<Detector> detectors, bool reciprocal,
-                                        const ReflectionSettings& settings, ThreadPool& pool) {
+                                        const ReflectionSettings& settings, ThreadPool& pool,
+                                        SharedTracePaths::Impl* paths = nullptr) {
   const auto start = std::chrono::steady_clock::now();
   const size_t bins = size_t(std::ceil(settings.maxTimeSeconds / settings.binSeconds));
   const uint32_t maxOrder = settings.bounces;
@@ -692,13 +778,6 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
   // Paths longer than the histogram covers are counted as late whatever their air.
   const AirTable air(airEnergyAttenuationPerMeter(settings.air), settings.maxTimeSeconds * settings.speedOfSound);
   const Rotation rot = randomRotation(mix64(settings.seed));
-  // Flutter cones need the whole trace: the convergence rounds compare
-  // subsets that must each cover the sphere alike.
-  const std::vector<Vec3d> flutterAxes = settings.flutterCones && settings.convergenceDb == 0 &&
-                                                 settings.rays >= kMinRaysForFlutterCones
-                                             ? findFlutterAxes(tracer, materials)
-                                             : std::vector<Vec3d>{};
-  const DirectionSampler sampler(settings.rays, rot, flutterAxes, settings.seed);
 
   // Per-material factors, precomputed.
   struct MatFactors {
@@ -718,6 +797,45 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
       f.meanTransmit += f.transmit[b] / kNumBands;
     }
   }
+
+  // Kept paths (SharedTracePaths): replayed when they were traced with the
+  // same scene, emitter and settings, else traced and recorded.
+  PathKey key;
+  if (paths) {
+    key.tracer = tracer.id();
+    key.emitter = emitter;
+    for (const MatFactors& f : mats) {
+      key.materials.insert(key.materials.end(), f.reflect, f.reflect + kNumBands);
+      key.materials.insert(key.materials.end(), f.transmit, f.transmit + kNumBands);
+      key.materials.insert(key.materials.end(), f.scatter, f.scatter + kNumBands);
+    }
+    key.air = airEnergyAttenuationPerMeter(settings.air);
+    key.rays = settings.rays;
+    key.bounces = settings.bounces;
+    key.tailProbes = settings.tailProbes;
+    key.seed = settings.seed;
+    key.speedOfSound = settings.speedOfSound;
+    key.binSeconds = settings.binSeconds;
+    key.maxTimeSeconds = settings.maxTimeSeconds;
+    key.shadowRoulette = settings.sharedShadowRoulette;
+    key.russianRoulette = settings.russianRoulette;
+    key.flutterCones = settings.flutterCones;
+  }
+  const bool replay = paths && paths->valid && paths->key == key && reciprocal &&
+                     paths->tasks.size() == (settings.rays + kRaysPerTask - 1) / kRaysPerTask;
+  const bool record = paths && !replay;
+  if (record) paths->clear();
+  std::vector<PathEvents> recorded;
+  std::atomic<size_t> recordedBytes{0};
+  std::atomic<bool> overBudget{false};
+
+  // Flutter cones need the whole trace: the convergence rounds compare
+  // subsets that must each cover the sphere alike.
+  const std::vector<Vec3d> flutterAxes = !replay && settings.flutterCones && settings.convergenceDb == 0 &&
+                                                 settings.rays >= kMinRaysForFlutterCones
+                                             ? findFlutterAxes(tracer, materials)
+                                             : std::vector<Vec3d>{};
+  const DirectionSampler sampler(settings.rays, rot, flutterAxes, settings.seed);
 
   std::vector<CutRay> cutRays(settings.rays);  // slot per ray: deterministic
   std::vector<uint8_t> wasCut(settings.rays, 0);
@@ -829,6 +947,127 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
     }
   };
 
+  // Detection: what each detector makes of a ray's recorded events.
+  struct NeeCandidate {
+    uint32_t detector, shadowIndex;
+    Vec3f toL;
+    float d, d2, cosL, gain;
+  };
+  // Per task: a candidate and a shadow ray per detector, the held adds.
+  struct DetectScratch {
+    explicit DetectScratch(size_t n) : nee(n), shadowRays(n), blocked(n) {}
+    std::vector<NeeCandidate> nee;
+    std::vector<Ray> shadowRays;
+    std::vector<uint8_t> blocked;
+    PendingAdds pending;
+  };
+  auto detectEvents = [&](const PathEvents& ev, size_t segmentsFrom, size_t reflectionsFrom, Accumulator& a,
+                          DetectScratch& x) {
+    // Segments through the spheres: specular (or transmitted) paths, and
+    // tail probes past their cut by the sphere alone (no next-event
+    // estimation: unbiased for specular and diffuse paths alike, and no
+    // shadow rays), not by a sphere squeezed below kMinProbeSphere by a
+    // nearby surface (too few hits).
+    for (size_t i = segmentsFrom; i < ev.segments.size(); ++i) {
+      const SegmentEvent& e = ev.segments[i];
+      const bool probing = e.probing;
+      if (probing && !anyProbeDetector) continue;
+      for (size_t g = 0; g < lanes.groups(); ++g) {
+        for (uint32_t bits = lanes.crossed(g, e.origin, e.direction, e.length, probing); bits != 0;
+             bits &= bits - 1) {
+          const size_t r = g * 4 + size_t(__builtin_ctz(bits));
+          const Detector& dt = detectors[r];
+          if (probing && !dt.probesDetected) continue;
+          // Chord of this segment through the receiver sphere.
+          const Vec3f oc(e.origin - dt.position);
+          const float bq = dot(oc, e.direction);
+          const float disc = bq * bq - (dot(oc, oc) - dt.sphereR2);
+          if (!(disc > 0)) continue;
+          const float root = std::sqrt(disc);
+          const float t0 = std::max(0.0f, -bq - root), t1 = std::min(e.length, -bq + root);
+          if (!(t1 > t0)) continue;
+          DetectorSums& ds = a.det[r];
+          if (e.planes != ~0u && e.order <= dt.excludedMaxOrder && dt.excluded &&
+              excludedPath(dt, ev.planes[e.planes], e.order)) {
+            ++ds.excluded;
+          } else {
+            const float tc = std::clamp(-bq, t0, t1);
+            detect(ds, x.pending, dt, e.pathLength + tc, e.energy, (t1 - t0) * dt.invSphereVolume, -e.direction,
+                   e.first, e.order, probing);
+          }
+        }
+      }
+    }
+    // Next-event estimation of each reflection's diffuse part: the
+    // detectors facing it; their shadow rays go to Embree together (one
+    // origin: a coherent stream).
+    for (size_t i = reflectionsFrom; i < ev.reflections.size(); ++i) {
+      const ReflectionEvent& e = ev.reflections[i];
+      size_t facing = 0;
+      uint32_t shadowCount = 0;
+      for (size_t g = 0; g < lanes.groups(); ++g) {
+        uint32_t send = 0, lost = 0;
+        lanes.facing(g, e.p, e.n, e.u, minD2, send, lost);
+        for (; lost != 0; lost &= lost - 1) ++a.det[g * 4 + size_t(__builtin_ctz(lost))].shadowsRouletted;
+        for (; send != 0; send &= send - 1) {
+          const size_t r = g * 4 + size_t(__builtin_ctz(send));
+          const Detector& dt = detectors[r];
+          const Vec3f toL(dt.position - e.p);
+          const float d2 = dot(toL, toL);
+          const float cosL = dot(e.n, toL);
+          if (!(cosL > 0)) continue;
+          const float d = std::sqrt(d2);
+          float gain = 1.0f;
+          if (dt.neeRouletteR2 > 0) {
+            const float pSend = dt.neeRouletteR2 * (cosL / d) / std::max(d2, minD2);
+            if (pSend < 1.0f) {
+              if (!(e.u < pSend)) {
+                ++a.det[r].shadowsRouletted;
+                continue;
+              }
+              gain = 1.0f / pSend;
+            }
+          }
+          NeeCandidate& c = x.nee[facing++];
+          c.detector = uint32_t(r);
+          c.toL = toL;
+          c.d = d;
+          c.d2 = d2;
+          c.cosL = cosL;
+          c.gain = gain;
+          if (dt.shadowsNeeded) {
+            x.shadowRays[c.shadowIndex = shadowCount++] = Ray{e.shadowOrigin, 0.0f, toL / d, d - eps};
+          } else {
+            c.shadowIndex = ~0u;
+          }
+        }
+      }
+      if (shadowCount == 1) {
+        const Ray& shadow = x.shadowRays[0];
+        x.blocked[0] = shadow.tFar > 0 && tracer.occluded(shadow);
+      } else if (shadowCount > 1) {
+        tracer.occludedMany(x.shadowRays.data(), shadowCount, x.blocked.data());
+        for (uint32_t k = 0; k < shadowCount; ++k) x.blocked[k] &= x.shadowRays[k].tFar > 0;
+      }
+      for (size_t k = 0; k < facing; ++k) {
+        const NeeCandidate& c = x.nee[k];
+        const Detector& dt = detectors[c.detector];
+        DetectorSums& ds = a.det[c.detector];
+        bool visible = true;
+        if (c.shadowIndex != ~0u) {
+          ++ds.shadows;
+          visible = !x.blocked[c.shadowIndex];
+        } else {
+          ++ds.shadowsSkipped;
+        }
+        if (visible) {
+          const float w = c.gain * (c.cosL / c.d) / (float(kPi) * std::max(c.d2, minD2));
+          detect(ds, x.pending, dt, e.pathLength + c.d, e.scattered, w, -c.toL / c.d, e.first, e.order + 1, false);
+        }
+      }
+    }
+  };
+
   // Rays go in rounds: round r traces the rays whose index is congruent to
   // bitReverse(r) modulo the round count, so every round, and every prefix
   // of rounds, covers the sphere evenly. With a convergence target the
@@ -846,22 +1085,24 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
     const uint32_t residue = rounds == 1 ? 0u : bitReverse(round, rounds);
     const uint32_t count = residue < settings.rays ? (settings.rays - residue + rounds - 1) / rounds : 0u;
     const uint32_t tasks = (count + kRaysPerTask - 1) / kRaysPerTask;
+    if (record) recorded.resize(tasks);  // a shared trace: one round
     pool.parallelFor(tasks, [&](size_t task, unsigned worker) {
       Accumulator& a = acc[worker];
-      // Next-event estimation's scratch: a candidate and a shadow ray per detector.
-      struct NeeCandidate {
-        uint32_t detector, shadowIndex;
-        Vec3f toL;
-        float d, d2, cosL, gain;
-      };
-      std::vector<NeeCandidate> nee(nd);
-      PendingAdds pending;
-      std::vector<Ray> shadowRays(nd);
-      std::vector<uint8_t> blocked(nd);
-      uint32_t shadowCount = 0;
+      DetectScratch scratch(nd);
+      // The task's events: kept paths replayed, recorded for keeping, or
+      // one ray's at a time.
+      PathEvents local;
+      PathEvents& ev = replay ? paths->tasks[task] : record ? recorded[task] : local;
+      if (replay) {
+        detectEvents(ev, 0, 0, a, scratch);
+        scratch.pending.flush();
+        return;
+      }
       const uint32_t first = uint32_t(task) * kRaysPerTask;
       const uint32_t last = std::min(count, first + kRaysPerTask);
       for (uint32_t k = first; k < last; ++k) {
+        const size_t segmentsBefore = ev.segments.size(), reflectionsBefore = ev.reflections.size(),
+                     planesBefore = ev.planes.size();
         const uint32_t rayIndex = residue + k * rounds;
         Pcg32 rng(settings.seed, rayIndex);
         // The shared trace's shadow-ray roulette draws from a stream of its
@@ -906,31 +1147,20 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
           // sphere alone (no next-event estimation): unbiased for specular
           // and diffuse paths alike, and no shadow rays; not by a sphere
           // squeezed below kMinProbeSphere by a nearby surface (too few hits).
-          if ((probing && anyProbeDetector) || (detectSegment && !probing)) {
-            for (size_t g = 0; g < lanes.groups(); ++g) {
-              for (uint32_t bits = lanes.crossed(g, ray.origin, ray.direction, segment, probing); bits != 0;
-                   bits &= bits - 1) {
-                const size_t r = g * 4 + size_t(__builtin_ctz(bits));
-                const Detector& dt = detectors[r];
-                if (probing && !dt.probesDetected) continue;
-                // Chord of this segment through the receiver sphere.
-                const Vec3f oc(ray.origin - dt.position);
-                const float bq = dot(oc, ray.direction);
-                const float disc = bq * bq - (dot(oc, oc) - dt.sphereR2);
-                if (!(disc > 0)) continue;
-                const float root = std::sqrt(disc);
-                const float t0 = std::max(0.0f, -bq - root), t1 = std::min(segment, -bq + root);
-                if (!(t1 > t0)) continue;
-                DetectorSums& ds = a.det[r];
-                if (!probing && pureSpecular && order <= dt.excludedMaxOrder && dt.excluded &&
-                    excludedPath(dt, planes, order)) {
-                  ++ds.excluded;
-                } else {
-                  const float tc = std::clamp(-bq, t0, t1);
-                  detect(ds, pending, dt, pathLength + tc, energy, (t1 - t0) * dt.invSphereVolume, -ray.direction,
-                         first, order, probing);
-                }
-              }
+          if (probing || detectSegment) {
+            SegmentEvent& e = ev.segments.emplace_back();
+            e.origin = ray.origin;
+            e.direction = ray.direction;
+            e.first = first;
+            e.length = segment;
+            e.pathLength = pathLength;
+            std::copy(energy, energy + kNumBands, e.energy);
+            e.order = order;
+            e.probing = probing;
+            e.planes = ~0u;
+            if (!probing && pureSpecular) {
+              e.planes = uint32_t(ev.planes.size());
+              ev.planes.push_back(planes);
             }
           }
           if (!hasHit) {
@@ -990,73 +1220,20 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
               scattered[b] = energy[b] * m.reflect[b] * m.scatter[b];
               any |= scattered[b] > 0;
             }
-            // The detectors facing this hit; their shadow rays go to Embree
-            // together (one origin: a coherent stream).
-            size_t facing = 0;
             // One number per reflection, whatever the sources: each source's
             // roulette depends on it and on the source alone.
             const float u = roulettedShadows ? neeRng.uniform() : 0.0f;
-            for (size_t g = 0; any && g < lanes.groups(); ++g) {
-              uint32_t send = 0, lost = 0;
-              lanes.facing(g, p, n, u, minD2, send, lost);
-              for (; lost != 0; lost &= lost - 1) ++a.det[g * 4 + size_t(__builtin_ctz(lost))].shadowsRouletted;
-              for (; send != 0; send &= send - 1) {
-                const size_t r = g * 4 + size_t(__builtin_ctz(send));
-                const Detector& dt = detectors[r];
-                const Vec3f toL(dt.position - p);
-                const float d2 = dot(toL, toL);
-                const float cosL = dot(n, toL);
-                if (!(cosL > 0)) continue;
-                const float d = std::sqrt(d2);
-                float gain = 1.0f;
-                if (dt.neeRouletteR2 > 0) {
-                  const float pSend = dt.neeRouletteR2 * (cosL / d) / std::max(d2, minD2);
-                  if (pSend < 1.0f) {
-                    if (!(u < pSend)) {
-                      ++a.det[r].shadowsRouletted;
-                      continue;
-                    }
-                    gain = 1.0f / pSend;
-                  }
-                }
-                NeeCandidate& c = nee[facing++];
-                c.detector = uint32_t(r);
-                c.toL = toL;
-                c.d = d;
-                c.d2 = d2;
-                c.cosL = cosL;
-                c.gain = gain;
-                if (dt.shadowsNeeded) {
-                  shadowRays[c.shadowIndex = shadowCount++] = Ray{p + offset, 0.0f, toL / d, d - eps};
-                } else {
-                  c.shadowIndex = ~0u;
-                }
-              }
+            if (any) {
+              ReflectionEvent& e = ev.reflections.emplace_back();
+              e.p = p;
+              e.shadowOrigin = p + offset;
+              e.n = n;
+              e.first = first;
+              e.pathLength = pathLength;
+              std::copy(scattered, scattered + kNumBands, e.scattered);
+              e.u = u;
+              e.order = order;
             }
-            if (shadowCount == 1) {
-              const Ray& shadow = shadowRays[0];
-              blocked[0] = shadow.tFar > 0 && tracer.occluded(shadow);
-            } else if (shadowCount > 1) {
-              tracer.occludedMany(shadowRays.data(), shadowCount, blocked.data());
-              for (uint32_t k = 0; k < shadowCount; ++k) blocked[k] &= shadowRays[k].tFar > 0;
-            }
-            for (size_t k = 0; k < facing; ++k) {
-              const NeeCandidate& c = nee[k];
-              const Detector& dt = detectors[c.detector];
-              DetectorSums& ds = a.det[c.detector];
-              bool visible = true;
-              if (c.shadowIndex != ~0u) {
-                ++ds.shadows;
-                visible = !blocked[c.shadowIndex];
-              } else {
-                ++ds.shadowsSkipped;
-              }
-              if (visible) {
-                const float w = c.gain * (c.cosL / c.d) / (float(kPi) * std::max(c.d2, minD2));
-                detect(ds, pending, dt, pathLength + c.d, scattered, w, -c.toL / c.d, first, order + 1, false);
-              }
-            }
-            shadowCount = 0;
           }
 
           // Continue: through the surface, specularly, or diffusely.
@@ -1123,8 +1300,18 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
             for (float& e : energy) e /= kSurvival;
           }
         }
+        // The ray's events, detected as it ends (still in the cache).
+        detectEvents(ev, segmentsBefore, reflectionsBefore, a, scratch);
+        if (record && !overBudget.load(std::memory_order_relaxed)) {
+          const size_t added = (ev.segments.size() - segmentsBefore) * sizeof(SegmentEvent) +
+                               (ev.reflections.size() - reflectionsBefore) * sizeof(ReflectionEvent) +
+                               (ev.planes.size() - planesBefore) * sizeof(PlaneSequence);
+          if (recordedBytes.fetch_add(added, std::memory_order_relaxed) + added > paths->budget)
+            overBudget.store(true, std::memory_order_relaxed);
+        }
+        if (!record || overBudget.load(std::memory_order_relaxed)) ev.clear();
       }
-      pending.flush();
+      scratch.pending.flush();
     });
     traced += count;
     if (rounds > 1) {
@@ -1174,50 +1361,67 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
   ReflectionResult& shared = results[0];
   ReflectionStats& stats = shared.stats;
   TailData& tail = shared.tail;
-  stats.raysTraced = traced;
-  stats.estimatedErrorDb = estimatedErrorDb;
-  stats.flutterAxes = uint32_t(flutterAxes.size());
-  stats.coneRays = sampler.coneRays();
-  tail.cutRays.reserve(total.raysCut);
-  const float rayScale = float(double(settings.rays) / double(traced));
-  auto scaled = [&](CutRay c) {
-    for (float& e : c.energy) e *= rayScale;
-    return c;
-  };
-  for (uint32_t i = 0; i < settings.rays; ++i)
-    if (wasCut[i]) tail.cutRays.push_back(scaled(cutRays[i]));
-  auto integrate = [&](const std::vector<int64_t>& diff, std::vector<BandArrayD>& out) {
-    out.assign(bins, BandArrayD{});
-    int64_t running[kNumBands] = {};
-    for (size_t i = 0; i < bins; ++i) {
-      float f[kNumBands];
-      air.factors(float((double(i) + 0.5) * settings.binSeconds * settings.speedOfSound), f);
-      for (int b = 0; b < kNumBands; ++b) {
-        addSat(running[b], diff[i * kNumBands + b]);
-        out[i][b] = double(running[b]) * unit * f[b];
+  if (replay) {
+    const double radius = stats.receiverRadiusMeters;
+    stats = paths->stats;
+    stats.receiverRadiusMeters = radius;
+    stats.pathsReused = true;
+    tail = paths->tail;
+  } else {
+    stats.raysTraced = traced;
+    stats.estimatedErrorDb = estimatedErrorDb;
+    stats.flutterAxes = uint32_t(flutterAxes.size());
+    stats.coneRays = sampler.coneRays();
+    tail.cutRays.reserve(total.raysCut);
+    const float rayScale = float(double(settings.rays) / double(traced));
+    auto scaled = [&](CutRay c) {
+      for (float& e : c.energy) e *= rayScale;
+      return c;
+    };
+    for (uint32_t i = 0; i < settings.rays; ++i)
+      if (wasCut[i]) tail.cutRays.push_back(scaled(cutRays[i]));
+    auto integrate = [&](const std::vector<int64_t>& diff, std::vector<BandArrayD>& out) {
+      out.assign(bins, BandArrayD{});
+      int64_t running[kNumBands] = {};
+      for (size_t i = 0; i < bins; ++i) {
+        float f[kNumBands];
+        air.factors(float((double(i) + 0.5) * settings.binSeconds * settings.speedOfSound), f);
+        for (int b = 0; b < kNumBands; ++b) {
+          addSat(running[b], diff[i * kNumBands + b]);
+          out[i][b] = double(running[b]) * unit * f[b];
+        }
       }
+    };
+    integrate(total.aliveDiff, tail.alive);
+    if (probeStride > 0) {
+      integrate(total.probeAliveDiff, tail.probeAlive);
+      for (int b = 0; b < kNumBands; ++b) tail.probeCutEnergy[b] = double(total.probeCut[b]) * unit;
+      for (uint32_t i = 0; i < probeSlots; ++i)
+        if (probeEnded[i]) tail.probeEnds.push_back(scaled(probeEnds[i]));
     }
-  };
-  integrate(total.aliveDiff, tail.alive);
-  if (probeStride > 0) {
-    integrate(total.probeAliveDiff, tail.probeAlive);
-    for (int b = 0; b < kNumBands; ++b) tail.probeCutEnergy[b] = double(total.probeCut[b]) * unit;
-    for (uint32_t i = 0; i < probeSlots; ++i)
-      if (probeEnded[i]) tail.probeEnds.push_back(scaled(probeEnds[i]));
+    for (int b = 0; b < kNumBands; ++b) stats.energyEscaped[b] = double(total.escaped[b]) * unit;
+    tail.pathEnergy.assign(kFreePathBins, BandArrayD{});
+    tail.pathRetained.assign(kFreePathBins, BandArrayD{});
+    for (size_t i = 0; i < kFreePathBins; ++i)
+      for (int b = 0; b < kNumBands; ++b) {
+        tail.pathEnergy[i][b] = double(total.pathEnergy[i * kNumBands + b]) * unit;
+        tail.pathRetained[i][b] = double(total.pathRetained[i * kNumBands + b]) * unit;
+      }
+    stats.raysEscaped = total.raysEscaped;
+    stats.segmentsTraced = total.segments;
+    stats.raysCut = total.raysCut;
+    stats.raysRouletted = total.rouletted;
+    stats.tailProbeSegments = total.probeSegments;
+    if (record && !overBudget.load()) {
+      paths->key = std::move(key);
+      paths->tasks = std::move(recorded);
+      paths->stats = stats;
+      paths->tail = tail;
+      paths->bytes = sizeof(SharedTracePaths::Impl);
+      for (const PathEvents& e : paths->tasks) paths->bytes += e.bytes();
+      paths->valid = true;
+    }
   }
-  for (int b = 0; b < kNumBands; ++b) stats.energyEscaped[b] = double(total.escaped[b]) * unit;
-  tail.pathEnergy.assign(kFreePathBins, BandArrayD{});
-  tail.pathRetained.assign(kFreePathBins, BandArrayD{});
-  for (size_t i = 0; i < kFreePathBins; ++i)
-    for (int b = 0; b < kNumBands; ++b) {
-      tail.pathEnergy[i][b] = double(total.pathEnergy[i * kNumBands + b]) * unit;
-      tail.pathRetained[i][b] = double(total.pathRetained[i * kNumBands + b]) * unit;
-    }
-  stats.raysEscaped = total.raysEscaped;
-  stats.segmentsTraced = total.segments;
-  stats.raysCut = total.raysCut;
-  stats.raysRouletted = total.rouletted;
-  stats.tailProbeSegments = total.probeSegments;
   stats.traceMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   for (size_t r = 1; r < nd; ++r) {
     const double radius = results[r].stats.receiverRadiusMeters;
@@ -1276,7 +1480,8 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
 Result<std::vector<ReflectionResult>> traceReflectionsShared(const RayTracer& tracer, const MaterialTable& materials,
                                                              const Vec3d& listener,
                                                              const std::vector<SharedTraceSource>& sources,
-                                                             const ReflectionSettings& settings, ThreadPool& pool) {
+                                                             const ReflectionSettings& settings, ThreadPool& pool,
+                                                             SharedTracePaths* paths) {
   EARSHOT_RETURN_IF_ERROR(validate(settings));
   if (!isFinite(listener)) return invalidArgument("listener position is not finite");
   if (sources.size() > kMaxSharedTraceSources)
@@ -1307,7 +1512,7 @@ Result<std::vector<ReflectionResult>> traceReflectionsShared(const RayTracer& tr
   ReflectionSettings rs = settings;
   rs.convergenceDb = 0;  // one trace serves every source: every ray is traced
   rs.directivity = Directivity{};
-  return traceCore(tracer, materials, listener, std::move(detectors), true, rs, pool);
+  return traceCore(tracer, materials, listener, std::move(detectors), true, rs, pool, paths ? &paths->impl() : nullptr);
 }
 
 }  // namespace earshot

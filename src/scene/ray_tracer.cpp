@@ -1,6 +1,8 @@
 // Embree 3 behind earshot's RayTracer. Embree is included only in src/scene.
 #include "earshot/scene/ray_tracer.h"
 
+#include <atomic>
+
 #include <embree3/rtcore.h>
 
 #include <cmath>
@@ -37,6 +39,11 @@ Result<std::unique_ptr<RayTracer>> RayTracer::create(const TriangleMesh& mesh) {
 }
 
 RayTracer::RayTracer() = default;
+
+uint64_t RayTracer::nextId() {
+  static std::atomic<uint64_t> next{1};
+  return next.fetch_add(1, std::memory_order_relaxed);
+}
 RayTracer::~RayTracer() = default;
 
 namespace {

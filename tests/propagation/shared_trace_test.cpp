@@ -300,6 +300,85 @@ TEST(SharedTrace, DirectivityWeighsWhatTheSourceDetects) {
   EXPECT_GT(std::fabs(sharedEarly / sharedOmni - 1.0), 0.1);
 }
 
+// Kept paths (SharedTracePaths): a second trace from the same place detects
+// other sources in the first trace's paths without tracing, and gives each
+// the same bits as a trace of its own; anything the paths depend on
+// changed (the listener, a setting, the materials, the scene) traces anew.
+TEST(SharedTrace, KeptPathsGiveTheSameBitsAsATrace) {
+  PartitionRoom room;
+  ReflectionSettings s = settingsFor(5);
+  s.rays = 4096;
+  std::vector<SharedTraceSource> first(2), second(5);
+  for (size_t i = 0; i < first.size(); ++i) first[i].position = kSources[i];
+  for (size_t i = 0; i < second.size(); ++i) {
+    second[i].position = kSources[i % kSources.size()] + Vec3d{0.3 * double(i), 0.2, 0.0};
+    second[i].receiverRadiusMeters = 0.4 + 0.1 * double(i);  // some spheres detect the probes, some not
+  }
+  ThreadPool one(1), two(2);
+  SharedTracePaths paths;
+  EXPECT_EQ(paths.bytes(), 0u);
+  auto traced = traceReflectionsShared(*room.tracer, room.materials, kListener, first, s, two, &paths);
+  ASSERT_TRUE(traced.isOk());
+  EXPECT_FALSE(traced->front().stats.pathsReused);
+  EXPECT_GT(paths.bytes(), 0u);
+  auto reused = traceReflectionsShared(*room.tracer, room.materials, kListener, second, s, one, &paths);
+  auto fresh = traceReflectionsShared(*room.tracer, room.materials, kListener, second, s, two);
+  ASSERT_TRUE(reused.isOk() && fresh.isOk());
+  for (size_t i = 0; i < second.size(); ++i) {
+    const ReflectionResult &r = (*reused)[i], &f = (*fresh)[i];
+    EXPECT_TRUE(r.stats.pathsReused);
+    EXPECT_FALSE(f.stats.pathsReused);
+    EXPECT_EQ(r.histogram.data(), f.histogram.data()) << "source " << i;
+    EXPECT_EQ(r.tail.probeDetected, f.tail.probeDetected) << "source " << i;
+    EXPECT_EQ(r.tail.alive, f.tail.alive);
+    EXPECT_EQ(r.tail.probeAlive, f.tail.probeAlive);
+    EXPECT_EQ(r.tail.cutRays.size(), f.tail.cutRays.size());
+    EXPECT_EQ(r.stats.detectedPerOrder, f.stats.detectedPerOrder) << "source " << i;
+    EXPECT_EQ(r.stats.energyLate, f.stats.energyLate) << "source " << i;
+    EXPECT_EQ(r.stats.shadowRays, f.stats.shadowRays) << "source " << i;
+    EXPECT_EQ(r.stats.shadowRaysRouletted, f.stats.shadowRaysRouletted) << "source " << i;
+    EXPECT_EQ(r.stats.segmentsTraced, f.stats.segmentsTraced);
+    EXPECT_EQ(r.stats.receiverRadiusMeters, f.stats.receiverRadiusMeters) << "source " << i;
+  }
+  // What the paths depend on, each changed in turn: traced again, and kept anew.
+  auto reusedWith = [&](const Vec3d& listener, const ReflectionSettings& settings, const MaterialTable& materials,
+                        const RayTracer& tracer) {
+    auto r = traceReflectionsShared(tracer, materials, listener, first, settings, two, &paths);
+    EXPECT_TRUE(r.isOk());
+    return r.isOk() && r->front().stats.pathsReused;
+  };
+  EXPECT_TRUE(reusedWith(kListener, s, room.materials, *room.tracer));
+  EXPECT_FALSE(reusedWith(kListener + Vec3d{0.01, 0, 0}, s, room.materials, *room.tracer));
+  EXPECT_FALSE(reusedWith(kListener, s, room.materials, *room.tracer));  // the paths were replaced
+  ReflectionSettings seed = s;
+  seed.seed = 6;
+  EXPECT_FALSE(reusedWith(kListener, seed, room.materials, *room.tracer));
+  ReflectionSettings air = seed;
+  air.air.humidityPercent = 20;
+  EXPECT_FALSE(reusedWith(kListener, air, room.materials, *room.tracer));
+  EXPECT_TRUE(reusedWith(kListener, air, room.materials, *room.tracer));
+  MaterialTable softer = room.materials;
+  Material m = softer[1];  // wall 0's
+  m.absorption[3] += 0.1f;
+  softer.add(m);           // replaced (by name)
+  EXPECT_FALSE(reusedWith(kListener, air, softer, *room.tracer));
+  PartitionRoom same;  // the same triangles, another tracer
+  EXPECT_FALSE(reusedWith(kListener, air, softer, *same.tracer));
+  EXPECT_TRUE(reusedWith(kListener, air, softer, *same.tracer));
+  paths.clear();
+  EXPECT_EQ(paths.bytes(), 0u);
+  EXPECT_FALSE(reusedWith(kListener, air, softer, *same.tracer));
+  // A budget the paths exceed: none kept, the results the same.
+  SharedTracePaths small(100000);
+  auto over = traceReflectionsShared(*room.tracer, room.materials, kListener, second, s, two, &small);
+  ASSERT_TRUE(over.isOk());
+  EXPECT_EQ(small.bytes(), 0u);
+  for (size_t i = 0; i < second.size(); ++i) EXPECT_EQ((*over)[i].histogram.data(), (*fresh)[i].histogram.data());
+  auto again = traceReflectionsShared(*room.tracer, room.materials, kListener, second, s, two, &small);
+  ASSERT_TRUE(again.isOk());
+  EXPECT_FALSE(again->front().stats.pathsReused);
+}
+
 TEST(SharedTrace, BadInputIsAClearError) {
   PartitionRoom room;
   ThreadPool pool(1);

@@ -148,12 +148,17 @@ constexpr size_t kSharedTraceBudgetBytes = size_t(256) << 20;
  *  (traceReflectionsShared) on every thread, then tail completion and
  *  synthesis one per thread; each result's traceStats.traceMs is the
  *  shared trace's time over the number of sources. Any error names the
- *  first source that had one. Results do not depend on the thread count. */
+ *  first source that had one. Results do not depend on the thread count.
+ *  `paths` (kShared, optional): the listener's paths kept from the last
+ *  shared trace, reused when it traced from the same place in the same
+ *  scene with the same settings (the same results, no ray traced), else
+ *  replaced by this trace's (SharedTracePaths). */
 Result<std::vector<OmniIrResult>> computeIrs(const RayTracer& tracer, const MaterialTable& materials,
                                              const Vec3d& listener, const std::vector<IrRequest>& requests,
                                              const OmniIrSettings& settings, TraceMode mode, ThreadPool& pool,
                                              const BinauralReceiver* binaural = nullptr,
-                                             const AmbisonicReceiver* ambisonic = nullptr);
+                                             const AmbisonicReceiver* ambisonic = nullptr,
+                                             SharedTracePaths* paths = nullptr);
 
 /** The discrete arrivals a result's IR was synthesised from: the direct sound
  *  (if audible and `includeDirect`) and the image-source paths. */

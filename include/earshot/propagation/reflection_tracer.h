@@ -30,6 +30,7 @@
  *  and detections are summed in 2^-50 fixed point (integer addition is
  *  associative), so the histogram is bit-identical for any thread count. */
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include "earshot/core/bands.h"
@@ -176,6 +177,10 @@ struct ReflectionStats {
   uint32_t coneRays = 0;              ///< rays that left on the flutter cones
   double receiverRadiusMeters = 0.0;
   double traceMs = 0.0;               ///< wall time of the tracing
+  /** A shared trace given SharedTracePaths that held the listener's paths:
+   *  no ray was traced, the sources detected the kept paths (the counts
+   *  above are the kept trace's). */
+  bool pathsReused = false;
 };
 
 struct ReflectionResult {
@@ -206,6 +211,42 @@ struct SharedTraceSource {
 /** Sources in one shared trace, at most. */
 constexpr size_t kMaxSharedTraceSources = 4096;
 
+/** What SharedTracePaths keeps by default, at most. */
+constexpr size_t kSharedTracePathsBudgetBytes = size_t(256) << 20;
+
+/** The paths of a shared trace's rays from the listener, kept for the next
+ *  shared trace from the same place. The rays' paths depend on the scene
+ *  (the tracer, RayTracer::id(), and the materials' factors), the
+ *  listener's position and the settings that shape them (rays, bounces,
+ *  seed, speed of sound, histogram bins and length, air, tail probes,
+ *  roulettes, flutter cones), not on the sources: a trace that finds all
+ *  of these the same detects its sources in the kept paths instead of
+ *  tracing (each source's result the same bits as a trace's), and a trace
+ *  that does not replaces them. A listener that stays in place (a seated
+ *  player turning the head, an offline render's fixed listener) then costs
+ *  each simulation only its sources' detections and shadow rays. At most
+ *  `budgetBytes` (default kSharedTracePathsBudgetBytes) are kept; a trace
+ *  whose paths need more keeps none. Not thread-safe: one trace at a time. */
+class SharedTracePaths {
+ public:
+  explicit SharedTracePaths(size_t budgetBytes);
+  SharedTracePaths();
+  ~SharedTracePaths();
+  SharedTracePaths(const SharedTracePaths&) = delete;
+  SharedTracePaths& operator=(const SharedTracePaths&) = delete;
+  /** Bytes held (0: none kept). */
+  size_t bytes() const;
+  /** Forgets the paths. */
+  void clear();
+
+  struct Impl;  // reflection_tracer.cpp
+  Impl& impl() { return *mImpl; }  ///< the tracer's
+
+ private:
+  std::unique_ptr<Impl> mImpl;
+};
+
+
 /** One trace for many sources (issue 16): rays leave the listener, and each
  *  source detects them as traceReflections' listener does (next-event
  *  estimation to it, a sphere around it), by reciprocity: for omni sources
@@ -222,11 +263,14 @@ constexpr size_t kMaxSharedTraceSources = 4096;
  *  (traceReflections keeps 4096 when its sphere is under 0.5 m), so that a
  *  source's result does not depend on the others; settings.directivity and
  *  settings.excludedSpecular are ignored (per source here). Results in
- *  `sources` order, bit-identical for any thread count. */
+ *  `sources` order, bit-identical for any thread count. `paths` (optional):
+ *  the listener's paths, reused when they were kept for this scene,
+ *  listener and settings, else traced and kept (SharedTracePaths). */
 Result<std::vector<ReflectionResult>> traceReflectionsShared(const RayTracer& tracer, const MaterialTable& materials,
                                                              const Vec3d& listener,
                                                              const std::vector<SharedTraceSource>& sources,
-                                                             const ReflectionSettings& settings, ThreadPool& pool);
+                                                             const ReflectionSettings& settings, ThreadPool& pool,
+                                                             SharedTracePaths* paths = nullptr);
 
 /** Direction i of n on a Fibonacci sphere (unit vector). */
 Vec3d fibonacciDirection(uint32_t i, uint32_t n);

@@ -125,8 +125,11 @@ struct EngineSettings {
    *  shadow ray per reflection per source instead of a trace each);
    *  kPerSource, a trace from each source (one source per worker); kAuto
    *  (the default), shared for a simulation of kAutoSharedTraceSources (3)
-   *  sources or more, where it is measured cheaper. The two give the same
-   *  energies (the regression suite runs with both). */
+   *  sources or more, where it is measured cheaper. A shared trace's paths
+   *  are kept (SharedTracePaths, up to kSharedTracePathsBudgetBytes): while
+   *  the listener stays in place, later shared simulations detect their
+   *  sources in them without tracing (the same IRs). The two modes give the
+   *  same energies (the regression suite runs with both). */
   TraceMode traceMode = TraceMode::kAuto;
 };
 
@@ -192,6 +195,7 @@ Status validate(const SourceSettings& settings);
 struct SimulationStats {
   uint32_t sourcesSimulated = 0;
   double traceMs = 0, synthesisMs = 0, prepareMs = 0, totalMs = 0;
+  bool pathsReused = false;  ///< a shared trace that reused the listener's kept paths (no ray traced)
 };
 
 /** What the audio path contained (Engine::containment()). */
@@ -342,6 +346,7 @@ class Engine {
   std::shared_ptr<const MaterialTable> mMaterials;
   std::shared_ptr<const RayTracer> mEmptyTracer;
   std::mutex mSimulationMutex;  // serialises simulate()
+  std::unique_ptr<SharedTracePaths> mPaths;  // under mSimulationMutex: the last shared trace's paths
   mutable std::mutex mIrMutex;  // Slot::lastIr (game and simulation threads only)
   uint32_t mNextRoundRobin = 0;
   SimulationStats mStats;

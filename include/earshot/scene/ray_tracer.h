@@ -77,6 +77,9 @@ class RayTracer {
 
   /** The world-space triangles every hit's index refers to. */
   const TriangleMesh& mesh() const { return mMesh; }
+  /** Unique among the tracers (and snapshots) this process made: what
+   *  was traced in one is known to be of it (SharedTracePaths). */
+  uint64_t id() const { return mId; }
   /** Material id of a triangle. */
   uint32_t materialOf(uint32_t triangle) const { return mMesh.materialIds[triangle]; }
   bool empty() const { return mMesh.triangles.empty(); }
@@ -119,6 +122,8 @@ class RayTracer {
   Vec3d mFrameOrigin;  // Embree's vertices and ray origins are relative to it
   std::vector<int8_t> mConvexSides;  // convexSides(mMesh, mPlanes, mEpsilon)
   float mEpsilon = 1e-4f;
+  uint64_t mId = nextId();
+  static uint64_t nextId();
   // Set only while a QueryRecording (embree_limit.h) measures this tracer.
   mutable std::atomic<QueryLog*> mRecorder{nullptr};
   friend class QueryRecording;
