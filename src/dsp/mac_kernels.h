@@ -32,6 +32,15 @@ void complexMacDiff(float* ar, float* ai, const float* xr, const float* xi, cons
 uint16_t floatToHalf(float v);
 /** float from IEEE 754 binary16 (exact). */
 float halfToFloat(uint16_t h);
+/** out[i] = floatToHalf(in[i] / scale) for n finite values: eight at a time
+ *  with F16C's conversion (the same rounding) where the CPU has it.
+ *  PreparedIr's compact spectra: in software the conversion and division
+ *  were a quarter of an offline render. */
+void floatsToHalves(const float* in, float scale, uint16_t* out, size_t n);
+/** The software loop floatsToHalves falls back to (tested against it). */
+void floatsToHalvesPortable(const float* in, float scale, uint16_t* out, size_t n);
+/** The largest |v[i]| of n finite values (SSE2: four at a time; the same value). */
+float peakMagnitude(const float* v, size_t n);
 
 /** Compact (binary16) spectra of one level and channel: its K partitions of
  *  `stride` bins (a multiple of 8) interleaved by bin tiles, so that the

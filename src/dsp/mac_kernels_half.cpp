@@ -4,9 +4,15 @@
 // cache), so half the bytes is most of half the time. On x86-64 an AVX2 +
 // F16C version (vcvtph2ps) is chosen once when the CPU has it; elsewhere a
 // portable loop with the conversion in software.
+#include <algorithm>
+#include <cmath>
 #include <cstring>
 
 #include "mac_kernels.h"
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
 #include <cpuid.h>
@@ -130,6 +136,20 @@ EARSHOT_F16C void compactPartitionToFloatsAvx(const uint16_t* h, size_t k, size_
   }
 }
 
+// floatsToHalves with vcvtps2ph: IEEE rounding to nearest even, as
+// floatToHalf (the division the same IEEE operation); MXCSR's flush to zero
+// does not apply to the conversion, and a float denormal is a half zero
+// either way.
+EARSHOT_F16C void floatsToHalvesAvx(const float* in, float scale, uint16_t* out, size_t n) {
+  const __m256 s = _mm256_set1_ps(scale);
+  size_t i = 0;
+  for (; i + 8 <= n; i += 8)
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(out + i),
+                     _mm256_cvtps_ph(_mm256_div_ps(_mm256_loadu_ps(in + i), s),
+                                     _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC));
+  for (; i < n; ++i) out[i] = floatToHalf(in[i] / scale);
+}
+
 bool cpuHasF16cPath() {
   __builtin_cpu_init();
   if (!__builtin_cpu_supports("avx2") || !__builtin_cpu_supports("fma")) return false;  // (AVX state enabled by the OS)
@@ -177,6 +197,32 @@ void compactPartitionToFloatsPortable(const uint16_t* h, size_t k, size_t partit
       out[stride + i + b] = scale * halfToFloat(t[w + b]);
     }
   }
+}
+
+void floatsToHalvesPortable(const float* in, float scale, uint16_t* out, size_t n) {
+  for (size_t i = 0; i < n; ++i) out[i] = floatToHalf(in[i] / scale);
+}
+
+void floatsToHalves(const float* in, float scale, uint16_t* out, size_t n) {
+#ifdef EARSHOT_HAVE_F16C_PATH
+  if (kF16cPath) return floatsToHalvesAvx(in, scale, out, n);
+#endif
+  floatsToHalvesPortable(in, scale, out, n);
+}
+
+float peakMagnitude(const float* v, size_t n) {
+  float peak = 0.0f;
+  size_t i = 0;
+#if defined(__SSE2__)
+  const __m128 mask = _mm_castsi128_ps(_mm_set1_epi32(0x7FFFFFFF));
+  __m128 m = _mm_setzero_ps();
+  for (; i + 4 <= n; i += 4) m = _mm_max_ps(m, _mm_and_ps(mask, _mm_loadu_ps(v + i)));
+  float lanes[4];
+  _mm_storeu_ps(lanes, m);
+  for (float l : lanes) peak = std::max(peak, l);
+#endif
+  for (; i < n; ++i) peak = std::max(peak, std::fabs(v[i]));
+  return peak;
 }
 
 void compactPartitionToFloats(const uint16_t* h, size_t k, size_t partitions, size_t stride, float scale,

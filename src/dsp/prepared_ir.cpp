@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
+#include <limits>
 #include <string>
 
 #include "aligned_floats.h"
@@ -136,9 +137,12 @@ Result<std::shared_ptr<const PreparedIr>> PreparedIr::create(const std::vector<s
       for (size_t c = 0; c < channels.size(); ++c) {
         const size_t n = levels[l].partitionCount * 2 * out->mStride[l];
         const float* v = out->spectrum(l, c, 0);
-        float peak = 0.0f;
-        for (size_t i = 0; i < n; ++i) peak = std::max(peak, std::fabs(v[i]));
-        const float scale = peak > 0.0f ? std::ldexp(1.0f, std::ilogb(peak) - 13) : 1.0f;  // peak / scale < 2^14
+        const float peak = dsp_detail::peakMagnitude(v, n);
+        // peak / scale < 2^14; never below the least normal float (a
+        // spectrum of denormals made a zero scale, and 0 / 0 a NaN).
+        const float scale = peak > 0.0f ? std::max(std::ldexp(1.0f, std::ilogb(peak) - 13),
+                                                   std::numeric_limits<float>::min())
+                                        : 1.0f;
         out->mScale[l * channels.size() + c] = scale;
         uint16_t* h = const_cast<uint16_t*>(out->compactSpectra(l, c));
         const size_t parts = levels[l].partitionCount, st = out->mStride[l];
@@ -147,10 +151,8 @@ Result<std::shared_ptr<const PreparedIr>> PreparedIr::create(const std::vector<s
             const size_t w = dsp_detail::compactTileWidth(i, st);
             uint16_t* t = h + dsp_detail::compactTileOffset(i, k, parts, st);
             const float* re = v + k * 2 * st + i;
-            for (size_t b = 0; b < w; ++b) {
-              t[b] = dsp_detail::floatToHalf(re[b] / scale);
-              t[w + b] = dsp_detail::floatToHalf(re[st + b] / scale);
-            }
+            dsp_detail::floatsToHalves(re, scale, t, w);
+            dsp_detail::floatsToHalves(re + st, scale, t + w, w);
           }
       }
     std::free(out->mData);

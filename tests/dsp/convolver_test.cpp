@@ -8,6 +8,8 @@
 #include <cmath>
 #include <functional>
 #include <map>
+#include <optional>
+#include <limits>
 
 #if defined(__SSE__) || defined(__x86_64__)
 #include <xmmintrin.h>
@@ -15,6 +17,7 @@
 
 #include "test_signals.h"
 #include "mac_kernels.h"
+#include "earshot/core/denormals.h"
 
 namespace earshot {
 namespace {
@@ -409,6 +412,46 @@ TEST(CompactSpectra, HalfConversionsAreExactAndRoundToNearest) {
       ASSERT_TRUE(dGot < dOther || (dGot == dOther && (h & 1u) == 0))
           << v << " -> " << h << " (" << got << "), neighbour " << n << " (" << other << ")";
     }
+  }
+}
+
+// floatsToHalves (F16C where the CPU has it, as here) gives every value the
+// software's floatToHalf(v / scale), with the denormal flags off and on (the
+// audio thread's), over all values whose quotient is a half subnormal or
+// rounds near a tie, and log-uniform ones; peakMagnitude is the scalar max.
+TEST(CompactSpectra, VectorHalfConversionEqualsTheSoftwareOne) {
+  std::vector<float> in;
+  for (uint32_t h = 0; h < 0x7C00u; ++h) {  // every finite half, the ties beside it, both signs
+    const float f = dsp_detail::halfToFloat(uint16_t(h));
+    const float next = dsp_detail::halfToFloat(uint16_t(h + 1));
+    for (float v : {f, 0.5f * (f + next), std::nextafter(0.5f * (f + next), 0.0f),
+                    std::nextafter(0.5f * (f + next), 1e9f)})
+      for (float sign : {1.0f, -1.0f}) in.push_back(sign * v);
+  }
+  Pcg32 rng(8, 9);
+  for (int i = 0; i < 100000; ++i)
+    in.push_back(float((rng.next() & 1 ? -1.0 : 1.0) * std::exp2(-160.0 + 176.0 * rng.uniformDouble())));
+  in.push_back(std::numeric_limits<float>::denorm_min());
+  for (float scale : {1.0f, 0.25f, 1024.0f, std::numeric_limits<float>::min()}) {
+    for (bool flush : {false, true}) {
+      std::optional<ScopedFlushDenormals> ftz;
+      if (flush) ftz.emplace();
+      std::vector<uint16_t> fast(in.size()), slow(in.size());
+      const size_t n = in.size() - 3;  // a tail beyond the 8-value steps
+      dsp_detail::floatsToHalves(in.data(), scale, fast.data(), n);
+      dsp_detail::floatsToHalvesPortable(in.data(), scale, slow.data(), n);
+      size_t differ = 0;
+      for (size_t i = 0; i < n; ++i) differ += fast[i] != slow[i];
+      EXPECT_EQ(differ, 0u) << "scale " << scale << (flush ? ", flush to zero" : "");
+      if (!flush) {
+        for (size_t i = 0; i < n; i += 997) ASSERT_EQ(slow[i], dsp_detail::floatToHalf(in[i] / scale)) << i;
+      }
+    }
+  }
+  for (size_t n : {size_t(0), size_t(3), size_t(4), size_t(17), in.size()}) {
+    float peak = 0.0f;
+    for (size_t i = 0; i < n; ++i) peak = std::max(peak, std::fabs(in[i]));
+    EXPECT_EQ(dsp_detail::peakMagnitude(in.data(), n), peak) << n;
   }
 }
 
