@@ -16,6 +16,7 @@
 #endif
 
 #include "test_signals.h"
+#include "aligned_floats.h"
 #include "mac_kernels.h"
 #include "earshot/core/denormals.h"
 
@@ -597,6 +598,36 @@ TEST(ConvolutionMixer, CompactSpectraErrorIsSmallAndBounded) {
   ASSERT_TRUE(floatMixer.isOk() && compactMixer.isOk());
   std::vector<std::vector<float>> ir(channels, decayingNoise(irLen, 9));
   EXPECT_FALSE((*compactMixer)->setIr(0, prepare(ir, (*floatMixer)->layout())).isOk());
+}
+
+// An IR of denormal taps (its spectrum's peak under 2^-136) prepared as
+// compact spectra: the channel's scale is a normal float and every half is
+// finite (a zero scale made 0 / 0 NaN halves), and a mixer plays it as
+// silence.
+TEST(CompactSpectra, AnIrOfDenormalsGivesFiniteHalves) {
+  ConvolverSettings s;
+  s.latencyFrames = 256;
+  s.maxIrFrames = 4096;
+  s.channels = 1;
+  s.compactSpectra = true;
+  auto mixer = ConvolutionMixer::create(s, 1);
+  ASSERT_TRUE(mixer.isOk());
+  std::vector<std::vector<float>> ir(1, std::vector<float>(4096, 0.0f));
+  ir[0][0] = 1e-39f;  // subnormal: its spectrum's values, 1e-39 / 2P, are under 2^-136
+  ir[0][100] = -3e-40f;
+  auto prepared = PreparedIr::create(ir, (*mixer)->layout());
+  ASSERT_TRUE(prepared.isOk()) << prepared.status().message();
+  const PreparedIr& p = **prepared;
+  ASSERT_TRUE(p.compact());
+  for (size_t l = 0; l < (*mixer)->layout().levels().size(); ++l) {
+    EXPECT_TRUE(std::isnormal(p.spectrumScale(l, 0))) << "level " << l;
+    const PartitionLevel& lv = (*mixer)->layout().levels()[l];
+    const uint16_t* h = p.compactSpectra(l, 0);
+    const size_t n = lv.partitionCount * 2 * dsp_detail::padBins(lv.partitionFrames + 1);
+    for (size_t i = 0; i < n; ++i) ASSERT_TRUE(std::isfinite(dsp_detail::halfToFloat(h[i]))) << "level " << l << " " << i;
+  }
+  ASSERT_TRUE((*mixer)->reserveSource(0).isOk());
+  ASSERT_TRUE((*mixer)->setIr(0, *prepared).isOk());
 }
 
 // After loud noise, silence through an IR whose tail decays to 1e-40
