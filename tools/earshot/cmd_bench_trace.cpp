@@ -52,8 +52,9 @@ int runShared(const BenchTraceOptions& o, const RayTracer& tracer, const Materia
   const std::vector<Vec3d> positions = ringSources(tracer, o.sharedSources);
   std::vector<SharedTraceSource> sources(positions.size());
   for (size_t i = 0; i < positions.size(); ++i) sources[i].position = positions[i];
-  std::vector<double> sharedMs, perSourceMs;
+  std::vector<double> sharedMs, perSourceMs, recordMs, reusedMs;
   uint64_t sharedSegments = 0, sharedShadows = 0, perSegments = 0, perShadows = 0;
+  size_t keptBytes = 0;
   const int runs = std::max(1, std::min(o.runs, 5));
   for (int i = 0; i < runs + 1; ++i) {  // the first run warms up and is dropped
     s.seed = uint64_t(i + 1);
@@ -64,6 +65,15 @@ int runShared(const BenchTraceOptions& o, const RayTracer& tracer, const Materia
     sharedSegments = r->front().stats.segmentsTraced;
     sharedShadows = 0;
     for (const ReflectionResult& x : *r) sharedShadows += x.stats.shadowRays;
+    // The same trace keeping its paths, then again from them (SharedTracePaths).
+    SharedTracePaths paths;
+    auto t1 = std::chrono::steady_clock::now();
+    auto recorded = traceReflectionsShared(tracer, materials, lis, sources, s, pool, &paths);
+    auto t2 = std::chrono::steady_clock::now();
+    auto reused = traceReflectionsShared(tracer, materials, lis, sources, s, pool, &paths);
+    auto t3 = std::chrono::steady_clock::now();
+    if (!check(recorded.status()) || !check(reused.status())) return 2;
+    keptBytes = paths.bytes();
     double per = 0;
     perSegments = perShadows = 0;
     for (const Vec3d& p : positions) {
@@ -76,6 +86,9 @@ int runShared(const BenchTraceOptions& o, const RayTracer& tracer, const Materia
     if (i == 0) continue;
     sharedMs.push_back(shared);
     perSourceMs.push_back(per);
+    recordMs.push_back(std::chrono::duration<double, std::milli>(t2 - t1).count());
+    reusedMs.push_back(reused->front().stats.pathsReused ? std::chrono::duration<double, std::milli>(t3 - t2).count()
+                                                         : -1.0);
   }
   const double sh = median(sharedMs), per = median(perSourceMs);
   std::printf("shared_trace sources=%u threads=%u runs=%d shared_ms=%.1f (segments=%llu shadow_rays=%llu) "
@@ -83,6 +96,10 @@ int runShared(const BenchTraceOptions& o, const RayTracer& tracer, const Materia
               o.sharedSources, pool.threadCount(), runs, sh, (unsigned long long)sharedSegments,
               (unsigned long long)sharedShadows, per, (unsigned long long)perSegments, (unsigned long long)perShadows,
               per / sh);
+  std::printf("kept_paths sources=%u keeping_ms=%.1f reused_ms=%.1f kept_mb=%.1f ratio_shared_over_reused=%.2f "
+              "(the same trace keeping the listener's paths, then detecting the sources in them: SharedTracePaths)\n",
+              o.sharedSources, median(recordMs), median(reusedMs), double(keptBytes) / 1048576.0,
+              sh / median(reusedMs));
   return 0;
 }
 
