@@ -310,7 +310,7 @@ Result<std::vector<OmniIrResult>> computeIrs(const RayTracer& tracer, const Mate
                                              const Vec3d& listener, const std::vector<IrRequest>& requests,
                                              const OmniIrSettings& s, TraceMode mode, ThreadPool& pool,
                                              const BinauralReceiver* binaural, const AmbisonicReceiver* ambisonic,
-                                             SharedTracePaths* paths) {
+                                             ListenerCache* cache) {
   if (requests.size() > kMaxSharedTraceSources)
     return invalidArgument(std::to_string(requests.size()) + " sources, over " + std::to_string(kMaxSharedTraceSources));
   auto settingsOf = [&](const IrRequest& r) {
@@ -341,19 +341,33 @@ Result<std::vector<OmniIrResult>> computeIrs(const RayTracer& tracer, const Mate
   std::vector<Status> status(requests.size());
   // Where the image sources' candidates come from rays (many planes), the
   // listener's rays find them once for every source (imageSourceCandidates).
-  std::vector<PlaneSequence> candidates;
+  std::vector<PlaneSequence> ownCandidates;
+  const std::vector<PlaneSequence>* candidates = &ownCandidates;
   const ImageSourceSettings is = imageSourceSettingsOf(s);
   const bool listenerCandidates = !tracer.empty() && s.imageSourceOrder > 0 && isFinite(listener) &&
                                   tracer.planes().planes.size() > is.maxPlanesExhaustive;
   double candidatesMs = 0;
   if (listenerCandidates) {
     const auto t = std::chrono::steady_clock::now();
-    candidates = imageSourceCandidates(tracer, listener, is, true, &pool);
+    ListenerCache::Candidates* kept = cache ? &cache->candidates : nullptr;
+    const bool same = kept && kept->valid && kept->tracer == tracer.id() && kept->listener.x == listener.x &&
+                      kept->listener.y == listener.y && kept->listener.z == listener.z &&
+                      kept->maxOrder == is.maxOrder && kept->rays == is.candidateRays && kept->seed == is.seed;
+    if (same) {
+      candidates = &kept->sequences;
+    } else {
+      ownCandidates = imageSourceCandidates(tracer, listener, is, true, &pool);
+      if (kept) {
+        *kept = ListenerCache::Candidates{true, tracer.id(), listener, is.maxOrder, is.candidateRays, is.seed,
+                                          std::move(ownCandidates)};
+        candidates = &kept->sequences;
+      }
+    }
     candidatesMs = msSince(t) / double(requests.size());  // each source is charged its part
   }
   pool.parallelFor(requests.size(), [&](size_t i, unsigned) {
     status[i] = prepareIr(tracer, materials, requests[i].source, listener, settingsOf(requests[i]), binaural,
-                          ambisonic, jobs[i], listenerCandidates ? &candidates : nullptr);
+                          ambisonic, jobs[i], listenerCandidates ? candidates : nullptr);
     jobs[i].out.timings.imageSourcesMs += candidatesMs;
   });
   for (size_t i = 0; i < requests.size(); ++i)
@@ -384,7 +398,7 @@ Result<std::vector<OmniIrResult>> computeIrs(const RayTracer& tracer, const Mate
         src.receiverRadiusMeters = rs.receiverRadiusMeters;
       }
       auto r = traceReflectionsShared(tracer, materials, listener, sources, reflectionSettingsOf(s, jobs[g0]), pool,
-                                      paths);
+                                      cache ? &cache->paths : nullptr);
       if (!r.isOk()) return r.status();
       traced = std::move(r.value());
       // The trace's time is shared: each source is charged its part.

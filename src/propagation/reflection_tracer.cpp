@@ -1415,6 +1415,11 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
     if (record && !overBudget.load()) {
       paths->key = std::move(key);
       paths->tasks = std::move(recorded);
+      for (PathEvents& e : paths->tasks) {  // without the vectors' growth slack
+        e.segments.shrink_to_fit();
+        e.reflections.shrink_to_fit();
+        e.planes.shrink_to_fit();
+      }
       paths->stats = stats;
       paths->tail = tail;
       paths->bytes = sizeof(SharedTracePaths::Impl);

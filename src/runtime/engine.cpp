@@ -620,9 +620,9 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& order) {
     std::vector<IrRequest> requests;
     for (const Job& j : jobs)
       requests.push_back({j.source, j.settings.directivity, j.settings.includeDirect, "source " + std::to_string(j.slot)});
-    if (!mPaths) mPaths = std::make_unique<SharedTracePaths>();
+    if (!mListenerCache) mListenerCache = std::make_unique<ListenerCache>();
     auto r = computeIrs(*tracer, *materials, listener, requests, mSettings.simulation, TraceMode::kShared, *mPool,
-                        binauralReceiver, ambisonicReceiver, mPaths.get());
+                        binauralReceiver, ambisonicReceiver, mListenerCache.get());
     if (!r.isOk()) return r.status();
     stats.pathsReused = !r->empty() && r->front().traceStats.pathsReused;
     for (size_t k = 0; k < jobs.size(); ++k) jobs[k].result = std::move((*r)[k]);

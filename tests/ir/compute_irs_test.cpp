@@ -77,6 +77,70 @@ TEST(ComputeIrs, SharedTracesGiveTheSameIrsHoweverTheSourcesAreGrouped) {
   }
 }
 
+// A ListenerCache kept between shared simulations: from the same place the
+// second simulation traces no ray and searches no image-source candidates,
+// and its IRs are the same bits as without the cache; from another place
+// both are made anew. The room has 14 boxes in it (over 64 planes: the
+// image sources' candidates come from rays).
+TEST(ComputeIrs, AListenerCacheGivesTheSameIrs) {
+  Room room;
+  TriangleMesh mesh = room.tracer->mesh();
+  for (int i = 0; i < 14; ++i) {  // boxes apart in every coordinate: no faces coplanar
+    const double x = 0.8 + 0.61 * double(i), y = 0.7 + 0.37 * double(i % 7), z = 0.05 + 0.09 * double(i);
+    mesh.append(makeBox({x, y, z}, {x + 0.2 + 0.01 * double(i), y + 0.25, z + 0.3}, 1));
+  }
+  auto furnished = RayTracer::create(mesh);
+  ASSERT_TRUE(furnished.isOk());
+  ASSERT_GT((*furnished)->planes().planes.size(), ImageSourceSettings{}.maxPlanesExhaustive);
+  OmniIrSettings s;
+  s.sampleRateHz = 8000;
+  s.rays = 1000;
+  s.bounces = 6;
+  s.imageSourceOrder = 2;
+  s.lengthSeconds = 1;
+  const std::vector<IrRequest> all = ringOfSources(6);
+  const std::vector<IrRequest> first(all.begin(), all.begin() + 3), second(all.begin() + 3, all.end());
+  const Vec3d listener{7.2, 2.6, 1.6};
+  ThreadPool pool(2);
+  ListenerCache cache;
+  auto a = computeIrs(**furnished, room.materials, listener, first, s, TraceMode::kShared, pool, nullptr, nullptr,
+                      &cache);
+  ASSERT_TRUE(a.isOk()) << a.status().message();
+  EXPECT_FALSE(a->front().traceStats.pathsReused);
+  EXPECT_TRUE(cache.candidates.valid);
+  EXPECT_FALSE(cache.candidates.sequences.empty());
+  EXPECT_GT(cache.paths.bytes(), 0u);
+  const std::vector<PlaneSequence> kept = cache.candidates.sequences;
+  auto b = computeIrs(**furnished, room.materials, listener, second, s, TraceMode::kShared, pool, nullptr, nullptr,
+                      &cache);
+  auto fresh = computeIrs(**furnished, room.materials, listener, second, s, TraceMode::kShared, pool);
+  ASSERT_TRUE(b.isOk() && fresh.isOk());
+  EXPECT_EQ(cache.candidates.sequences, kept);
+  size_t early = 0;
+  for (size_t i = 0; i < second.size(); ++i) {
+    EXPECT_TRUE((*b)[i].traceStats.pathsReused);
+    EXPECT_EQ((*b)[i].ir.channels, (*fresh)[i].ir.channels) << "source " << i;
+    EXPECT_EQ((*b)[i].early.size(), (*fresh)[i].early.size()) << "source " << i;
+    early += (*b)[i].early.size();
+  }
+  EXPECT_GT(early, 0u);
+  const Vec3d moved{6.9, 2.6, 1.6};
+  auto c = computeIrs(**furnished, room.materials, moved, second, s, TraceMode::kShared, pool, nullptr, nullptr,
+                      &cache);
+  auto cFresh = computeIrs(**furnished, room.materials, moved, second, s, TraceMode::kShared, pool);
+  ASSERT_TRUE(c.isOk() && cFresh.isOk());
+  EXPECT_FALSE(c->front().traceStats.pathsReused);
+  EXPECT_EQ(cache.candidates.listener.x, moved.x);
+  for (size_t i = 0; i < second.size(); ++i) EXPECT_EQ((*c)[i].ir.channels, (*cFresh)[i].ir.channels);
+  // The kept candidates are what the next simulation from there uses (no
+  // search): emptied, they give no image source.
+  cache.candidates.sequences.clear();
+  auto d = computeIrs(**furnished, room.materials, moved, second, s, TraceMode::kShared, pool, nullptr, nullptr,
+                      &cache);
+  ASSERT_TRUE(d.isOk());
+  for (size_t i = 0; i < second.size(); ++i) EXPECT_TRUE((*d)[i].early.empty()) << "source " << i;
+}
+
 // kAuto traces 1 or 2 sources from themselves (computeIr's IRs) and 3 or
 // more from the listener.
 TEST(ComputeIrs, AutoSharesFromThreeSources) {

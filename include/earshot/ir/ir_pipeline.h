@@ -134,6 +134,25 @@ struct IrRequest {
   std::string name;            ///< in error messages; empty: "source <index in the requests>"
 };
 
+/** What computeIrs keeps from one shared simulation for the next from the
+ *  same place, each part reused only for the same scene, listener position
+ *  and settings (the same results; anything else replaces it): the
+ *  listener's paths (SharedTracePaths: no ray traced) and the image
+ *  sources' candidate sequences from the listener (imageSourceCandidates:
+ *  16384 rays of up to 3 reflections in the furnished room). Not
+ *  thread-safe: one computeIrs at a time. */
+struct ListenerCache {
+  SharedTracePaths paths;
+  struct Candidates {
+    bool valid = false;
+    uint64_t tracer = 0;  ///< RayTracer::id()
+    Vec3d listener{};
+    uint32_t maxOrder = 0, rays = 0;
+    uint64_t seed = 0;
+    std::vector<PlaneSequence> sequences;
+  } candidates;
+};
+
 /** computeIrs's shared traces take at most as many sources at once as keep
  *  their per-thread sums and results within this; the sources beyond go
  *  through further traces (balanced, 4 s of 1 ms bins, 2 threads: ~80 at a
@@ -149,16 +168,14 @@ constexpr size_t kSharedTraceBudgetBytes = size_t(256) << 20;
  *  synthesis one per thread; each result's traceStats.traceMs is the
  *  shared trace's time over the number of sources. Any error names the
  *  first source that had one. Results do not depend on the thread count.
- *  `paths` (kShared, optional): the listener's paths kept from the last
- *  shared trace, reused when it traced from the same place in the same
- *  scene with the same settings (the same results, no ray traced), else
- *  replaced by this trace's (SharedTracePaths). */
+ *  `cache` (kShared, optional): what the last shared simulation kept from
+ *  the listener, reused from the same place (ListenerCache). */
 Result<std::vector<OmniIrResult>> computeIrs(const RayTracer& tracer, const MaterialTable& materials,
                                              const Vec3d& listener, const std::vector<IrRequest>& requests,
                                              const OmniIrSettings& settings, TraceMode mode, ThreadPool& pool,
                                              const BinauralReceiver* binaural = nullptr,
                                              const AmbisonicReceiver* ambisonic = nullptr,
-                                             SharedTracePaths* paths = nullptr);
+                                             ListenerCache* cache = nullptr);
 
 /** The discrete arrivals a result's IR was synthesised from: the direct sound
  *  (if audible and `includeDirect`) and the image-source paths. */

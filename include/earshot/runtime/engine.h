@@ -126,9 +126,10 @@ struct EngineSettings {
    *  kPerSource, a trace from each source (one source per worker); kAuto
    *  (the default), shared for a simulation of kAutoSharedTraceSources (3)
    *  sources or more, where it is measured cheaper. A shared trace's paths
-   *  are kept (SharedTracePaths, up to kSharedTracePathsBudgetBytes): while
-   *  the listener stays in place, later shared simulations detect their
-   *  sources in them without tracing (the same IRs). The two modes give the
+   *  and image-source candidates are kept (ListenerCache; the paths up to
+   *  kSharedTracePathsBudgetBytes): while the listener stays in place,
+   *  later shared simulations detect their sources in them without tracing
+   *  (the same IRs). The two modes give the
    *  same energies (the regression suite runs with both). */
   TraceMode traceMode = TraceMode::kAuto;
 };
@@ -346,7 +347,7 @@ class Engine {
   std::shared_ptr<const MaterialTable> mMaterials;
   std::shared_ptr<const RayTracer> mEmptyTracer;
   std::mutex mSimulationMutex;  // serialises simulate()
-  std::unique_ptr<SharedTracePaths> mPaths;  // under mSimulationMutex: the last shared trace's paths
+  std::unique_ptr<ListenerCache> mListenerCache;  // under mSimulationMutex: what the last shared simulation kept
   mutable std::mutex mIrMutex;  // Slot::lastIr (game and simulation threads only)
   uint32_t mNextRoundRobin = 0;
   SimulationStats mStats;
