@@ -111,6 +111,11 @@ Result<RenderResult> renderScene(const SceneDescription& scene, const RenderOpti
   auto traceMode = traceModeFromString(options.trace.value_or(ss.trace));
   if (!traceMode.isOk()) return traceMode.status();
   es.traceMode = *traceMode;
+  // A listener that stays in place (it may turn): the shared trace's paths,
+  // kept, serve every later simulation without a ray traced, whatever the
+  // number of sources (a choice the scene file alone makes).
+  const bool listenerInPlace = scene.listener.trajectory.isStationary();
+  if (es.traceMode == TraceMode::kAuto && listenerInPlace) es.traceMode = TraceMode::kShared;
   auto outChannels = renderOutputChannels(scene, options);
   if (!outChannels.isOk()) return outChannels.status();
   const size_t channels = *outChannels;
@@ -130,7 +135,10 @@ Result<RenderResult> renderScene(const SceneDescription& scene, const RenderOpti
   out.log.push_back(ambisonic ? "reflections: world-frame ambisonics of order " + std::to_string(es.ambisonicOrder) +
                                     ", rotated by the head every block (a head turn needs no simulation)"
                               : std::string("reflections: a binaural IR per source (re-simulated when the head turns)"));
-  out.log.push_back(es.traceMode == TraceMode::kShared ? std::string("tracing: one listener-centred trace for the sources simulated together")
+  out.log.push_back(es.traceMode == TraceMode::kShared && *traceMode == TraceMode::kAuto
+                        ? std::string("tracing: one listener-centred trace for the sources simulated together, its paths "
+                                      "kept (the listener stays in place)")
+                    : es.traceMode == TraceMode::kShared ? std::string("tracing: one listener-centred trace for the sources simulated together")
                     : es.traceMode == TraceMode::kAuto
                         ? std::string("tracing: one listener-centred trace for 3 or more sources simulated together, else one from each")
                         : std::string("tracing: a trace from each source"));

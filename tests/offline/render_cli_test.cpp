@@ -80,7 +80,8 @@ std::string vec(double x, double y, double z) {
 // of the dry signal with `earshot ir`'s IR for the same positions and seed
 // (to 1e-5 of the peak), with each trace (issue 16): shared is `earshot ir
 // --trace shared`'s, per-source `earshot ir`'s default, and the render's
-// default (auto: one source is traced from itself) too.
+// default (auto: the listener stays in place, so one source too is traced
+// from it, its paths kept) is the shared one.
 TEST(RenderCli, StaticSceneIsTheDrySignalConvolvedWithEarshotIrsIr) {
   TempDir dir("render_static");
   std::vector<float> dry(size_t(0.25 * kFs));
@@ -99,11 +100,13 @@ TEST(RenderCli, StaticSceneIsTheDrySignalConvolvedWithEarshotIrsIr) {
     })";
     auto ir = runEarshot("ir " + kSamples + "shoebox/shoebox.gltf --material-map " + kSamples +
                          "shoebox/materials_map.json --source 2.5,3,1.4 --listener 7,4,1.6 --forward -1,0.2,0 --up "
-                         "0,0,1 --quality draft --seed 3 --trace " + (trace.empty() ? "per-source" : trace) + " -o " +
+                         "0,0,1 --quality draft --seed 3 --trace " + (trace.empty() ? "shared" : trace) + " -o " +
                          dir / "ir.wav");
     ASSERT_EQ(ir.exitCode, 0) << ir.output;
-    auto render = runEarshot("--allow-outside-paths render " + dir / "scene.json" + " -o " + dir / "out.wav --quiet");
+    auto render = runEarshot("--allow-outside-paths render " + dir / "scene.json" + " -o " + dir / "out.wav");
     ASSERT_EQ(render.exitCode, 0) << render.output;
+    if (trace.empty())
+      EXPECT_NE(render.output.find("its paths kept (the listener stays in place)"), std::string::npos) << render.output;
     const AudioBuffer h = read(dir / "ir.wav"), y = read(dir / "out.wav");
     ASSERT_EQ(h.channelCount(), 2u);
     ASSERT_EQ(y.channelCount(), 2u);

@@ -209,7 +209,8 @@ const Registrar registrar([](CLI::App& root) {
   cmd->add_option("--trace", o->trace,
                   "Override the scene's settings.trace: shared (the sources simulated together share one trace "
                   "from the listener, by reciprocity the same energies), per-source (a trace from each) or auto "
-                  "(the default: shared for 3 sources or more)")
+                  "(the default: shared for 3 sources or more, and for any number when the listener stays in place, "
+                  "whose paths are then kept and reused)")
       ->check(CLI::IsMember({"auto", "shared", "per-source"}));
   cmd->add_option("--ambisonic-order", o->ambisonicOrder,
                   "Override the scene's settings.ambisonic_order (default 1): 1-3 world-frame ambisonic "
