@@ -406,20 +406,36 @@ Result<std::vector<OmniIrResult>> computeIrs(const RayTracer& tracer, const Mate
     }
     // The tail's decay rates and cut rays are the listener's rays': made
     // once for the group (the same bits as each source making them).
-    std::optional<TailRates> rates;
+    // A trace from kept paths has their tail data: the rates made from
+    // them before serve again.
+    std::optional<TailRates> ownRates;
+    const TailRates* rates = nullptr;
     double ratesMs = 0;
     if (!traced.empty() && s.completeTail) {
       const auto t = std::chrono::steady_clock::now();
-      auto made = tailRates(traced.front().tail, traced.front().histogram.binSeconds(),
-                            traced.front().histogram.binCount(), tailSettingsOf(s));
-      if (!made.isOk()) return made.status();
-      rates = std::move(made.value());
+      const TailCompletionSettings ts = tailSettingsOf(s);
+      const double binSeconds = traced.front().histogram.binSeconds();
+      const size_t binCount = traced.front().histogram.binCount();
+      if (cache && traced.front().stats.pathsReused && cache->rates &&
+          cache->ratesGeneration == cache->paths.generation() && cache->rates->settings.sameRatesAs(ts) &&
+          cache->rates->binSeconds == binSeconds && cache->rates->tracedBins == binCount) {
+        rates = &*cache->rates;
+      } else {
+        auto made = tailRates(traced.front().tail, binSeconds, binCount, ts);
+        if (!made.isOk()) return made.status();
+        ownRates = std::move(made.value());
+        rates = &*ownRates;
+        if (cache) {
+          cache->rates = *ownRates;
+          cache->ratesGeneration = cache->paths.generation();
+        }
+      }
       ratesMs = msSince(t) / double(traced.size());
     }
     pool.parallelFor(g1 - g0, [&](size_t k, unsigned) {
       const size_t i = g0 + k;
       status[i] = finishIr(jobs[i], traced.empty() ? nullptr : &traced[k], true, settingsOf(requests[i]), binaural,
-                           ambisonic, rates ? &*rates : nullptr, ratesMs);
+                           ambisonic, rates, ratesMs);
     });
   }
   for (size_t i = 0; i < requests.size(); ++i) {

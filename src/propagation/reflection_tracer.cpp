@@ -714,7 +714,9 @@ struct SharedTracePaths::Impl {
   ReflectionStats stats;          // the trace's counts (what every detector shares)
   TailData tail;                  // the listener's rays' tail data
   size_t bytes = 0;
+  uint64_t generation = 0;
   void clear() {
+    ++generation;
     valid = false;
     tasks = {};
     tail = {};
@@ -726,6 +728,7 @@ SharedTracePaths::SharedTracePaths() : mImpl(std::make_unique<Impl>()) {}
 SharedTracePaths::SharedTracePaths(size_t budgetBytes) : mImpl(std::make_unique<Impl>()) { mImpl->budget = budgetBytes; }
 SharedTracePaths::~SharedTracePaths() = default;
 size_t SharedTracePaths::bytes() const { return mImpl->bytes; }
+uint64_t SharedTracePaths::generation() const { return mImpl->generation; }
 void SharedTracePaths::clear() { mImpl->clear(); }
 
 namespace {
@@ -837,8 +840,11 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
                                              : std::vector<Vec3d>{};
   const DirectionSampler sampler(settings.rays, rot, flutterAxes, settings.seed);
 
-  std::vector<CutRay> cutRays(settings.rays);  // slot per ray: deterministic
-  std::vector<uint8_t> wasCut(settings.rays, 0);
+  // The rays' own data (cut rays, probes' ends, energy in flight, free
+  // paths): not made again from kept paths (they are kept with them).
+  const uint32_t raySlots = replay ? 0u : settings.rays;
+  std::vector<CutRay> cutRays(raySlots);  // slot per ray: deterministic
+  std::vector<uint8_t> wasCut(raySlots, 0);
   // Tail probes: every probeStride-th ray of each direction set (so every
   // cone has its share); a slot per ray for where a probe ended.
   // Undetected probes (a sphere too small) give only the shape of the energy
@@ -850,7 +856,7 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
   const uint32_t probes = anyProbeDetector || reciprocal ? settings.tailProbes
                                                          : std::min(settings.tailProbes, kUndetectedProbes);
   const uint32_t probeStride = probes > 0 ? std::max(1u, settings.rays / probes) : 0;
-  const uint32_t probeSlots = probeStride > 0 ? settings.rays : 0;
+  const uint32_t probeSlots = probeStride > 0 ? raySlots : 0;
   std::vector<CutRay> probeEnds(probeSlots);
   std::vector<uint8_t> probeEnded(probeSlots, 0);
   std::vector<Accumulator> acc(pool.threadCount());
@@ -861,6 +867,7 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
       a.det[r].perOrder.assign(size_t(maxOrder + 1) * kNumBands, 0);
       if (probeStride > 0 && detectors[r].probesDetected) a.det[r].probeHist.assign(bins * kNumBands, 0);
     }
+    if (replay) continue;
     a.aliveDiff.assign((bins + 1) * kNumBands, 0);
     a.pathEnergy.assign(kFreePathBins * kNumBands, 0);
     a.pathRetained.assign(kFreePathBins * kNumBands, 0);

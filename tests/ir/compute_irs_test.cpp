@@ -78,8 +78,8 @@ TEST(ComputeIrs, SharedTracesGiveTheSameIrsHoweverTheSourcesAreGrouped) {
 }
 
 // A ListenerCache kept between shared simulations: from the same place the
-// second simulation traces no ray and searches no image-source candidates,
-// and its IRs are the same bits as without the cache; from another place
+// second simulation traces no ray, makes no tail rates and searches no
+// image-source candidates, and its IRs are the same bits as without the cache; from another place
 // both are made anew. The room has 14 boxes in it (over 64 planes: the
 // image sources' candidates come from rays).
 TEST(ComputeIrs, AListenerCacheGivesTheSameIrs) {
@@ -132,6 +132,15 @@ TEST(ComputeIrs, AListenerCacheGivesTheSameIrs) {
   EXPECT_FALSE(c->front().traceStats.pathsReused);
   EXPECT_EQ(cache.candidates.listener.x, moved.x);
   for (size_t i = 0; i < second.size(); ++i) EXPECT_EQ((*c)[i].ir.channels, (*cFresh)[i].ir.channels);
+  // So are the kept tail rates: twice the decay rate, other late tails.
+  ASSERT_TRUE(cache.rates.has_value());
+  EXPECT_EQ(cache.ratesGeneration, cache.paths.generation());
+  for (double& r : cache.rates->info.decayRatePerSecond) r *= 2;
+  auto e = computeIrs(**furnished, room.materials, moved, second, s, TraceMode::kShared, pool, nullptr, nullptr,
+                      &cache);
+  ASSERT_TRUE(e.isOk());
+  EXPECT_TRUE(e->front().traceStats.pathsReused);
+  EXPECT_NE(e->front().ir.channels, cFresh->front().ir.channels);
   // The kept candidates are what the next simulation from there uses (no
   // search): emptied, they give no image source.
   cache.candidates.sequences.clear();

@@ -5,6 +5,7 @@
  *  completion, synthesis. The one implementation behind `earshot ir`,
  *  `earshot tradeoff`, rendering and the runtime. */
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -137,12 +138,15 @@ struct IrRequest {
 /** What computeIrs keeps from one shared simulation for the next from the
  *  same place, each part reused only for the same scene, listener position
  *  and settings (the same results; anything else replaces it): the
- *  listener's paths (SharedTracePaths: no ray traced) and the image
- *  sources' candidate sequences from the listener (imageSourceCandidates:
- *  16384 rays of up to 3 reflections in the furnished room). Not
- *  thread-safe: one computeIrs at a time. */
+ *  listener's paths (SharedTracePaths: no ray traced), the tail's rates
+ *  made from them (tailRates: ~400 k exponentials), and the image sources'
+ *  candidate sequences from the listener (imageSourceCandidates: 16384
+ *  rays of up to 3 reflections in the furnished room). Not thread-safe:
+ *  one computeIrs at a time. */
 struct ListenerCache {
   SharedTracePaths paths;
+  std::optional<TailRates> rates;  ///< made from the paths of `ratesGeneration`
+  uint64_t ratesGeneration = 0;
   struct Candidates {
     bool valid = false;
     uint64_t tracer = 0;  ///< RayTracer::id()

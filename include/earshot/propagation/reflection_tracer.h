@@ -239,6 +239,10 @@ class SharedTracePaths {
   SharedTracePaths& operator=(const SharedTracePaths&) = delete;
   /** Bytes held (0: none kept). */
   size_t bytes() const;
+  /** Changes whenever the kept paths are replaced or forgotten: what was
+   *  made from one set of them (ListenerCache's tail rates) is known to be
+   *  of it. */
+  uint64_t generation() const;
   /** Forgets the paths. */
   void clear();
 
