@@ -266,18 +266,23 @@ class DetectorLanes {
 // the same bits in any order.
 class PendingAdds {
  public:
-  PendingAdds() {
+  /** `direct`: every add made at once (one detector's histograms stay in
+   *  the cache, and holding them back cost a trace from a source ~6 %). */
+  explicit PendingAdds(bool direct) : mDirect(direct) {
+    if (direct) return;
     mTargets.reserve(kCapacity);
     mValues.reserve(kCapacity);
   }
   /** Room for n more adds (applies the held ones when short), and the
    *  lines of [first, last] fetched meanwhile. */
   void reserve(size_t n, const int64_t* first, const int64_t* last) {
+    if (mDirect) return;
     if (mTargets.size() + n > kCapacity) flush();
     __builtin_prefetch(first, 1, 3);
     __builtin_prefetch(last, 1, 3);
   }
   void add(int64_t* target, int64_t v) {
+    if (mDirect) return addSat(*target, v);
     mTargets.push_back(target);
     mValues.push_back(v);
   }
@@ -289,6 +294,7 @@ class PendingAdds {
 
  private:
   static constexpr size_t kCapacity = 512;
+  bool mDirect;
   std::vector<int64_t*> mTargets;
   std::vector<int64_t> mValues;
 };
@@ -774,6 +780,9 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
     dt.meanSquares = dt.directivity.meanSquares();
   }
   const DetectorLanes lanes(detectors);
+  // One detector (a trace from a source): the scalar tests alone, which
+  // are what the lanes select for (and cost a trace from a source ~10 %).
+  const bool oneDetector = nd == 1;
   const float invC = float(1.0 / settings.speedOfSound);
   const float invBin = float(1.0 / settings.binSeconds);
   const float minD2 = float(settings.minDistanceMeters * settings.minDistanceMeters);
@@ -903,7 +912,8 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
     pending.add(&h[kNumBands + 2], toFixed(mean * doa.z));
   };
   // A tail probe's detection (no direction, no order): kept apart, for tail completion.
-  auto depositProbe = [&](DetectorSums& a, PendingAdds& pending, float pathLength, const float* energy, float weight) {
+  auto depositProbe = [&](DetectorSums& a, PendingAdds& pending, float pathLength, const float* energy,
+                          float weight) {
     const size_t bin = size_t(pathLength * invC * invBin);
     if (bin >= bins) return;
     float f[kNumBands];
@@ -962,117 +972,121 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
   };
   // Per task: a candidate and a shadow ray per detector, the held adds.
   struct DetectScratch {
-    explicit DetectScratch(size_t n) : nee(n), shadowRays(n), blocked(n) {}
+    explicit DetectScratch(size_t n) : nee(n), shadowRays(n), blocked(n), pending(n == 1) {}
     std::vector<NeeCandidate> nee;
     std::vector<Ray> shadowRays;
     std::vector<uint8_t> blocked;
     PendingAdds pending;
   };
+  // A segment through the spheres: a specular (or transmitted) path, or a
+  // tail probe past its cut, detected by the sphere alone (no next-event
+  // estimation: unbiased for specular and diffuse paths alike, and no
+  // shadow rays), not by a sphere squeezed below kMinProbeSphere by a
+  // nearby surface (too few hits). `planes`: its specular planes so far
+  // (a purely specular path), else null.
+  auto detectSegmentEvent = [&](const SegmentEvent& e, const PlaneSequence* planes, Accumulator& a,
+                                DetectScratch& x) {
+    const bool probing = e.probing;
+    if (probing && !anyProbeDetector) return;
+    for (size_t g = 0; g < lanes.groups(); ++g) {
+      for (uint32_t bits = oneDetector ? 1u : lanes.crossed(g, e.origin, e.direction, e.length, probing); bits != 0;
+           bits &= bits - 1) {
+        const size_t r = g * 4 + size_t(__builtin_ctz(bits));
+        const Detector& dt = detectors[r];
+        if (probing && !dt.probesDetected) continue;
+        // Chord of this segment through the receiver sphere.
+        const Vec3f oc(e.origin - dt.position);
+        const float bq = dot(oc, e.direction);
+        const float disc = bq * bq - (dot(oc, oc) - dt.sphereR2);
+        if (!(disc > 0)) continue;
+        const float root = std::sqrt(disc);
+        const float t0 = std::max(0.0f, -bq - root), t1 = std::min(e.length, -bq + root);
+        if (!(t1 > t0)) continue;
+        DetectorSums& ds = a.det[r];
+        if (planes && e.order <= dt.excludedMaxOrder && dt.excluded && excludedPath(dt, *planes, e.order)) {
+          ++ds.excluded;
+        } else {
+          const float tc = std::clamp(-bq, t0, t1);
+          detect(ds, x.pending, dt, e.pathLength + tc, e.energy, (t1 - t0) * dt.invSphereVolume, -e.direction,
+                 e.first, e.order, probing);
+        }
+      }
+    }
+  };
+  // Next-event estimation of a reflection's diffuse part: the detectors
+  // facing it; their shadow rays go to Embree together (one origin: a
+  // coherent stream).
+  auto detectReflectionEvent = [&](const ReflectionEvent& e, Accumulator& a, DetectScratch& x) {
+    size_t facing = 0;
+    uint32_t shadowCount = 0;
+    for (size_t g = 0; g < lanes.groups(); ++g) {
+      uint32_t send = 1, lost = 0;
+      if (!oneDetector) lanes.facing(g, e.p, e.n, e.u, minD2, send, lost);
+      for (; lost != 0; lost &= lost - 1) ++a.det[g * 4 + size_t(__builtin_ctz(lost))].shadowsRouletted;
+      for (; send != 0; send &= send - 1) {
+        const size_t r = g * 4 + size_t(__builtin_ctz(send));
+        const Detector& dt = detectors[r];
+        const Vec3f toL(dt.position - e.p);
+        const float d2 = dot(toL, toL);
+        const float cosL = dot(e.n, toL);
+        if (!(cosL > 0)) continue;
+        const float d = std::sqrt(d2);
+        float gain = 1.0f;
+        if (dt.neeRouletteR2 > 0) {
+          const float pSend = dt.neeRouletteR2 * (cosL / d) / std::max(d2, minD2);
+          if (pSend < 1.0f) {
+            if (!(e.u < pSend)) {
+              ++a.det[r].shadowsRouletted;
+              continue;
+            }
+            gain = 1.0f / pSend;
+          }
+        }
+        NeeCandidate& c = x.nee[facing++];
+        c.detector = uint32_t(r);
+        c.toL = toL;
+        c.d = d;
+        c.d2 = d2;
+        c.cosL = cosL;
+        c.gain = gain;
+        if (dt.shadowsNeeded) {
+          x.shadowRays[c.shadowIndex = shadowCount++] = Ray{e.shadowOrigin, 0.0f, toL / d, d - eps};
+        } else {
+          c.shadowIndex = ~0u;
+        }
+      }
+    }
+    if (shadowCount == 1) {
+      const Ray& shadow = x.shadowRays[0];
+      x.blocked[0] = shadow.tFar > 0 && tracer.occluded(shadow);
+    } else if (shadowCount > 1) {
+      tracer.occludedMany(x.shadowRays.data(), shadowCount, x.blocked.data());
+      for (uint32_t k = 0; k < shadowCount; ++k) x.blocked[k] &= x.shadowRays[k].tFar > 0;
+    }
+    for (size_t k = 0; k < facing; ++k) {
+      const NeeCandidate& c = x.nee[k];
+      const Detector& dt = detectors[c.detector];
+      DetectorSums& ds = a.det[c.detector];
+      bool visible = true;
+      if (c.shadowIndex != ~0u) {
+        ++ds.shadows;
+        visible = !x.blocked[c.shadowIndex];
+      } else {
+        ++ds.shadowsSkipped;
+      }
+      if (visible) {
+        const float w = c.gain * (c.cosL / c.d) / (float(kPi) * std::max(c.d2, minD2));
+        detect(ds, x.pending, dt, e.pathLength + c.d, e.scattered, w, -c.toL / c.d, e.first, e.order + 1, false);
+      }
+    }
+  };
   auto detectEvents = [&](const PathEvents& ev, size_t segmentsFrom, size_t reflectionsFrom, Accumulator& a,
                           DetectScratch& x) {
-    // Segments through the spheres: specular (or transmitted) paths, and
-    // tail probes past their cut by the sphere alone (no next-event
-    // estimation: unbiased for specular and diffuse paths alike, and no
-    // shadow rays), not by a sphere squeezed below kMinProbeSphere by a
-    // nearby surface (too few hits).
     for (size_t i = segmentsFrom; i < ev.segments.size(); ++i) {
       const SegmentEvent& e = ev.segments[i];
-      const bool probing = e.probing;
-      if (probing && !anyProbeDetector) continue;
-      for (size_t g = 0; g < lanes.groups(); ++g) {
-        for (uint32_t bits = lanes.crossed(g, e.origin, e.direction, e.length, probing); bits != 0;
-             bits &= bits - 1) {
-          const size_t r = g * 4 + size_t(__builtin_ctz(bits));
-          const Detector& dt = detectors[r];
-          if (probing && !dt.probesDetected) continue;
-          // Chord of this segment through the receiver sphere.
-          const Vec3f oc(e.origin - dt.position);
-          const float bq = dot(oc, e.direction);
-          const float disc = bq * bq - (dot(oc, oc) - dt.sphereR2);
-          if (!(disc > 0)) continue;
-          const float root = std::sqrt(disc);
-          const float t0 = std::max(0.0f, -bq - root), t1 = std::min(e.length, -bq + root);
-          if (!(t1 > t0)) continue;
-          DetectorSums& ds = a.det[r];
-          if (e.planes != ~0u && e.order <= dt.excludedMaxOrder && dt.excluded &&
-              excludedPath(dt, ev.planes[e.planes], e.order)) {
-            ++ds.excluded;
-          } else {
-            const float tc = std::clamp(-bq, t0, t1);
-            detect(ds, x.pending, dt, e.pathLength + tc, e.energy, (t1 - t0) * dt.invSphereVolume, -e.direction,
-                   e.first, e.order, probing);
-          }
-        }
-      }
+      detectSegmentEvent(e, e.planes != ~0u ? &ev.planes[e.planes] : nullptr, a, x);
     }
-    // Next-event estimation of each reflection's diffuse part: the
-    // detectors facing it; their shadow rays go to Embree together (one
-    // origin: a coherent stream).
-    for (size_t i = reflectionsFrom; i < ev.reflections.size(); ++i) {
-      const ReflectionEvent& e = ev.reflections[i];
-      size_t facing = 0;
-      uint32_t shadowCount = 0;
-      for (size_t g = 0; g < lanes.groups(); ++g) {
-        uint32_t send = 0, lost = 0;
-        lanes.facing(g, e.p, e.n, e.u, minD2, send, lost);
-        for (; lost != 0; lost &= lost - 1) ++a.det[g * 4 + size_t(__builtin_ctz(lost))].shadowsRouletted;
-        for (; send != 0; send &= send - 1) {
-          const size_t r = g * 4 + size_t(__builtin_ctz(send));
-          const Detector& dt = detectors[r];
-          const Vec3f toL(dt.position - e.p);
-          const float d2 = dot(toL, toL);
-          const float cosL = dot(e.n, toL);
-          if (!(cosL > 0)) continue;
-          const float d = std::sqrt(d2);
-          float gain = 1.0f;
-          if (dt.neeRouletteR2 > 0) {
-            const float pSend = dt.neeRouletteR2 * (cosL / d) / std::max(d2, minD2);
-            if (pSend < 1.0f) {
-              if (!(e.u < pSend)) {
-                ++a.det[r].shadowsRouletted;
-                continue;
-              }
-              gain = 1.0f / pSend;
-            }
-          }
-          NeeCandidate& c = x.nee[facing++];
-          c.detector = uint32_t(r);
-          c.toL = toL;
-          c.d = d;
-          c.d2 = d2;
-          c.cosL = cosL;
-          c.gain = gain;
-          if (dt.shadowsNeeded) {
-            x.shadowRays[c.shadowIndex = shadowCount++] = Ray{e.shadowOrigin, 0.0f, toL / d, d - eps};
-          } else {
-            c.shadowIndex = ~0u;
-          }
-        }
-      }
-      if (shadowCount == 1) {
-        const Ray& shadow = x.shadowRays[0];
-        x.blocked[0] = shadow.tFar > 0 && tracer.occluded(shadow);
-      } else if (shadowCount > 1) {
-        tracer.occludedMany(x.shadowRays.data(), shadowCount, x.blocked.data());
-        for (uint32_t k = 0; k < shadowCount; ++k) x.blocked[k] &= x.shadowRays[k].tFar > 0;
-      }
-      for (size_t k = 0; k < facing; ++k) {
-        const NeeCandidate& c = x.nee[k];
-        const Detector& dt = detectors[c.detector];
-        DetectorSums& ds = a.det[c.detector];
-        bool visible = true;
-        if (c.shadowIndex != ~0u) {
-          ++ds.shadows;
-          visible = !x.blocked[c.shadowIndex];
-        } else {
-          ++ds.shadowsSkipped;
-        }
-        if (visible) {
-          const float w = c.gain * (c.cosL / c.d) / (float(kPi) * std::max(c.d2, minD2));
-          detect(ds, x.pending, dt, e.pathLength + c.d, e.scattered, w, -c.toL / c.d, e.first, e.order + 1, false);
-        }
-      }
-    }
+    for (size_t i = reflectionsFrom; i < ev.reflections.size(); ++i) detectReflectionEvent(ev.reflections[i], a, x);
   };
 
   // Rays go in rounds: round r traces the rays whose index is congruent to
@@ -1154,8 +1168,12 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
           // sphere alone (no next-event estimation): unbiased for specular
           // and diffuse paths alike, and no shadow rays; not by a sphere
           // squeezed below kMinProbeSphere by a nearby surface (too few hits).
-          if (probing || detectSegment) {
-            SegmentEvent& e = ev.segments.emplace_back();
+          // Detected now, or recorded and detected as the ray ends (a tail
+          // probe's segments too when recorded: a later trace's sources
+          // may detect probes; else only where a sphere does).
+          if (probing ? record || anyProbeDetector : detectSegment) {
+            SegmentEvent now;
+            SegmentEvent& e = record ? ev.segments.emplace_back() : now;
             e.origin = ray.origin;
             e.direction = ray.direction;
             e.first = first;
@@ -1165,10 +1183,12 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
             e.order = order;
             e.probing = probing;
             e.planes = ~0u;
-            if (!probing && pureSpecular) {
+            const bool specularSoFar = !probing && pureSpecular;
+            if (record && specularSoFar) {
               e.planes = uint32_t(ev.planes.size());
               ev.planes.push_back(planes);
             }
+            if (!record) detectSegmentEvent(e, specularSoFar ? &planes : nullptr, a, scratch);
           }
           if (!hasHit) {
             if (probing) break;  // counted when it was cut
@@ -1231,7 +1251,8 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
             // roulette depends on it and on the source alone.
             const float u = roulettedShadows ? neeRng.uniform() : 0.0f;
             if (any) {
-              ReflectionEvent& e = ev.reflections.emplace_back();
+              ReflectionEvent now;
+              ReflectionEvent& e = record ? ev.reflections.emplace_back() : now;
               e.p = p;
               e.shadowOrigin = p + offset;
               e.n = n;
@@ -1240,6 +1261,7 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
               std::copy(scattered, scattered + kNumBands, e.scattered);
               e.u = u;
               e.order = order;
+              if (!record) detectReflectionEvent(e, a, scratch);
             }
           }
 
@@ -1307,8 +1329,10 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
             for (float& e : energy) e /= kSurvival;
           }
         }
-        // The ray's events, detected as it ends (still in the cache).
-        detectEvents(ev, segmentsBefore, reflectionsBefore, a, scratch);
+        if (record) {
+          // The ray's recorded events, detected as it ends (still in the cache).
+          detectEvents(ev, segmentsBefore, reflectionsBefore, a, scratch);
+        }
         if (record && !overBudget.load(std::memory_order_relaxed)) {
           const size_t added = (ev.segments.size() - segmentsBefore) * sizeof(SegmentEvent) +
                                (ev.reflections.size() - reflectionsBefore) * sizeof(ReflectionEvent) +
