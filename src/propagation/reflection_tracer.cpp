@@ -267,7 +267,7 @@ class DetectorLanes {
 class PendingAdds {
  public:
   /** `direct`: every add made at once (one detector's histograms stay in
-   *  the cache, and holding them back cost a trace from a source ~6 %). */
+   *  the cache: holding its adds back only costs time). */
   explicit PendingAdds(bool direct) : mDirect(direct) {
     if (direct) return;
     mTargets.reserve(kCapacity);
@@ -781,7 +781,8 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
   }
   const DetectorLanes lanes(detectors);
   // One detector (a trace from a source): the scalar tests alone, which
-  // are what the lanes select for (and cost a trace from a source ~10 %).
+  // the lanes only select for (with them, a trace from a source in the
+  // shoebox took 119 ms instead of 111, 1 thread).
   const bool oneDetector = nd == 1;
   const float invC = float(1.0 / settings.speedOfSound);
   const float invBin = float(1.0 / settings.binSeconds);
