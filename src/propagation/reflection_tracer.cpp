@@ -1111,10 +1111,10 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
     pool.parallelFor(tasks, [&](size_t task, unsigned worker) {
       Accumulator& a = acc[worker];
       DetectScratch scratch(nd);
-      // The task's events: kept paths replayed, recorded for keeping, or
-      // one ray's at a time.
-      PathEvents local;
-      PathEvents& ev = replay ? paths->tasks[task] : record ? recorded[task] : local;
+      // The task's events: kept paths replayed, or recorded for keeping. A
+      // trace that keeps none detects as it goes and stores nothing.
+      PathEvents none;
+      PathEvents& ev = replay ? paths->tasks[task] : record ? recorded[task] : none;
       if (replay) {
         detectEvents(ev, 0, 0, a, scratch);
         scratch.pending.flush();
@@ -1333,15 +1333,15 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
         if (record) {
           // The ray's recorded events, detected as it ends (still in the cache).
           detectEvents(ev, segmentsBefore, reflectionsBefore, a, scratch);
+          if (!overBudget.load(std::memory_order_relaxed)) {
+            const size_t added = (ev.segments.size() - segmentsBefore) * sizeof(SegmentEvent) +
+                                 (ev.reflections.size() - reflectionsBefore) * sizeof(ReflectionEvent) +
+                                 (ev.planes.size() - planesBefore) * sizeof(PlaneSequence);
+            if (recordedBytes.fetch_add(added, std::memory_order_relaxed) + added > paths->budget)
+              overBudget.store(true, std::memory_order_relaxed);
+          }
+          if (overBudget.load(std::memory_order_relaxed)) ev.clear();  // none will be kept
         }
-        if (record && !overBudget.load(std::memory_order_relaxed)) {
-          const size_t added = (ev.segments.size() - segmentsBefore) * sizeof(SegmentEvent) +
-                               (ev.reflections.size() - reflectionsBefore) * sizeof(ReflectionEvent) +
-                               (ev.planes.size() - planesBefore) * sizeof(PlaneSequence);
-          if (recordedBytes.fetch_add(added, std::memory_order_relaxed) + added > paths->budget)
-            overBudget.store(true, std::memory_order_relaxed);
-        }
-        if (!record || overBudget.load(std::memory_order_relaxed)) ev.clear();
       }
       scratch.pending.flush();
     });
