@@ -13,6 +13,8 @@
 #include <string>
 
 #include "aligned_floats.h"
+#include "earshot/core/denormals.h"
+#include "earshot/core/thread_pool.h"
 #include "mac_kernels.h"
 
 namespace earshot {
@@ -37,12 +39,13 @@ const uint16_t* PreparedIr::compactSpectra(size_t level, size_t channel) const {
   return mHalf + mLevelOffset[level] + channel * lv.partitionCount * 2 * mStride[level];
 }
 
-Result<std::shared_ptr<const PreparedIr>> PreparedIr::create(const AudioBuffer& ir, const PartitionLayout& layout) {
-  return create(ir.channels, layout);
+Result<std::shared_ptr<const PreparedIr>> PreparedIr::create(const AudioBuffer& ir, const PartitionLayout& layout,
+                                                             ThreadPool* pool) {
+  return create(ir.channels, layout, pool);
 }
 
 Result<std::shared_ptr<const PreparedIr>> PreparedIr::create(const std::vector<std::vector<float>>& channels,
-                                                             const PartitionLayout& layout) {
+                                                             const PartitionLayout& layout, ThreadPool* pool) {
   if (layout.levels().empty()) return invalidArgument("prepared IR: layout is empty (not created)");
   if (channels.empty() || channels.size() > 64)
     return invalidArgument("prepared IR: channel count " + std::to_string(channels.size()) + " must be in [1, 64]");
@@ -92,72 +95,111 @@ Result<std::shared_ptr<const PreparedIr>> PreparedIr::create(const std::vector<s
     }
     out->mFirstActive.push_back(first);
   }
-  size_t bytes = ((total * sizeof(float) + 63) / 64) * 64;
-  out->mData = static_cast<float*>(std::aligned_alloc(64, bytes ? bytes : 64));
-  if (!out->mData) return outOfRange("prepared IR: cannot allocate " + std::to_string(bytes) + " bytes");
-  std::memset(out->mData, 0, bytes ? bytes : 64);
-
-  for (size_t l = 0; l < levels.size(); ++l) {
-    const auto& lv = levels[l];
-    const size_t p = lv.partitionFrames;
-    const size_t nfft = 2 * p;
-    const float scale = 1.0f / static_cast<float>(nfft);
-    kiss_fftr_cfg cfg = kiss_fftr_alloc(static_cast<int>(nfft), 0, nullptr, nullptr);
-    if (!cfg) return outOfRange("prepared IR: cannot create an FFT of size " + std::to_string(nfft));
-    std::vector<float> time(nfft, 0.0f);
-    std::vector<kiss_fft_cpx> freq(p + 1);
-    for (size_t c = 0; c < channels.size(); ++c) {
-      for (size_t k = out->mFirstActive[l]; k < out->mActive[l]; ++k) {
-        std::fill(time.begin(), time.end(), 0.0f);
-        size_t start = lv.offsetFrames + k * p;
-        size_t n = std::min(p, frames - start);
-        std::memcpy(time.data(), channels[c].data() + start, n * sizeof(float));
-        kiss_fftr(cfg, time.data(), freq.data());
-        float* re = const_cast<float*>(out->spectrum(l, c, k));
-        float* im = re + out->mStride[l];
-        for (size_t b = 0; b <= p; ++b) {
-          re[b] = freq[b].r * scale;
-          im[b] = freq[b].i * scale;
-        }
-      }
-    }
-    kiss_fftr_free(cfg);
-  }
-  if (layout.compactSpectra()) {
+  const bool compact = layout.compactSpectra();
+  if (compact) {
     // Each level's channel under a power of two that puts its largest value
     // at <= 2^14 (binary16 holds up to 65504, and values 2^-24 of that scale
     // still count), rounded to binary16 and laid out by bin tiles
-    // (compactTileOffset); the floats are dropped.
+    // (compactTileOffset); no float spectra are kept.
     const size_t halfBytes = ((total * sizeof(uint16_t) + 63) / 64) * 64;
     out->mHalf = static_cast<uint16_t*>(std::aligned_alloc(64, halfBytes ? halfBytes : 64));
     if (!out->mHalf) return outOfRange("prepared IR: cannot allocate " + std::to_string(halfBytes) + " bytes");
-    std::memset(out->mHalf, 0, halfBytes ? halfBytes : 64);
     out->mScale.assign(levels.size() * channels.size(), 1.0f);
-    for (size_t l = 0; l < levels.size(); ++l)
-      for (size_t c = 0; c < channels.size(); ++c) {
-        const size_t n = levels[l].partitionCount * 2 * out->mStride[l];
-        const float* v = out->spectrum(l, c, 0);
-        const float peak = dsp_detail::peakMagnitude(v, n);
-        // peak / scale < 2^14; never below the least normal float (a
-        // spectrum of denormals made a zero scale, and 0 / 0 a NaN).
-        const float scale = peak > 0.0f ? std::max(std::ldexp(1.0f, std::ilogb(peak) - 13),
-                                                   std::numeric_limits<float>::min())
-                                        : 1.0f;
-        out->mScale[l * channels.size() + c] = scale;
-        uint16_t* h = const_cast<uint16_t*>(out->compactSpectra(l, c));
-        const size_t parts = levels[l].partitionCount, st = out->mStride[l];
-        for (size_t k = 0; k < parts; ++k)
-          for (size_t i = 0; i < st; i += dsp_detail::compactTileWidth(i, st)) {
-            const size_t w = dsp_detail::compactTileWidth(i, st);
-            uint16_t* t = h + dsp_detail::compactTileOffset(i, k, parts, st);
-            const float* re = v + k * 2 * st + i;
-            dsp_detail::floatsToHalves(re, scale, t, w);
-            dsp_detail::floatsToHalves(re + st, scale, t + w, w);
-          }
-      }
-    std::free(out->mData);
-    out->mData = nullptr;
+  } else {
+    const size_t bytes = ((total * sizeof(float) + 63) / 64) * 64;
+    out->mData = static_cast<float*>(std::aligned_alloc(64, bytes ? bytes : 64));
+    if (!out->mData) return outOfRange("prepared IR: cannot allocate " + std::to_string(bytes) + " bytes");
   }
+
+  // One task per level and channel: each transforms its own partitions
+  // (FFT configurations and scratch per worker, made once), under the
+  // caller's denormal mode, so that any number of threads gives the
+  // caller's bits.
+  const size_t tasks = levels.size() * channels.size();
+  const unsigned workers = pool ? pool->threadCount() : 1u;
+  struct WorkerState {
+    std::vector<kiss_fftr_cfg> cfg;  // per level, made when first needed
+    std::vector<float> time, spectra;
+    std::vector<kiss_fft_cpx> freq;
+    bool failed = false;
+    WorkerState() = default;
+    WorkerState(const WorkerState&) = delete;
+    WorkerState& operator=(const WorkerState&) = delete;
+    ~WorkerState() {
+      for (kiss_fftr_cfg c : cfg) kiss_fftr_free(c);
+    }
+  };
+  std::vector<WorkerState> state(workers);
+  for (auto& w : state) w.cfg.assign(levels.size(), nullptr);
+  const uint32_t callerMode = currentDenormalMode();
+  PreparedIr& ir = *out;
+  auto transform = [&](size_t task, unsigned worker) {
+    ScopedDenormalMode mode(callerMode);
+    WorkerState& w = state[worker];
+    const size_t l = task / channels.size(), c = task % channels.size();
+    const auto& lv = levels[l];
+    const size_t p = lv.partitionFrames, nfft = 2 * p, st = ir.mStride[l], parts = lv.partitionCount;
+    const size_t first = ir.mFirstActive[l], active = ir.mActive[l];
+    // This level-channel's spectra: the kept floats, or a worker's scratch
+    // for the compact ones; partitions outside [first, active) are zero.
+    float* v;
+    if (compact) {
+      w.spectra.resize(parts * 2 * st);
+      v = w.spectra.data();
+    } else {
+      v = ir.mData + ir.mLevelOffset[l] + c * parts * 2 * st;
+      std::memset(v, 0, parts * 2 * st * sizeof(float));
+    }
+    if (active > first) {
+      if (!w.cfg[l]) w.cfg[l] = kiss_fftr_alloc(static_cast<int>(nfft), 0, nullptr, nullptr);
+      if (!w.cfg[l]) {
+        w.failed = true;
+        return;
+      }
+      const float scale = 1.0f / static_cast<float>(nfft);
+      w.time.resize(nfft);
+      w.freq.resize(p + 1);
+      for (size_t k = first; k < active; ++k) {
+        std::fill(w.time.begin(), w.time.end(), 0.0f);
+        const size_t start = lv.offsetFrames + k * p;
+        const size_t n = std::min(p, frames - start);
+        std::memcpy(w.time.data(), channels[c].data() + start, n * sizeof(float));
+        kiss_fftr(w.cfg[l], w.time.data(), w.freq.data());
+        float* re = v + k * 2 * st;
+        float* im = re + st;
+        for (size_t b = 0; b <= p; ++b) {
+          re[b] = w.freq[b].r * scale;
+          im[b] = w.freq[b].i * scale;
+        }
+        std::fill(re + p + 1, re + st, 0.0f);
+        std::fill(im + p + 1, im + st, 0.0f);
+      }
+    }
+    if (!compact) return;
+    uint16_t* h = ir.mHalf + ir.mLevelOffset[l] + c * parts * 2 * st;
+    std::memset(h, 0, parts * 2 * st * sizeof(uint16_t));
+    if (active <= first) return;  // silent: zeros under scale 1
+    const float peak = dsp_detail::peakMagnitude(v + first * 2 * st, (active - first) * 2 * st);
+    // peak / scale < 2^14; never below the least normal float (a spectrum
+    // of denormals made a zero scale, and 0 / 0 a NaN).
+    const float scale =
+        peak > 0.0f ? std::max(std::ldexp(1.0f, std::ilogb(peak) - 13), std::numeric_limits<float>::min()) : 1.0f;
+    ir.mScale[l * channels.size() + c] = scale;
+    for (size_t k = first; k < active; ++k)
+      for (size_t i = 0; i < st; i += dsp_detail::compactTileWidth(i, st)) {
+        const size_t tw = dsp_detail::compactTileWidth(i, st);
+        uint16_t* t = h + dsp_detail::compactTileOffset(i, k, parts, st);
+        const float* re = v + k * 2 * st + i;
+        dsp_detail::floatsToHalves(re, scale, t, tw);
+        dsp_detail::floatsToHalves(re + st, scale, t + tw, tw);
+      }
+  };
+  if (pool && tasks > 1)
+    pool->parallelFor(tasks, transform);
+  else
+    for (size_t t = 0; t < tasks; ++t) transform(t, 0);
+  for (const auto& w : state)
+    if (w.failed) return outOfRange("prepared IR: cannot create an FFT for a partition level");
   return std::shared_ptr<const PreparedIr>(std::move(out));
 }
 

@@ -683,7 +683,7 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& order) {
       }
       convolved = &own;
     }
-    auto prepared = PreparedIr::create(*convolved, mMixer->layout());
+    auto prepared = PreparedIr::create(*convolved, mMixer->layout(), mPool.get());
     if (!prepared.isOk()) return prepared.status();
     EARSHOT_RETURN_IF_ERROR(mMixer->setIr(j.slot, *prepared));
     {
@@ -724,7 +724,7 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& order) {
     ++stats.sourcesSimulated;
   }
   if (sharedTail) {
-    auto prepared = PreparedIr::create(*sharedTail, mTailMixer->layout());
+    auto prepared = PreparedIr::create(*sharedTail, mTailMixer->layout(), mPool.get());
     if (!prepared.isOk()) return prepared.status();
     EARSHOT_RETURN_IF_ERROR(mTailMixer->setIr(0, *prepared));
   }

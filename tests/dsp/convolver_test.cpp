@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <functional>
 #include <map>
 #include <optional>
@@ -19,6 +20,7 @@
 #include "aligned_floats.h"
 #include "mac_kernels.h"
 #include "earshot/core/denormals.h"
+#include "earshot/core/thread_pool.h"
 
 namespace earshot {
 namespace {
@@ -625,6 +627,59 @@ TEST(CompactSpectra, AnIrOfDenormalsGivesFiniteHalves) {
   }
   ASSERT_TRUE((*mixer)->reserveSource(0).isOk());
   ASSERT_TRUE((*mixer)->setIr(0, *prepared).isOk());
+}
+
+// A pool's threads share the levels and channels of PreparedIr::create and
+// give the bits of the caller alone, compact or float spectra. The IR has
+// leading silence (skipped partitions), a decaying tail and a subnormal tap
+// (its spectrum is subnormal: the pool's threads run with denormals flushed
+// unless they take the caller's mode, and then the bits differ).
+TEST(PreparedIr, AThreadPoolGivesTheCallersBits) {
+  for (const bool compact : {false, true}) {
+    ConvolverSettings s;
+    s.latencyFrames = 64;
+    s.maxIrFrames = 60000;
+    s.channels = 4;
+    s.compactSpectra = compact;
+    auto mixer = ConvolutionMixer::create(s, 1);
+    ASSERT_TRUE(mixer.isOk());
+    const PartitionLayout& layout = (*mixer)->layout();
+    ASSERT_GE(layout.levels().size(), 2u);
+    std::vector<std::vector<float>> ir;
+    for (size_t c = 0; c < 4; ++c) {
+      ir.push_back(decayingNoise(50000, 7 + c));
+      std::fill(ir.back().begin(), ir.back().begin() + 700 + 300 * c, 0.0f);
+      ir.back()[5000] = 1e-39f;
+    }
+    ir[3].assign(50000, 0.0f);  // a silent channel
+    ir[3][47000] = 2e-39f;
+    auto alone = PreparedIr::create(ir, layout);
+    ASSERT_TRUE(alone.isOk()) << alone.status().message();
+    for (unsigned threads : {2u, 3u}) {
+      ThreadPool pool(threads);
+      auto shared = PreparedIr::create(ir, layout, &pool);
+      ASSERT_TRUE(shared.isOk()) << shared.status().message();
+      const PreparedIr& a = **alone;
+      const PreparedIr& b = **shared;
+      ASSERT_EQ(a.compact(), compact);
+      ASSERT_EQ(b.compact(), compact);
+      for (size_t l = 0; l < layout.levels().size(); ++l) {
+        ASSERT_EQ(a.activePartitions(l), b.activePartitions(l));
+        ASSERT_EQ(a.firstActivePartition(l), b.firstActivePartition(l));
+        const size_t n = layout.levels()[l].partitionCount * 2 * a.binStride(l);
+        for (size_t c = 0; c < 4; ++c) {
+          if (compact) {
+            EXPECT_EQ(a.spectrumScale(l, c), b.spectrumScale(l, c)) << "level " << l << " channel " << c;
+            EXPECT_EQ(0, std::memcmp(a.compactSpectra(l, c), b.compactSpectra(l, c), n * sizeof(uint16_t)))
+                << "level " << l << " channel " << c << ", " << threads << " threads";
+          } else {
+            EXPECT_EQ(0, std::memcmp(a.spectrum(l, c, 0), b.spectrum(l, c, 0), n * sizeof(float)))
+                << "level " << l << " channel " << c << ", " << threads << " threads";
+          }
+        }
+      }
+    }
+  }
 }
 
 // After loud noise, silence through an IR whose tail decays to 1e-40

@@ -14,17 +14,24 @@
 
 namespace earshot {
 
+class ThreadPool;
+
 class PreparedIr {
  public:
   /** Partitions and transforms `channels` (channels[c][tap], all of equal
    *  length in [0, layout.capacityFrames()], finite samples) for `layout`.
    *  An empty IR (0 taps) is allowed and convolves to silence.
    *  Thread: any thread except the audio thread (allocates, runs FFTs).
+   *  With a `pool`, its threads and the caller's share the levels and
+   *  channels (the pool must be idle: parallelFor is not reentrant); the
+   *  result is the same bits as without one (the caller's denormal mode is
+   *  used throughout).
    *  Fails with a message naming the channel/tap on bad input. */
   static Result<std::shared_ptr<const PreparedIr>> create(const std::vector<std::vector<float>>& channels,
-                                                          const PartitionLayout& layout);
+                                                          const PartitionLayout& layout, ThreadPool* pool = nullptr);
   /** Same, from an AudioBuffer (its sample rate is not checked here). */
-  static Result<std::shared_ptr<const PreparedIr>> create(const AudioBuffer& ir, const PartitionLayout& layout);
+  static Result<std::shared_ptr<const PreparedIr>> create(const AudioBuffer& ir, const PartitionLayout& layout,
+                                                          ThreadPool* pool = nullptr);
 
   const PartitionLayout& layout() const { return mLayout; }
   size_t channelCount() const { return mChannels; }
