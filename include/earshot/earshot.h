@@ -686,7 +686,10 @@ typedef struct earshot_ir_info {
  *  EARSHOT_DIRECT_IN_IMPULSE_RESPONSE it holds the
  *  direct sound (then, with ambisonic_order 0, it is the IR `earshot ir`
  *  computes for the same positions and settings), with EARSHOT_DIRECT_PER_BLOCK the reflections
- *  only; cut at max_ir_seconds with a 10 ms fade. *out holds one reference.
+ *  only; cut at max_ir_seconds with a 10 ms fade. With a shared tail the
+ *  engine may have synthesised only the start of it (the tail of another
+ *  source stood for its own): the first call then makes the whole IR (a few
+ *  milliseconds; the same bits). *out holds one reference.
  *  Errors: NOT_FOUND (the source has not been simulated yet). Game thread or
  *  any thread but the audio thread (takes a lock the simulation also takes,
  *  briefly). */

@@ -97,9 +97,15 @@ Result<AudioBuffer> synthesizeAmbisonicIr(const std::vector<Arrival>& arrivals, 
   }
   AudioBuffer out(size_t(channels), 0, fs);
   for (int c = 0; c < channels; ++c) plan.inverse(spectra[size_t(c)], out.channels[size_t(c)]);
-
-  if (!reflections || reflections->lastNonEmptyBin() < 0) return out;
   const size_t length = plan.length();
+  // settings.partialFrames: the channels after W are made up to here.
+  const size_t partial = settings.partialFrames > 0 ? std::min(length, settings.partialFrames) : length;
+  auto cut = [&](AudioBuffer& ir) {
+    for (int c = 1; c < channels; ++c) std::fill(ir.channels[size_t(c)].begin() + long(partial), ir.channels[size_t(c)].end(), 0.0f);
+    return std::move(ir);
+  };
+
+  if (!reflections || reflections->lastNonEmptyBin() < 0) return cut(out);
   // Band envelopes (shared by every channel) and W's late field, in this
   // thread's buffers reused by its next IR (ThreadScratch): 11 per IR, each
   // the IR's length.
@@ -111,7 +117,7 @@ Result<AudioBuffer> synthesizeAmbisonicIr(const std::vector<Arrival>& arrivals, 
     if (!plan.bandEnvelope(*reflections, b, nullptr, *env[size_t(b)])) env[size_t(b)]->clear();
     anyBand = anyBand || !env[size_t(b)]->empty();
   }
-  if (!anyBand) return out;
+  if (!anyBand) return cut(out);
   // Every channel's late noise. W's, then: when the period allows, every
   // channel reads that same noise, channel c shifted by c period / C (C the
   // channel count rounded up to a power of two), which keeps channels at
@@ -136,15 +142,16 @@ Result<AudioBuffer> synthesizeAmbisonicIr(const std::vector<Arrival>& arrivals, 
     if (c == 0) continue;
     noises[size_t(c)] = sharedNoise ? noises[0] : plan.finishedBandNoise(settings.seed, channelNoiseStream(c), {}, 0);
   }
-  auto lateOf = [&](int c, std::vector<float>& late) {
+  auto lateOf = [&](int c, std::vector<float>& late, size_t count) {
     const auto& noise = noises[size_t(c)];
     const size_t at = sharedNoise ? (offset + size_t(c) * spacing) % period : offset;
-    late.assign(length, 0.0f);
+    late.assign(count, 0.0f);
     for (int b = 0; b < kNumBands; ++b)
-      if (!env[size_t(b)]->empty()) plan.addEnvelopedNoise((*noise)[size_t(b)], at, *env[size_t(b)], late.data());
+      if (!env[size_t(b)]->empty())
+        plan.addEnvelopedNoise((*noise)[size_t(b)], at, *env[size_t(b)], late.data(), count);
   };
   std::vector<float>& lateW = scratch[kNumBands];
-  lateOf(0, lateW);
+  lateOf(0, lateW, length);
   for (size_t i = 0; i < length; ++i) out.channels[0][i] += lateW[i];
 
   // Per histogram bin: direction and directional fraction -> each channel's
@@ -165,9 +172,9 @@ Result<AudioBuffer> synthesizeAmbisonicIr(const std::vector<Arrival>& arrivals, 
   std::vector<float>& coherent = scratch[kNumBands + 1];
   std::vector<float>& independent = scratch[kNumBands + 2];
   std::vector<float>& lateC = scratch[kNumBands + 3];
-  coherent.resize(length);
-  independent.resize(length);
-  const BinsToSamples toSamples(histBins, binSamples, length);
+  coherent.resize(partial);
+  independent.resize(partial);
+  const BinsToSamples toSamples(histBins, binSamples, partial);
   for (int c = 1; c < channels; ++c) {
     const double diffuse = 1.0 / double(2 * ambisonicOrderOf(c) + 1);
     for (size_t bin = 0; bin < histBins; ++bin) {
@@ -177,11 +184,11 @@ Result<AudioBuffer> synthesizeAmbisonicIr(const std::vector<Arrival>& arrivals, 
     }
     toSamples(coherentBins, coherent);
     toSamples(independentBins, independent);
-    lateOf(c, lateC);
+    lateOf(c, lateC, partial);
     float* o = out.channels[size_t(c)].data();
-    for (size_t i = 0; i < length; ++i) o[i] += coherent[i] * lateW[i] + independent[i] * lateC[i];
+    for (size_t i = 0; i < partial; ++i) o[i] += coherent[i] * lateW[i] + independent[i] * lateC[i];
   }
-  return out;
+  return cut(out);
 }
 
 }  // namespace earshot

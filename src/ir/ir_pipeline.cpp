@@ -115,6 +115,27 @@ ImageSourceSettings imageSourceSettingsOf(const OmniIrSettings& s) {
   return is;
 }
 
+IrSynthesisSettings synthesisSettingsOf(const OmniIrSettings& s, const Vec3d& source, const Vec3d& listener) {
+  IrSynthesisSettings synth;
+  synth.sampleRateHz = s.sampleRateHz;
+  synth.lengthSeconds = s.lengthSeconds;
+  synth.seed = s.seed;
+  synth.noiseKey = noiseKeyOf(source, listener);
+  synth.bandShiftOctaves = s.air.bandShiftOctaves;
+  synth.partialFrames = s.ambisonicPartialFrames;
+  return synth;
+}
+
+// The IR of a result: what finishIr and synthesizeIrOf make.
+Result<AudioBuffer> synthesize(const OmniIrResult& out, const IrSynthesisSettings& synth, bool includeDirect,
+                               const BinauralReceiver* binaural, const AmbisonicReceiver* ambisonic) {
+  const EnergyHistogram* late = out.lateTraced ? &out.late : nullptr;
+  const std::vector<Arrival> arrivals = arrivalsOf(out, includeDirect);
+  return binaural    ? synthesizeBinauralIr(arrivals, late, synth, *binaural->model, binaural->orientation)
+         : ambisonic ? synthesizeAmbisonicIr(arrivals, late, synth, ambisonic->order, ambisonic->frame)
+                     : synthesizeOmniIr(arrivals, late, synth);
+}
+
 // Checks, the direct sound and the image sources.
 Status prepareIr(const RayTracer& tracer, const MaterialTable& materials, const Vec3d& source, const Vec3d& listener,
                  const OmniIrSettings& s, const BinauralReceiver* binaural, const AmbisonicReceiver* ambisonic,
@@ -125,11 +146,7 @@ Status prepareIr(const RayTracer& tracer, const MaterialTable& materials, const 
     return outOfRange("source or listener position is farther than 1e6 m from the origin on some axis");
   OmniIrResult& out = job.out;
   IrSynthesisSettings& synth = job.synth;
-  synth.sampleRateHz = s.sampleRateHz;
-  synth.lengthSeconds = s.lengthSeconds;
-  synth.seed = s.seed;
-  synth.noiseKey = noiseKeyOf(source, listener);
-  synth.bandShiftOctaves = s.air.bandShiftOctaves;
+  synth = synthesisSettingsOf(s, source, listener);
   EARSHOT_RETURN_IF_ERROR(validate(synth));
   if (binaural && ambisonic) return invalidArgument("a receiver is binaural or ambisonic, not both");
   if (ambisonic && (ambisonic->order < 1 || ambisonic->order > kMaxAmbisonicOrder))
@@ -235,7 +252,6 @@ Status finishIr(IrJob& job, ReflectionResult* traced, bool shared, const OmniIrS
                 const BinauralReceiver* binaural, const AmbisonicReceiver* ambisonic,
                 const TailRates* rates = nullptr, double ratesMs = 0.0) {
   OmniIrResult& out = job.out;
-  const EnergyHistogram* late = nullptr;
   if (traced) {
     ReflectionResult& r = *traced;
     out.traceStats = r.stats;
@@ -259,14 +275,11 @@ Status finishIr(IrJob& job, ReflectionResult* traced, bool shared, const OmniIrS
       out.late = std::move(r.histogram);
     }
     out.timings.tailMs = msSince(t) + ratesMs;
-    late = &out.late;
+    out.lateTraced = true;
   }
 
   auto t = std::chrono::steady_clock::now();
-  const std::vector<Arrival> arrivals = arrivalsOf(out, s.includeDirect);
-  auto ir = binaural    ? synthesizeBinauralIr(arrivals, late, job.synth, *binaural->model, binaural->orientation)
-            : ambisonic ? synthesizeAmbisonicIr(arrivals, late, job.synth, ambisonic->order, ambisonic->frame)
-                        : synthesizeOmniIr(arrivals, late, job.synth);
+  auto ir = synthesize(out, job.synth, s.includeDirect, binaural, ambisonic);
   if (!ir.isOk()) return ir.status();
   out.ir = std::move(ir.value());
   out.timings.synthesisMs = msSince(t);
@@ -288,6 +301,16 @@ Result<OmniIrResult> computeIr(const RayTracer& tracer, const MaterialTable& mat
   }
   EARSHOT_RETURN_IF_ERROR(finishIr(job, traced ? &traced->value() : nullptr, false, s, binaural, ambisonic));
   return std::move(job.out);
+}
+
+Result<AudioBuffer> synthesizeIrOf(const OmniIrResult& result, const OmniIrSettings& settings, const Vec3d& source,
+                                   const Vec3d& listener, const BinauralReceiver* binaural,
+                                   const AmbisonicReceiver* ambisonic) {
+  if (binaural && ambisonic) return invalidArgument("a receiver is binaural or ambisonic, not both");
+  if (binaural && !binaural->model) return invalidArgument("binaural receiver without an HRTF model");
+  const IrSynthesisSettings synth = synthesisSettingsOf(settings, source, listener);
+  EARSHOT_RETURN_IF_ERROR(validate(synth));
+  return synthesize(result, synth, settings.includeDirect, binaural, ambisonic);
 }
 
 Result<TraceMode> traceModeFromString(const std::string& name) {
@@ -317,6 +340,7 @@ Result<std::vector<OmniIrResult>> computeIrs(const RayTracer& tracer, const Mate
     OmniIrSettings rs = s;
     rs.directivity = r.directivity;
     rs.includeDirect = r.includeDirect;
+    rs.ambisonicPartialFrames = r.ambisonicPartialFrames;
     return rs;
   };
   auto named = [&](size_t i, const Status& st) {

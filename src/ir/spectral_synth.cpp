@@ -597,15 +597,16 @@ bool SpectralSynth::bandEnvelope(const EnergyHistogram& h, int band, const float
 }
 
 void SpectralSynth::addEnvelopedNoise(const std::vector<float>& noise, size_t offset, const std::vector<float>& env,
-                                      float* out) const {
+                                      float* out, size_t count) const {
   const size_t period = noise.size();
   if (period == 0) return;
   offset %= period;
+  const size_t length = std::min(mLength, count);
   // Two runs: up to the noise's wrap, then from its start (length <= period).
-  const size_t first = std::min(mLength, period - offset);
+  const size_t first = std::min(length, period - offset);
   const float* n = noise.data() + offset;
   for (size_t i = 0; i < first; ++i) out[i] += n[i] * env[i];
-  for (size_t i = first; i < mLength; ++i) out[i] += noise[i - first] * env[i];
+  for (size_t i = first; i < length; ++i) out[i] += noise[i - first] * env[i];
 }
 
 std::shared_ptr<const std::vector<std::vector<float>>> SpectralSynth::finishedBandNoise(uint64_t seed,

@@ -114,11 +114,12 @@ class SpectralSynth {
 
  public:
 
-  /** out[i] += noise[(i + offset) mod noise.size()] * env[i] for i < length():
-   *  a finishedBandNoise band under its bandEnvelope, added into the IR. The
-   *  noise is periodic, so any offset reads a stationary stretch of it. */
-  void addEnvelopedNoise(const std::vector<float>& noise, size_t offset, const std::vector<float>& env,
-                         float* out) const;
+  /** out[i] += noise[(i + offset) mod noise.size()] * env[i] for i <
+   *  min(length(), count): a finishedBandNoise band under its bandEnvelope,
+   *  added into the IR. The noise is periodic, so any offset reads a
+   *  stationary stretch of it. */
+  void addEnvelopedNoise(const std::vector<float>& noise, size_t offset, const std::vector<float>& env, float* out,
+                         size_t count = SIZE_MAX) const;
 
   /** A zeroed spectrum of bins() values. */
   Spectrum emptySpectrum() const { return Spectrum{std::vector<float>(mBins, 0.0f), std::vector<float>(mBins, 0.0f)}; }

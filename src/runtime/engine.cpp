@@ -25,6 +25,17 @@ double msSince(std::chrono::steady_clock::time_point t) {
 constexpr double kIrFadeSeconds = 0.010;
 // The crossfade from a source's own IR into the shared tail.
 constexpr double kTailFadeSeconds = 0.010;
+
+// An IR longer than maxFrames is cut there with a short fade rather than a
+// step.
+void cutIr(AudioBuffer& ir, size_t maxFrames, double sampleRateHz) {
+  if (ir.frameCount() <= maxFrames) return;
+  const size_t fade = std::min(maxFrames, size_t(kIrFadeSeconds * sampleRateHz));
+  for (auto& ch : ir.channels) {
+    ch.resize(maxFrames);
+    for (size_t k = 0; k < fade; ++k) ch[maxFrames - 1 - k] *= float(k) / float(fade);
+  }
+}
 // Frames per inner step of process(): bounds the per-source scratch.
 constexpr size_t kProcessChunk = 1024;
 // The ambisonic decoder's bulk delay: 2 ms (the ears' onsets lie within
@@ -33,6 +44,15 @@ size_t ambisonicDecoderDelayFrames(double rateHz) { return size_t(std::ceil(0.00
 }  // namespace
 
 struct Engine::Slot {
+  // What a source's whole IR is synthesised from again (synthesizeIrOf).
+  struct WholeIr {
+    OmniIrResult result;  // without its IR
+    OmniIrSettings settings;
+    Vec3d source, listener;
+    AmbisonicReceiver ambisonic;
+    size_t maxFrames = 0;
+    uint32_t denormalMode = 0;  // the one it was synthesised in (currentDenormalMode())
+  };
   std::atomic<bool> active{false};
   std::atomic<uint32_t> generation{0};           // bumped by add/remove
   std::atomic<uint32_t> simulatedGeneration{~0u};  // generation of the last simulation posted
@@ -75,6 +95,10 @@ struct Engine::Slot {
   // The last IR posted (guarded by Engine::mIrMutex; never the audio thread).
   std::chrono::steady_clock::time_point lastIrPosed{};
   std::shared_ptr<const AudioBuffer> lastIr;
+  // A source whose tail the shared one stands for was synthesised in part
+  // (its own IR, W whole): what its whole IR is made from when sourceIr()
+  // asks for it, lastIr null until then.
+  std::shared_ptr<const WholeIr> lastIrInputs;
   bool lastIrIncludesDirect = false;
   uint64_t irCount = 0;
   Slot() {
@@ -507,16 +531,47 @@ Status Engine::setListener(const Vec3d& position, const ListenerOrientation& o) 
 
 SimulationStats Engine::lastSimulation() const { return mStats; }
 
-SourceIr Engine::sourceIr(uint32_t source) const {
+SourceIr Engine::sourceIrInfo(uint32_t source) const {
   SourceIr out;
   if (!validSource(source)) return out;
   std::lock_guard<std::mutex> lock(mIrMutex);
   const Slot& slot = *mSlots[source];
   if (slot.generation.load() != slot.simulatedGeneration.load()) return out;  // not simulated since (re)added
-  out.ir = slot.lastIr;
   out.includesDirect = slot.lastIrIncludesDirect;
   out.simulations = slot.irCount;
   out.posed = slot.lastIrPosed;
+  return out;
+}
+
+SourceIr Engine::sourceIr(uint32_t source) const {
+  SourceIr out;
+  if (!validSource(source)) return out;
+  Slot& slot = *mSlots[source];
+  std::shared_ptr<const Slot::WholeIr> inputs;
+  {
+    std::lock_guard<std::mutex> lock(mIrMutex);
+    if (slot.generation.load() != slot.simulatedGeneration.load()) return out;  // not simulated since (re)added
+    out.ir = slot.lastIr;
+    out.includesDirect = slot.lastIrIncludesDirect;
+    out.simulations = slot.irCount;
+    out.posed = slot.lastIrPosed;
+    if (out.ir || !slot.lastIrInputs) return out;
+    inputs = slot.lastIrInputs;
+  }
+  // Synthesised in part (a shared tail): made whole now, outside the lock,
+  // in the denormal mode of its simulation (the same bits), and kept if no
+  // later IR replaced it meanwhile.
+  const BinauralReceiver* binaural = nullptr;
+  auto ir = [&] {
+    ScopedDenormalMode mode(inputs->denormalMode);
+    return synthesizeIrOf(inputs->result, inputs->settings, inputs->source, inputs->listener, binaural,
+                          &inputs->ambisonic);
+  }();
+  if (!ir.isOk()) return out;  // (the same inputs gave an IR in part; not expected)
+  cutIr(*ir, inputs->maxFrames, mSettings.sampleRateHz);
+  out.ir = std::make_shared<const AudioBuffer>(std::move(ir.value()));
+  std::lock_guard<std::mutex> lock(mIrMutex);
+  if (slot.lastIrInputs == inputs) slot.lastIr = out.ir;
   return out;
 }
 
@@ -596,6 +651,7 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& order) {
     OmniIrSettings settings;
     Vec3d source;
     std::optional<Result<OmniIrResult>> result;
+    uint32_t denormalMode = 0;  // the synthesis's (pool workers flush denormals)
   };
   std::vector<Job> jobs;
   for (uint32_t i : order) {
@@ -612,14 +668,35 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& order) {
     j.settings.directivity.forward = {slot.forward[0].load(), slot.forward[1].load(), slot.forward[2].load()};
     jobs.push_back(std::move(j));
   }
+  // The shared tail: every source but the last is synthesised up to the
+  // crossfade's end only (W whole, for its tail's level); the last one's
+  // tail becomes the shared one.
+  if (mTailMixer) {
+    const size_t split = size_t(std::llround(mSettings.sharedTailSeconds * mSettings.sampleRateHz));
+    const size_t fade = size_t(std::llround(kTailFadeSeconds * mSettings.sampleRateHz));
+    for (size_t k = 0; k + 1 < jobs.size(); ++k) jobs[k].settings.ambisonicPartialFrames = split + fade;
+  }
+  uint32_t flushedMode;
+  {
+    ScopedFlushDenormals ftz;
+    flushedMode = currentDenormalMode();
+  }
+  for (Job& j : jobs) j.denormalMode = flushedMode;
   // Several sources: one per worker, each traced single-threaded (synthesis
   // is single-threaded anyway); one source: all workers trace it. Either way
   // each IR is bit-identical (the tracer's result does not depend on threads).
   if (effectiveTraceMode(mSettings.traceMode, jobs.size()) == TraceMode::kShared && !jobs.empty()) {
     // One trace from the listener for every source of this simulation.
     std::vector<IrRequest> requests;
-    for (const Job& j : jobs)
-      requests.push_back({j.source, j.settings.directivity, j.settings.includeDirect, "source " + std::to_string(j.slot)});
+    for (const Job& j : jobs) {
+      IrRequest q;
+      q.source = j.source;
+      q.directivity = j.settings.directivity;
+      q.includeDirect = j.settings.includeDirect;
+      q.ambisonicPartialFrames = j.settings.ambisonicPartialFrames;
+      q.name = "source " + std::to_string(j.slot);
+      requests.push_back(std::move(q));
+    }
     if (!mListenerCache) mListenerCache = std::make_unique<ListenerCache>();
     auto r = computeIrs(*tracer, *materials, listener, requests, mSettings.simulation, TraceMode::kShared, *mPool,
                         binauralReceiver, ambisonicReceiver, mListenerCache.get());
@@ -633,6 +710,7 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& order) {
                            binauralReceiver, ambisonicReceiver);
     });
   } else {
+    for (Job& j : jobs) j.denormalMode = currentDenormalMode();
     for (Job& j : jobs)
       j.result = computeIr(*tracer, *materials, j.source, listener, j.settings, *mPool, binauralReceiver,
                            ambisonicReceiver);
@@ -646,14 +724,9 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& order) {
     stats.synthesisMs += r->timings.synthesisMs;
     const auto tPrepare = std::chrono::steady_clock::now();
     AudioBuffer& ir = r->ir;
-    if (ir.frameCount() > maxFrames) {
-      // Cut with a short fade rather than a step.
-      const size_t fade = std::min(maxFrames, size_t(kIrFadeSeconds * mSettings.sampleRateHz));
-      for (auto& ch : ir.channels) {
-        ch.resize(maxFrames);
-        for (size_t k = 0; k < fade; ++k) ch[maxFrames - 1 - k] *= float(k) / float(fade);
-      }
-    }
+    cutIr(ir, maxFrames, mSettings.sampleRateHz);
+    const bool partial = j.settings.ambisonicPartialFrames > 0;
+    const DirectPath direct = r->direct;
     // Shared tail: the source's own IR up to sharedTailSeconds, crossfaded
     // (complementary linear ramps) into its tail, whose W energy is the
     // source's late level; the last source simulated with a tail gives the
@@ -664,21 +737,21 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& order) {
       const size_t split = size_t(std::llround(mSettings.sharedTailSeconds * mSettings.sampleRateHz));
       const size_t fade = size_t(std::llround(kTailFadeSeconds * mSettings.sampleRateHz));
       const size_t ownFrames = std::min(ir.frameCount(), split + fade);
+      auto weight = [&](size_t i) { return i < split ? 0.0f : i >= split + fade ? 1.0f : float(i - split) / float(fade); };
       own = AudioBuffer(ir.channelCount(), ownFrames, ir.sampleRateHz);
-      AudioBuffer tail(ir.channelCount(), ir.frameCount(), ir.sampleRateHz);
       for (size_t c = 0; c < ir.channelCount(); ++c)
-        for (size_t i = 0; i < ir.frameCount(); ++i) {
-          const float w = i < split ? 0.0f : i >= split + fade ? 1.0f : float(i - split) / float(fade);
-          if (i < ownFrames) own.channels[c][i] = ir.channels[c][i] * (1.0f - w);
-          tail.channels[c][i] = ir.channels[c][i] * w;
-        }
+        for (size_t i = 0; i < ownFrames; ++i) own.channels[c][i] = ir.channels[c][i] * (1.0f - weight(i));
       double energy = 0;
-      for (float v : tail.channels[0]) energy += double(v) * v;
+      for (size_t i = 0; i < ir.frameCount(); ++i) {
+        const float v = ir.channels[0][i] * weight(i);
+        energy += double(v) * v;
+      }
       slot.tailGain.store(std::sqrt(energy));
-      if (energy > 0) {
+      if (!partial && energy > 0) {
         const float norm = float(1.0 / std::sqrt(energy));
-        for (auto& ch : tail.channels)
-          for (float& v : ch) v *= norm;
+        AudioBuffer tail(ir.channelCount(), ir.frameCount(), ir.sampleRateHz);
+        for (size_t c = 0; c < ir.channelCount(); ++c)
+          for (size_t i = 0; i < ir.frameCount(); ++i) tail.channels[c][i] = ir.channels[c][i] * weight(i) * norm;
         sharedTail = std::move(tail);
       }
       convolved = &own;
@@ -687,19 +760,37 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& order) {
     if (!prepared.isOk()) return prepared.status();
     EARSHOT_RETURN_IF_ERROR(mMixer->setIr(j.slot, *prepared));
     {
-      // Kept for sourceIr(), unless the slot was released or reused meanwhile.
-      auto kept = std::make_shared<const AudioBuffer>(std::move(ir));
+      // Kept for sourceIr(), unless the slot was released or reused
+      // meanwhile: the IR, or what sourceIr() makes it from.
+      std::shared_ptr<const AudioBuffer> kept;
+      std::shared_ptr<const Slot::WholeIr> inputs;
+      if (partial) {
+        auto w = std::make_shared<Slot::WholeIr>();
+        r->ir = AudioBuffer();
+        w->result = std::move(*r);
+        w->settings = j.settings;
+        w->settings.ambisonicPartialFrames = 0;
+        w->source = j.source;
+        w->listener = listener;
+        w->ambisonic = ambisonic;
+        w->maxFrames = maxFrames;
+        w->denormalMode = j.denormalMode;
+        inputs = std::move(w);
+      } else {
+        kept = std::make_shared<const AudioBuffer>(std::move(ir));
+      }
       std::lock_guard<std::mutex> lock(mIrMutex);
       if (slot.generation.load() == j.generation) {
         slot.lastIrPosed = t0;  // the poses were read just after t0
         slot.lastIr = std::move(kept);
+        slot.lastIrInputs = std::move(inputs);
         slot.lastIrIncludesDirect = j.settings.includeDirect;
         ++slot.irCount;
       }
     }
     // Transmission through occluders: the direct path's band gains without
     // air, by the source's occlusion mode (kOff is applied per block).
-    const DirectPath& d = r->direct;
+    const DirectPath& d = direct;
     const bool transmissionOn = slot.transmissionOn.load();
     BandArrayD transmission = filledBands(1.0);
     if (OcclusionMode(slot.occlusion.load()) == OcclusionMode::kVolumetric) {

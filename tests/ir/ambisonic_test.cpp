@@ -256,6 +256,70 @@ TEST(AmbisonicIr, SourcesSynthesisedTogetherAreTheIrsTheyAreAlone) {
   EXPECT_NE(together[0].channels[4], together[1].channels[4]);
 }
 
+// A partial synthesis (what the runtime makes of a source whose tail the
+// shared one stands for) is the whole IR's first partialFrames samples in
+// every channel, zeros after in all but W, and W whole; synthesizeIrOf
+// makes the whole IR again from the result, the same bits. Both trace modes
+// (a shared trace's sources are synthesised on the pool's threads).
+TEST(AmbisonicIr, PartialSynthesisIsTheWholeIrsStartAndWWhole) {
+  testing::Shoebox room(0.2f, 0.3f);
+  OmniIrSettings s;
+  s.rays = 2048;
+  ThreadPool pool(2);
+  const Vec3d lis{7.1, 4.2, 1.7};
+  const std::vector<Vec3d> sources = {{2.3, 2.9, 1.4}, {5.0, 1.5, 2.0}};
+  AmbisonicReceiver receiver;
+  receiver.order = 2;
+  const size_t partial = 7680;  // 0.16 s
+  for (TraceMode mode : {TraceMode::kShared, TraceMode::kPerSource}) {
+    std::vector<IrRequest> whole, part;
+    for (const Vec3d& src : sources) {
+      IrRequest r;
+      r.source = src;
+      whole.push_back(r);
+      r.ambisonicPartialFrames = partial;
+      part.push_back(r);
+    }
+    auto a = computeIrs(*room.tracer, room.materials, lis, whole, s, mode, pool, nullptr, &receiver);
+    auto b = computeIrs(*room.tracer, room.materials, lis, part, s, mode, pool, nullptr, &receiver);
+    ASSERT_TRUE(a.isOk() && b.isOk());
+    for (size_t k = 0; k < sources.size(); ++k) {
+      const AudioBuffer& w = (*a)[k].ir;
+      const AudioBuffer& p = (*b)[k].ir;
+      ASSERT_EQ(w.channelCount(), 9u);
+      ASSERT_EQ(p.channelCount(), 9u);
+      ASSERT_GT(w.frameCount(), 3 * partial) << "the test needs a tail after the partial frames";
+      ASSERT_EQ(w.frameCount(), p.frameCount());
+      EXPECT_EQ(w.channels[0], p.channels[0]) << toString(mode) << " source " << k;
+      for (size_t c = 1; c < 9; ++c) {
+        bool prefix = true, zeros = true, tail = false;
+        for (size_t i = 0; i < w.frameCount(); ++i) {
+          if (i < partial) prefix = prefix && w.channels[c][i] == p.channels[c][i];
+          else {
+            zeros = zeros && p.channels[c][i] == 0.0f;
+            tail = tail || w.channels[c][i] != 0.0f;
+          }
+        }
+        EXPECT_TRUE(prefix) << toString(mode) << " source " << k << " channel " << c;
+        EXPECT_TRUE(zeros) << toString(mode) << " source " << k << " channel " << c;
+        EXPECT_TRUE(tail) << "the whole IR's channel " << c << " has a tail to leave out";
+      }
+      OmniIrSettings ws = s;
+      ws.includeDirect = part[k].includeDirect;
+      ws.directivity = part[k].directivity;
+      ThreadPool one(1);  // the pool's threads flush denormals: so does this
+      AudioBuffer again;
+      one.parallelFor(1, [&](size_t, unsigned) {
+        auto r = synthesizeIrOf((*b)[k], ws, sources[k], lis, nullptr, &receiver);
+        ASSERT_TRUE(r.isOk()) << r.status().message();
+        again = std::move(r.value());
+      });
+      ASSERT_EQ(again.channelCount(), 9u);
+      for (size_t c = 0; c < 9; ++c) EXPECT_EQ(again.channels[c], w.channels[c]) << toString(mode) << " " << k << " " << c;
+    }
+  }
+}
+
 TEST(AmbisonicIr, RefusesBadOrdersAndFrames) {
   IrSynthesisSettings s;
   AmbisonicFrame frame;

@@ -167,6 +167,49 @@ TEST(EngineAmbisonic, AmbisonicOutputEncodesTheDirectSoundInTheListenersFrame) {
   EXPECT_FALSE(Engine::create(bad, test::ku100()).isOk());
 }
 
+// With a shared tail, every source of a simulation but the last is
+// synthesised up to the crossfade only (W whole, for its tail's level).
+// sourceIr() then makes its whole IR: the same bits as the source gets when
+// it is simulated last (its IR does not depend on the others), and kept;
+// sourceIrInfo() never synthesises. Shared and per-source traces.
+TEST(EngineAmbisonic, SourcesSynthesisedInPartGiveTheirWholeIrs) {
+  test::Room room(0.3f);
+  for (TraceMode mode : {TraceMode::kShared, TraceMode::kPerSource}) {
+    auto irs = [&](bool aFirst) {
+      EngineSettings es = test::fastSettings();
+      es.traceMode = mode;
+      auto e = Engine::create(es, test::ku100());
+      EXPECT_TRUE(e.isOk()) << e.status().message();
+      Engine& engine = **e;
+      engine.setScene(room.tracer, room.materials);
+      auto a = engine.addSource({}), b = engine.addSource({});
+      EXPECT_TRUE(a.isOk() && b.isOk());
+      EXPECT_TRUE(engine.setSourcePosition(*a, {2.5, 2.0, 1.2}).isOk());
+      EXPECT_TRUE(engine.setSourcePosition(*b, {6.5, 5.5, 1.8}).isOk());
+      EXPECT_TRUE(engine.setListener({5, 4, 1.5}, {{1, 0, 0}, {0, 0, 1}}).isOk());
+      EXPECT_TRUE(engine.simulate(aFirst ? std::vector<uint32_t>{*a, *b} : std::vector<uint32_t>{*b, *a}).isOk());
+      const uint32_t first = aFirst ? *a : *b;
+      const SourceIr info = engine.sourceIrInfo(first);
+      EXPECT_FALSE(info.ir);
+      EXPECT_EQ(info.simulations, 1u);
+      const SourceIr ra = engine.sourceIr(*a), rb = engine.sourceIr(*b);
+      EXPECT_TRUE(ra.ir && rb.ir);
+      EXPECT_EQ(engine.sourceIr(first).ir, aFirst ? ra.ir : rb.ir) << "made once, then kept";
+      return std::make_pair(ra.ir, rb.ir);
+    };
+    const auto abOrder = irs(true), baOrder = irs(false);
+    ASSERT_TRUE(abOrder.first && abOrder.second && baOrder.first && baOrder.second);
+    ASSERT_EQ(abOrder.first->channelCount(), 4u);
+    // a in part then whole (abOrder) against a last (baOrder); b the other way.
+    EXPECT_EQ(abOrder.first->channels, baOrder.first->channels) << toString(mode);
+    EXPECT_EQ(abOrder.second->channels, baOrder.second->channels) << toString(mode);
+    double late = 0;
+    for (size_t i = abOrder.first->frameCount() / 2; i < abOrder.first->frameCount(); ++i)
+      late += std::fabs(abOrder.first->channels[3][i]);
+    EXPECT_GT(late, 0.0) << "the whole IR's X channel has a late part";
+  }
+}
+
 // The shared late tail: a source whose tail is convolved as another
 // source's normalised tail at its own late level keeps its room's decay.
 // Two sources in a room; an impulse through the first (the shared tail is

@@ -150,7 +150,7 @@ int run(const BenchRuntimeOptions& o) {
       // Every 100 ms after the first second: how old each source's IR is.
       const auto now = std::chrono::steady_clock::now();
       for (unsigned s = 0; s < o.sources; ++s)
-        irAges.push_back(std::chrono::duration<double>(now - engine.sourceIr(ids[s]).posed).count());
+        irAges.push_back(std::chrono::duration<double>(now - engine.sourceIrInfo(ids[s]).posed).count());
     }
     const auto t0 = std::chrono::steady_clock::now();
     const double c0 = threadCpuSeconds();

@@ -53,6 +53,9 @@ struct OmniIrSettings {
    *  this (dB; ReflectionSettings::convergenceDb). 0: every ray. */
   double convergenceDb = 0.0;
   bool includeDirect = true;       ///< false: reflections only (the runtime renders the direct path per block)
+  /** Ambisonic IRs: IrSynthesisSettings::partialFrames (the channels after
+   *  W made up to this frame only; W whole). 0: whole. */
+  size_t ambisonicPartialFrames = 0;
 };
 
 /** A binaural receiver: the HRTF model and the listener's orientation. */
@@ -96,6 +99,7 @@ struct OmniIrResult {
   bool imageSourcesExhaustive = true;
   OmniIrTimings timings;
   std::vector<std::string> skipped;    ///< work not needed for this scene, with why
+  bool lateTraced = false;             ///< `late` was traced (else the IR has no late part)
 };
 
 /** The IR of one source/listener pair: binaural when `binaural` is given (its
@@ -104,6 +108,15 @@ struct OmniIrResult {
 Result<OmniIrResult> computeIr(const RayTracer& tracer, const MaterialTable& materials, const Vec3d& source,
                                const Vec3d& listener, const OmniIrSettings& settings, ThreadPool& pool,
                                const BinauralReceiver* binaural, const AmbisonicReceiver* ambisonic = nullptr);
+
+/** The IR computeIr or computeIrs synthesised for `result` (its direct
+ *  sound, early paths and late histogram), the same bits, made again from
+ *  them: e.g. whole after a synthesis with ambisonicPartialFrames.
+ *  `settings`, `source`, `listener` and the receiver are the ones it was
+ *  computed with (with any IrRequest's overrides applied). */
+Result<AudioBuffer> synthesizeIrOf(const OmniIrResult& result, const OmniIrSettings& settings, const Vec3d& source,
+                                   const Vec3d& listener, const BinauralReceiver* binaural,
+                                   const AmbisonicReceiver* ambisonic = nullptr);
 
 /** How the late reflections of several sources at one listener are traced
  *  (issue 16). */
@@ -133,6 +146,7 @@ struct IrRequest {
   Directivity directivity;     ///< instead of the settings' directivity
   bool includeDirect = true;   ///< instead of the settings' includeDirect
   std::string name;            ///< in error messages; empty: "source <index in the requests>"
+  size_t ambisonicPartialFrames = 0;  ///< instead of the settings' ambisonicPartialFrames
 };
 
 /** What computeIrs keeps from one shared simulation for the next from the

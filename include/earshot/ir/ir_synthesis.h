@@ -48,6 +48,12 @@ struct IrSynthesisSettings {
   /** The bands are the engine's octaves shifted by this (kBandCentersHz x
    *  2^shift): a third-octave pass (bands.h) sets -1/3 or +1/3. [-1, 1] */
   double bandShiftOctaves = 0.0;
+  /** Ambisonic synthesis only, > 0: the channels after W are made for their
+   *  first partialFrames samples only (zeros after), W whole. What the
+   *  runtime's shared tail needs of a source whose tail it does not play:
+   *  its own IR up to the split, and W's energy after it. 0: every channel
+   *  whole. */
+  size_t partialFrames = 0;
 };
 
 /** A key for IrSynthesisSettings::noiseKey from a source/listener pair: made

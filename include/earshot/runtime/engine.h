@@ -105,10 +105,13 @@ struct EngineSettings {
    *  it one late tail shared by every source is convolved once, for the sum
    *  of the sources' inputs each weighted by its own late level (the
    *  energy of its tail's W after this time). The shared tail is the
-   *  latest simulated source's, normalised; in a room whose late field is
-   *  diffuse every source's tail has the same decay and differs in level
-   *  only (docs/ambisonics.md measures what this costs). The audio thread's
-   *  multiply-adds per source fall from the whole IR's length to this.
+   *  latest simulated source's, normalised (the last of a simulation's
+   *  sources, if it has one); in a room whose late field is diffuse every
+   *  source's tail has the same decay and differs in level only
+   *  (docs/ambisonics.md measures what this costs). The audio thread's
+   *  multiply-adds per source fall from the whole IR's length to this, and
+   *  the other sources of a simulation are synthesised up to it only (W
+   *  whole; sourceIr() makes the rest when asked).
    *  0: every source's whole IR. [0, maxIrSeconds). */
   double sharedTailSeconds = 0.15;
   /** With ambisonic reflections: the sources' and the shared tail's IR
@@ -292,9 +295,16 @@ class Engine {
   /** Simulates exactly these sources (in this order). */
   Status simulate(const std::vector<uint32_t>& sources);
   SimulationStats lastSimulation() const;
-  /** The source's latest IR (a shared copy of what is being convolved).
+  /** The source's latest IR (a shared copy of what is being convolved;
+   *  with a shared tail, the source's whole IR, whose tail the shared one
+   *  stands for). A source whose tail another's stood for in its
+   *  simulation was synthesised in part: its whole IR is made on the first
+   *  call (the same bits; milliseconds) and kept.
    *  Game or simulation thread; never the audio thread (takes a lock). */
   SourceIr sourceIr(uint32_t source) const;
+  /** sourceIr() without the IR (`ir` null): its count and when it was
+   *  posed, never synthesising. Game or simulation thread. */
+  SourceIr sourceIrInfo(uint32_t source) const;
 
   // ---- audio thread ----
   /** Renders `frames` frames: inputs[s] is source slot s's dry mono input
