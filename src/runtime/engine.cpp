@@ -715,7 +715,34 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& order) {
       j.result = computeIr(*tracer, *materials, j.source, listener, j.settings, *mPool, binauralReceiver,
                            ambisonicReceiver);
   }
+  // Shared tail: each source's own IR up to sharedTailSeconds, crossfaded
+  // (complementary linear ramps) into its tail, whose W energy is the
+  // source's late level; the last source simulated with a tail gives the
+  // shared one, at unit energy.
+  const size_t tailSplit = size_t(std::llround(mSettings.sharedTailSeconds * mSettings.sampleRateHz));
+  const size_t tailFade = size_t(std::llround(kTailFadeSeconds * mSettings.sampleRateHz));
+  auto tailWeight = [&](size_t i) {
+    return i < tailSplit ? 0.0f : i >= tailSplit + tailFade ? 1.0f : float(i - tailSplit) / float(tailFade);
+  };
+  auto tailEnergy = [&](const AudioBuffer& ir) {
+    double energy = 0;
+    for (size_t i = 0; i < ir.frameCount(); ++i) {
+      const float v = ir.channels[0][i] * tailWeight(i);
+      energy += double(v) * v;
+    }
+    return energy;
+  };
+  auto normalisedTail = [&](const AudioBuffer& ir, double energy) {
+    const float norm = float(1.0 / std::sqrt(energy));
+    AudioBuffer tail(ir.channelCount(), ir.frameCount(), ir.sampleRateHz);
+    for (size_t c = 0; c < ir.channelCount(); ++c)
+      for (size_t i = 0; i < ir.frameCount(); ++i) tail.channels[c][i] = ir.channels[c][i] * tailWeight(i) * norm;
+    return tail;
+  };
   std::optional<AudioBuffer> sharedTail;
+  // The last source synthesised in part that has a tail: the shared tail's
+  // if the last source has none.
+  std::shared_ptr<const Slot::WholeIr> tailFallback;
   for (Job& j : jobs) {
     Slot& slot = *mSlots[j.slot];
     auto& r = *j.result;
@@ -727,33 +754,18 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& order) {
     cutIr(ir, maxFrames, mSettings.sampleRateHz);
     const bool partial = j.settings.ambisonicPartialFrames > 0;
     const DirectPath direct = r->direct;
-    // Shared tail: the source's own IR up to sharedTailSeconds, crossfaded
-    // (complementary linear ramps) into its tail, whose W energy is the
-    // source's late level; the last source simulated with a tail gives the
-    // shared one, at unit energy.
     AudioBuffer own;
     const AudioBuffer* convolved = &ir;
+    bool hasTail = false;
     if (mTailMixer) {
-      const size_t split = size_t(std::llround(mSettings.sharedTailSeconds * mSettings.sampleRateHz));
-      const size_t fade = size_t(std::llround(kTailFadeSeconds * mSettings.sampleRateHz));
-      const size_t ownFrames = std::min(ir.frameCount(), split + fade);
-      auto weight = [&](size_t i) { return i < split ? 0.0f : i >= split + fade ? 1.0f : float(i - split) / float(fade); };
+      const size_t ownFrames = std::min(ir.frameCount(), tailSplit + tailFade);
       own = AudioBuffer(ir.channelCount(), ownFrames, ir.sampleRateHz);
       for (size_t c = 0; c < ir.channelCount(); ++c)
-        for (size_t i = 0; i < ownFrames; ++i) own.channels[c][i] = ir.channels[c][i] * (1.0f - weight(i));
-      double energy = 0;
-      for (size_t i = 0; i < ir.frameCount(); ++i) {
-        const float v = ir.channels[0][i] * weight(i);
-        energy += double(v) * v;
-      }
+        for (size_t i = 0; i < ownFrames; ++i) own.channels[c][i] = ir.channels[c][i] * (1.0f - tailWeight(i));
+      const double energy = tailEnergy(ir);  // W whole also when in part
       slot.tailGain.store(std::sqrt(energy));
-      if (!partial && energy > 0) {
-        const float norm = float(1.0 / std::sqrt(energy));
-        AudioBuffer tail(ir.channelCount(), ir.frameCount(), ir.sampleRateHz);
-        for (size_t c = 0; c < ir.channelCount(); ++c)
-          for (size_t i = 0; i < ir.frameCount(); ++i) tail.channels[c][i] = ir.channels[c][i] * weight(i) * norm;
-        sharedTail = std::move(tail);
-      }
+      hasTail = energy > 0;
+      if (!partial && hasTail) sharedTail = normalisedTail(ir, energy);
       convolved = &own;
     }
     auto prepared = PreparedIr::create(*convolved, mMixer->layout(), mPool.get());
@@ -776,6 +788,7 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& order) {
         w->maxFrames = maxFrames;
         w->denormalMode = j.denormalMode;
         inputs = std::move(w);
+        if (hasTail) tailFallback = inputs;
       } else {
         kept = std::make_shared<const AudioBuffer>(std::move(ir));
       }
@@ -813,6 +826,19 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& order) {
     slot.simulatedGeneration.store(j.generation);
     stats.prepareMs += msSince(tPrepare);
     ++stats.sourcesSimulated;
+  }
+  if (mTailMixer && !sharedTail && tailFallback) {
+    // The last source has no tail: the last one that has gives it, made
+    // whole again (the same bits as when it was synthesised whole).
+    const Slot::WholeIr& w = *tailFallback;
+    auto whole = [&] {
+      ScopedDenormalMode mode(w.denormalMode);
+      return synthesizeIrOf(w.result, w.settings, w.source, w.listener, nullptr, &w.ambisonic);
+    }();
+    if (!whole.isOk()) return whole.status();
+    cutIr(*whole, w.maxFrames, mSettings.sampleRateHz);
+    const double energy = tailEnergy(*whole);
+    if (energy > 0) sharedTail = normalisedTail(*whole, energy);
   }
   if (sharedTail) {
     auto prepared = PreparedIr::create(*sharedTail, mTailMixer->layout(), mPool.get());

@@ -210,6 +210,46 @@ TEST(EngineAmbisonic, SourcesSynthesisedInPartGiveTheirWholeIrs) {
   }
 }
 
+// The shared tail is the last source's with a tail. When the last source
+// of a simulation has none (outside the closed room), an earlier one's is
+// made whole for it: the engine then plays what it plays when that source
+// is simulated last. Without it the room's source would lose its tail.
+TEST(EngineAmbisonic, TheLastSourceWithATailGivesTheSharedTail) {
+  test::Room room(0.3f);
+  auto play = [&](bool insideLast) {
+    EngineSettings es = test::fastSettings();
+    es.traceMode = TraceMode::kShared;
+    auto e = Engine::create(es, test::ku100());
+    EXPECT_TRUE(e.isOk()) << e.status().message();
+    Engine& engine = **e;
+    engine.setScene(room.tracer, room.materials);
+    auto a = engine.addSource({}), b = engine.addSource({});
+    EXPECT_TRUE(a.isOk() && b.isOk());
+    EXPECT_TRUE(engine.setSourcePosition(*a, {3.0, 3.0, 1.5}).isOk());
+    EXPECT_TRUE(engine.setSourcePosition(*b, {15.0, 3.5, 1.5}).isOk());  // outside
+    EXPECT_TRUE(engine.setListener({6, 4, 1.5}, {{1, 0, 0}, {0, 0, 1}}).isOk());
+    EXPECT_TRUE(engine.simulate(insideLast ? std::vector<uint32_t>{*b, *a} : std::vector<uint32_t>{*a, *b}).isOk());
+    std::vector<float> in(256), l(256), r(256), out;
+    std::vector<const float*> inputs(es.maxSources, nullptr);
+    inputs[*a] = in.data();
+    Pcg32 rng(3, 4);
+    for (int block = 0; block < 300; ++block) {  // 0.8 s of noise, then silence
+      for (float& x : in) x = block < 150 ? rng.uniform() - 0.5f : 0.0f;
+      engine.process(inputs.data(), l.data(), r.data(), 256);
+      out.insert(out.end(), l.begin(), l.end());
+    }
+    return out;
+  };
+  const std::vector<float> last = play(true), notLast = play(false);
+  ASSERT_EQ(last.size(), notLast.size());
+  EXPECT_TRUE(last == notLast);
+  // The tail is there: 0.3 s after the noise stops (beyond the sources' own
+  // 0.15 s), the reverberation is still audible.
+  double late = 0;
+  for (size_t i = 150 * 256 + 14400; i < last.size(); ++i) late += double(last[i]) * last[i];
+  EXPECT_GT(late, 1e-9);
+}
+
 // The shared late tail: a source whose tail is convolved as another
 // source's normalised tail at its own late level keeps its room's decay.
 // Two sources in a room; an impulse through the first (the shared tail is

@@ -105,8 +105,7 @@ struct EngineSettings {
    *  it one late tail shared by every source is convolved once, for the sum
    *  of the sources' inputs each weighted by its own late level (the
    *  energy of its tail's W after this time). The shared tail is the
-   *  latest simulated source's, normalised (the last of a simulation's
-   *  sources, if it has one); in a room whose late field is diffuse every
+   *  latest simulated source's that has a tail, normalised; in a room whose late field is diffuse every
    *  source's tail has the same decay and differs in level only
    *  (docs/ambisonics.md measures what this costs). The audio thread's
    *  multiply-adds per source fall from the whole IR's length to this, and
