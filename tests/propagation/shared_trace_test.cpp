@@ -195,11 +195,16 @@ TEST(SharedTrace, EachSourceAsIfTracedAloneAndIndependentOfThreads) {
   PartitionRoom room;
   ReflectionSettings s = settingsFor(3);
   s.rays = 4096;
-  // Six sources: the trace tests its detectors four at a time, so a second,
-  // partly filled group of four is tested too.
+  // Eleven sources: the trace tests its detectors four at a time (eight
+  // with AVX), so a second, partly filled group is tested too.
   std::vector<Vec3d> positions = kSources;
   positions.push_back({2.2, 2.4, 2.6});
   positions.push_back({9.0, 1.2, 1.8});
+  positions.push_back({1.0, 1.0, 1.0});
+  positions.push_back({5.5, 6.0, 2.2});
+  positions.push_back({3.5, 5.0, 0.8});
+  positions.push_back({8.0, 3.2, 2.5});
+  positions.push_back({6.2, 0.8, 1.3});
   std::vector<SharedTraceSource> sources(positions.size());
   for (size_t i = 0; i < positions.size(); ++i) {
     sources[i].position = positions[i];
