@@ -152,6 +152,22 @@ struct Detector {
   BandArrayD meanSquares{};
 };
 
+// counts[k] += bit k of mask, for k < width (4 or 8).
+inline void addLaneCounts(uint32_t* counts, uint32_t mask, size_t width) {
+#if defined(__SSE2__)
+  alignas(16) static const uint32_t kNibbles[16][4] = {
+      {0, 0, 0, 0}, {1, 0, 0, 0}, {0, 1, 0, 0}, {1, 1, 0, 0}, {0, 0, 1, 0}, {1, 0, 1, 0}, {0, 1, 1, 0}, {1, 1, 1, 0},
+      {0, 0, 0, 1}, {1, 0, 0, 1}, {0, 1, 0, 1}, {1, 1, 0, 1}, {0, 0, 1, 1}, {1, 0, 1, 1}, {0, 1, 1, 1}, {1, 1, 1, 1}};
+  for (size_t k = 0; k < width; k += 4) {
+    __m128i* c = reinterpret_cast<__m128i*>(counts + k);
+    const __m128i add = _mm_load_si128(reinterpret_cast<const __m128i*>(kNibbles[(mask >> k) & 0xFu]));
+    _mm_storeu_si128(c, _mm_add_epi32(_mm_loadu_si128(c), add));
+  }
+#else
+  for (size_t k = 0; k < width; ++k) counts[k] += (mask >> k) & 1u;
+#endif
+}
+
 // The detectors in lanes of four, or eight where the CPU has AVX and there
 // are more than four (structure of arrays), for the two loops
 // a shared trace runs over all its detectors: on every segment, which
@@ -1063,11 +1079,23 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
   };
   // Per task: a candidate and a shadow ray per detector, the held adds.
   struct DetectScratch {
-    explicit DetectScratch(size_t n) : nee(n), shadowRays(n), blocked(n), pending(n == 1) {}
+    explicit DetectScratch(size_t n)
+        : nee(n), shadowRays(n), blocked(n), pending(n == 1), rouletted((n + 7) / 8 * 8, 0u) {}
     std::vector<NeeCandidate> nee;
     std::vector<Ray> shadowRays;
     std::vector<uint8_t> blocked;
     PendingAdds pending;
+    // Shadow rays rouletted away, per detector, counted a lane group at a
+    // time (most of 32 sources lose at most reflections: one increment per
+    // detector and reflection was a third of the reflections' detection).
+    std::vector<uint32_t> rouletted;
+    void flush(Accumulator& a) {
+      pending.flush();
+      for (size_t r = 0; r < a.det.size(); ++r) {
+        a.det[r].shadowsRouletted += rouletted[r];
+        rouletted[r] = 0;
+      }
+    }
   };
   // A segment through the spheres: a specular (or transmitted) path, or a
   // tail probe past its cut, detected by the sphere alone (no next-event
@@ -1113,7 +1141,7 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
     for (size_t g = 0; g < lanes.groups(); ++g) {
       uint32_t send = 1, lost = 0;
       if (!oneDetector) lanes.facingAny(g, e.p, e.n, e.u, minD2, send, lost);
-      for (; lost != 0; lost &= lost - 1) ++a.det[g * lanesWidth + size_t(__builtin_ctz(lost))].shadowsRouletted;
+      addLaneCounts(&x.rouletted[g * lanesWidth], lost, lanesWidth);
       for (; send != 0; send &= send - 1) {
         const size_t r = g * lanesWidth + size_t(__builtin_ctz(send));
         const Detector& dt = detectors[r];
@@ -1207,7 +1235,7 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
       PathEvents& ev = replay ? paths->tasks[task] : record ? recorded[task] : none;
       if (replay) {
         detectEvents(ev, 0, 0, a, scratch);
-        scratch.pending.flush();
+        scratch.flush(a);
         return;
       }
       const uint32_t first = uint32_t(task) * kRaysPerTask;
@@ -1433,7 +1461,7 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
           if (overBudget.load(std::memory_order_relaxed)) ev.clear();  // none will be kept
         }
       }
-      scratch.pending.flush();
+      scratch.flush(a);
     });
     traced += count;
     if (rounds > 1) {
