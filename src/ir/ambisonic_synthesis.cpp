@@ -101,7 +101,10 @@ Result<AudioBuffer> synthesizeAmbisonicIr(const std::vector<Arrival>& arrivals, 
   // settings.partialFrames: the channels after W are made up to here.
   const size_t partial = settings.partialFrames > 0 ? std::min(length, settings.partialFrames) : length;
   auto cut = [&](AudioBuffer& ir) {
-    for (int c = 1; c < channels; ++c) std::fill(ir.channels[size_t(c)].begin() + long(partial), ir.channels[size_t(c)].end(), 0.0f);
+    for (int c = 1; c < channels; ++c) {
+      std::vector<float>& ch = ir.channels[size_t(c)];
+      std::fill(ch.begin() + long(std::min(partial, ch.size())), ch.end(), 0.0f);
+    }
     return std::move(ir);
   };
 

@@ -668,14 +668,15 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& order) {
     j.settings.directivity.forward = {slot.forward[0].load(), slot.forward[1].load(), slot.forward[2].load()};
     jobs.push_back(std::move(j));
   }
-  // The shared tail: every source but the last is synthesised up to the
-  // crossfade's end only (W whole, for its tail's level); the last one's
-  // tail becomes the shared one.
-  if (mTailMixer) {
-    const size_t split = size_t(std::llround(mSettings.sharedTailSeconds * mSettings.sampleRateHz));
-    const size_t fade = size_t(std::llround(kTailFadeSeconds * mSettings.sampleRateHz));
-    for (size_t k = 0; k + 1 < jobs.size(); ++k) jobs[k].settings.ambisonicPartialFrames = split + fade;
-  }
+  // Shared tail: each source's own IR up to sharedTailSeconds, crossfaded
+  // (complementary linear ramps) into its tail, whose W energy is the
+  // source's late level; the last source simulated with a tail gives the
+  // shared one, at unit energy. Every source but the last is synthesised
+  // up to the crossfade's end only (W whole, for its level).
+  const size_t tailSplit = size_t(std::llround(mSettings.sharedTailSeconds * mSettings.sampleRateHz));
+  const size_t tailFade = size_t(std::llround(kTailFadeSeconds * mSettings.sampleRateHz));
+  if (mTailMixer)
+    for (size_t k = 0; k + 1 < jobs.size(); ++k) jobs[k].settings.ambisonicPartialFrames = tailSplit + tailFade;
   uint32_t flushedMode;
   {
     ScopedFlushDenormals ftz;
@@ -715,12 +716,6 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& order) {
       j.result = computeIr(*tracer, *materials, j.source, listener, j.settings, *mPool, binauralReceiver,
                            ambisonicReceiver);
   }
-  // Shared tail: each source's own IR up to sharedTailSeconds, crossfaded
-  // (complementary linear ramps) into its tail, whose W energy is the
-  // source's late level; the last source simulated with a tail gives the
-  // shared one, at unit energy.
-  const size_t tailSplit = size_t(std::llround(mSettings.sharedTailSeconds * mSettings.sampleRateHz));
-  const size_t tailFade = size_t(std::llround(kTailFadeSeconds * mSettings.sampleRateHz));
   auto tailWeight = [&](size_t i) {
     return i < tailSplit ? 0.0f : i >= tailSplit + tailFade ? 1.0f : float(i - tailSplit) / float(tailFade);
   };
