@@ -569,7 +569,9 @@ TEST(CapiLazyContext, SlotsCostNothingUntilSourcesUseThem) {
   // Each new slot allocates its state: the direct voice's delay line (343 m:
   // ~0.26 MB) and the convolution history of its own IR (with the shared
   // tail, 0.16 s: ~0.15 MB); 0.41 MB a slot measured.
-  if (nine > 0) EXPECT_GT(nine - oneSource, 8 * 0.3e6) << "each new slot allocates its state";
+  if (nine > 0) {
+    EXPECT_GT(nine - oneSource, 8 * 0.3e6) << "each new slot allocates its state";
+  }
   // A released slot's state is kept for its next source.
   for (auto& s : more) earshot_source_release(s);
   for (auto& s : more) ASSERT_EQ(earshot_source_create(c, nullptr, &s), EARSHOT_OK);
