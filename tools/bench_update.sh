@@ -4,8 +4,9 @@
 # Embree limit of the same queries, the synthesis of a 2 s IR (binaural and
 # omni), and `earshot ir`'s stage times for a binaural IR (a first run's,
 # without the cache folder, and with it warm); then one shared
-# trace for 32 sources beside a trace from each, and the runtime with 32
-# moving sources in the furnished room, shared trace and per source. Usage (from the repository
+# trace for 32 sources beside a trace from each, the render benchmark
+# (three runs), and the runtime with 32 moving sources in the furnished
+# room, shared trace and per source. Usage (from the repository
 # root, after the build): bash tools/bench_update.sh [build-dir]
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -48,6 +49,17 @@ done
 echo "## one trace for 32 sources (furnished room)"
 "$bin" bench trace samples/furnished_room/furnished_room.glb \
   --material-map samples/furnished_room/materials_map.json --listener 5,3.5,1.2 --shared-sources 32 --runs 5
+echo "## render benchmark (tools/make_render_bench.py: 60 s, two sources circling, furnished room)"
+/usr/bin/python3 tools/make_render_bench.py "$tmp/render" >/dev/null
+for i in 1 2 3; do
+  TIMEFORMAT=%R
+  { time "$bin" render "$tmp/render/scene.json" -o "$tmp/render/out$i.wav" >/dev/null 2>&1; } 2> "$tmp/render/wall$i"
+done
+/usr/bin/python3 - "$tmp/render" <<'PY'
+import statistics, sys
+walls = [float(open(f"{sys.argv[1]}/wall{i}").read()) for i in (1, 2, 3)]
+print("render wall_s=" + ",".join(f"{w:.2f}" for w in walls) + f" median_s={statistics.median(walls):.2f}")
+PY
 for trace in shared per-source; do
   echo "## runtime, trace $trace"
   "$bin" bench runtime samples/furnished_room/furnished_room.glb \
