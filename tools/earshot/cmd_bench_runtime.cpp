@@ -8,6 +8,7 @@
 // (max_block_cpu_pct).
 #include <pthread.h>
 #include <time.h>
+#include <unistd.h>
 
 #include <sched.h>
 #include <algorithm>
@@ -51,6 +52,23 @@ double threadCpuSeconds() {
   timespec ts{};
   clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
   return double(ts.tv_sec) + 1e-9 * double(ts.tv_nsec);
+}
+
+// The machine's steal time so far (Linux /proc/stat: time a hypervisor ran
+// something else while this guest's CPUs had work), summed over CPUs, in
+// seconds; negative where unknown. A guest's thread CPU clock counts stolen
+// time as its own, so a block the hypervisor held up looks slow even in CPU
+// time.
+double stealSeconds() {
+  std::FILE* f = std::fopen("/proc/stat", "r");
+  if (!f) return -1.0;
+  unsigned long long v[8] = {};
+  const int got = std::fscanf(f, "cpu %llu %llu %llu %llu %llu %llu %llu %llu", &v[0], &v[1], &v[2], &v[3], &v[4],
+                              &v[5], &v[6], &v[7]);
+  std::fclose(f);
+  const long hz = sysconf(_SC_CLK_TCK);
+  if (got != 8 || hz <= 0) return -1.0;
+  return double(v[7]) / double(hz);
 }
 
 int run(const BenchRuntimeOptions& o) {
@@ -137,6 +155,7 @@ int run(const BenchRuntimeOptions& o) {
   }
   const size_t ageEvery = std::max<size_t>(1, size_t(0.1 / (double(o.block) / es.sampleRateHz)));
   double audioCpu = 0, gameCpu = 0;
+  const double steal0 = stealSeconds();
   const auto start = std::chrono::steady_clock::now();
   for (size_t b = 0; b < blocks; ++b) {
     // Game thread's part, here at 90 Hz: new poses for every source.
@@ -165,6 +184,7 @@ int run(const BenchRuntimeOptions& o) {
     std::this_thread::sleep_until(start + std::chrono::duration<double>(double(b + 1) * period));
   }
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const double steal1 = stealSeconds();
   stop = true;
   sim.join();
   // The first second (first touch of every buffer, IR pick-up) is reported apart.
@@ -204,6 +224,10 @@ int run(const BenchRuntimeOptions& o) {
               simTotals.totalMs * perUpdate);
   std::printf("audio_thread_priority=%s sim_threads=%u at nice +%d\n", audioPriority.c_str(),
               engine.settings().threads, es.workerNice);
+  if (steal0 >= 0 && steal1 >= 0)
+    std::printf("machine_steal_ms=%.0f (time the hypervisor took from this machine's CPUs during the run, all CPUs; "
+                "in a guest, time stolen while a thread runs may count as that thread's CPU time)\n",
+                1000.0 * (steal1 - steal0));
   std::printf("note: sim_thread_cpu_pct counts the simulation thread only; its tracing workers (sim_threads) add "
               "to it (the machine's total is in `time`)\n");
   return 0;
