@@ -25,6 +25,7 @@ struct BenchOptions {
   size_t maxPartition = 0;
   bool silenceCheck = false;
   bool compact = false;
+  size_t swapEvery = 0;
 };
 
 double threadCpuSeconds() {
@@ -53,13 +54,20 @@ int run(const BenchOptions& o) {
   auto mixer = ConvolutionMixer::create(s, o.sources);
   if (!check(mixer.status())) return 2;
   ConvolutionMixer& m = **mixer;
-  for (size_t src = 0; src < o.sources; ++src) {
-    std::vector<std::vector<float>> ir;
-    for (size_t c = 0; c < o.channels; ++c) ir.push_back(decayingNoise(s.maxIrFrames, 100 * src + c, o.rate));
-    auto p = PreparedIr::create(ir, m.layout());
-    if (!check(p.status())) return 2;
-    if (!check(m.setIr(src, *p))) return 2;
-  }
+  // Two IRs per source (the second only with --swap-every): A, then B
+  // and A in turn.
+  std::vector<std::shared_ptr<const PreparedIr>> irs[2];
+  for (int v = 0; v < (o.swapEvery > 0 ? 2 : 1); ++v)
+    for (size_t src = 0; src < o.sources; ++src) {
+      std::vector<std::vector<float>> ir;
+      for (size_t c = 0; c < o.channels; ++c)
+        ir.push_back(decayingNoise(s.maxIrFrames, 100 * src + c + 1000000 * uint64_t(v), o.rate));
+      auto p = PreparedIr::create(ir, m.layout());
+      if (!check(p.status())) return 2;
+      irs[v].push_back(std::move(*p));
+    }
+  for (size_t src = 0; src < o.sources; ++src)
+    if (!check(m.setIr(src, irs[0][src]))) return 2;
   std::vector<std::vector<float>> in(o.sources);
   for (size_t src = 0; src < o.sources; ++src) in[src] = decayingNoise(o.block * 64, 7 + src, 1e12);
   std::vector<const float*> ins(o.sources);
@@ -103,6 +111,32 @@ int run(const BenchOptions& o) {
   std::printf("convolve L=%g B=%zu sources=%zu rt_factor=%.1f p99_block_pct=%.3f max_block_pct=%.3f spectra=%s\n",
               o.irSeconds, o.block, o.sources, audio / std::max(cpu, 1e-9), 100.0 * p99 / period,
               100.0 * worst / period, o.compact ? "half" : "float");
+  if (o.swapEvery > 0) {
+    // Every source's IR changed every swapEvery blocks (all at once, as
+    // when a simulation posts every source): the blocks that crossfade
+    // against the others. The IRs are posted between the timed calls.
+    std::vector<double> all, quiet;
+    size_t v = 0;
+    for (size_t i = 0; i < blocks; ++i) {
+      if (i % o.swapEvery == 0) {
+        v ^= 1;
+        for (size_t src = 0; src < o.sources; ++src)
+          if (!check(m.setIr(src, irs[v][src]))) return 2;
+      }
+      feed();
+      const double t0 = threadCpuSeconds();
+      m.process(ins.data(), outs.data(), o.block);
+      all.push_back(threadCpuSeconds() - t0);
+    }
+    std::vector<double> sorted = all;
+    std::sort(sorted.begin(), sorted.end());
+    const double median = sorted[sorted.size() / 2];
+    std::printf("convolve-swap L=%g B=%zu sources=%zu every=%zu max_block_pct=%.3f p99_block_pct=%.3f "
+                "median_block_pct=%.3f (no swaps: max %.3f p99 %.3f)\n",
+                o.irSeconds, o.block, o.sources, o.swapEvery, 100.0 * sorted.back() / period,
+                100.0 * sorted[std::min(sorted.size() - 1, sorted.size() * 99 / 100)] / period, 100.0 * median / period,
+                100.0 * worst / period, 100.0 * p99 / period);
+  }
   if (o.silenceCheck) {
     // Full-scale noise, then as long again of silence: with denormals
     // flushed the silent blocks must not cost more than the noisy ones.
@@ -159,6 +193,10 @@ const Registrar registrar([](CLI::App& root) {
                 "IR spectra as 16-bit floats (what the runtime's ambisonic bus uses): half the memory traffic");
   cmd->add_flag("--silence-check", o->silenceCheck,
                 "Also time --seconds of full-scale noise then as much silence (denormal check)");
+  cmd->add_option("--swap-every", o->swapEvery,
+                  "Also time --seconds in which every source's IR changes every this many blocks, all at once "
+                  "(the crossfades' cost; 0: not)")
+      ->check(CLI::Range(size_t{0}, size_t{1} << 30));
   cmd->add_option("--rate", o->rate, "Sample rate in Hz")->check(CLI::Range(8000.0, 384000.0))->capture_default_str();
   cmd->callback([o] { setExitCode(run(*o)); });
 });
