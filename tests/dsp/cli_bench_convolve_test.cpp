@@ -40,6 +40,26 @@ TEST(CliBenchConvolve, PrintsOneReportLine) {
   }
 }
 
+// --swap-every: a second line, the blocks timed while every source's IR
+// changes every N blocks.
+TEST(CliBenchConvolve, SwapEveryTimesTheCrossfadesApart) {
+  Ran r = runCli("bench convolve --ir-seconds 0.05 --block 128 --seconds 0.2 --sources 3 --channels 4 --compact "
+                 "--swap-every 4");
+  ASSERT_EQ(r.code, 0) << r.out;
+  std::smatch m;
+  std::regex lines(R"(convolve L=0\.05 B=128 sources=3 [^\n]*spectra=half\n)"
+                   R"(convolve-swap L=0\.05 B=128 sources=3 every=4 max_block_pct=([0-9.]+) p99_block_pct=([0-9.]+) )"
+                   R"(median_block_pct=([0-9.]+) \(no swaps: max [0-9.]+ p99 [0-9.]+\)\n)");
+  ASSERT_TRUE(std::regex_match(r.out, m, lines)) << r.out;
+  EXPECT_LE(std::stod(m[2]), std::stod(m[1]));
+  EXPECT_LE(std::stod(m[3]), std::stod(m[2]));
+  EXPECT_GT(std::stod(m[3]), 0.0);
+  // Without it, one line only.
+  Ran plain = runCli("bench convolve --ir-seconds 0.05 --block 128 --seconds 0.1");
+  ASSERT_EQ(plain.code, 0) << plain.out;
+  EXPECT_EQ(plain.out.find("convolve-swap"), std::string::npos) << plain.out;
+}
+
 TEST(CliBenchConvolve, RejectsABlockKissFftWouldAllocateFor) {
   Ran r = runCli("bench convolve --block 14 --seconds 0.1");
   EXPECT_EQ(r.code, 2);
