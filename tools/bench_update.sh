@@ -6,7 +6,8 @@
 # without the cache folder, and with it warm); then one shared
 # trace for 32 sources beside a trace from each, the render benchmark
 # (three runs), and the runtime with 32 moving sources in the furnished
-# room, shared trace and per source. Usage (from the repository
+# room, shared trace and per source (and, for information, shared with the
+# simulation on every core). Usage (from the repository
 # root, after the build): bash tools/bench_update.sh [build-dir]
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -65,3 +66,10 @@ for trace in shared per-source; do
   "$bin" bench runtime samples/furnished_room/furnished_room.glb \
     --material-map samples/furnished_room/materials_map.json --sources 32 --seconds 10 --ir-seconds 2 --trace "$trace"
 done
+# For information (the criterion is the engine's default, the cores less
+# one): the shared trace with the simulation on every core, at nice +5
+# below the real-time audio thread.
+echo "## runtime, trace shared, simulation on all $(nproc) cores"
+"$bin" bench runtime samples/furnished_room/furnished_room.glb \
+  --material-map samples/furnished_room/materials_map.json --sources 32 --seconds 10 --ir-seconds 2 --trace shared \
+  --threads "$(nproc)"
