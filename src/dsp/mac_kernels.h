@@ -68,6 +68,19 @@ void complexMacBatchHalf(float* ar, float* ai, const float* const* x, const uint
  *  the AVX2 + F16C version where the CPU has it). */
 void complexMacBatchHalfPortable(float* ar, float* ai, const float* const* x, const uint16_t* h, size_t k0,
                                  size_t parts, size_t partitions, size_t stride, float scale);
+/** A fading source's difference over compact spectra of one layout:
+ *  (ar, ai) += sum_j X_j * (sp * P_(k0 + j) - sc * C_(k0 + j)), each
+ *  difference made first (sp * p and sc * c rounded, then subtracted: zero
+ *  for two equal IRs), then multiplied in with the register tiles of
+ *  complexMacBatchHalf. AVX2 + F16C where the CPU has them. */
+void complexMacDiffBatchHalf(float* ar, float* ai, const float* const* x, const uint16_t* p, float sp,
+                             const uint16_t* c, float sc, size_t k0, size_t parts, size_t partitions,
+                             size_t stride);
+/** The portable loop complexMacDiffBatchHalf falls back to (tested against
+ *  the AVX2 + F16C version where the CPU has it). */
+void complexMacDiffBatchHalfPortable(float* ar, float* ai, const float* const* x, const uint16_t* p, float sp,
+                                     const uint16_t* c, float sc, size_t k0, size_t parts, size_t partitions,
+                                     size_t stride);
 /** Partition k of a compact level-channel block as floats times `scale`:
  *  `stride` real parts, then `stride` imaginary parts (the float kernels'
  *  layout; used while an IR fades). F16C where the CPU has it. */

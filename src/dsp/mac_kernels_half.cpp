@@ -119,6 +119,57 @@ EARSHOT_F16C void complexMacBatchHalfAvx(float* __restrict ar, float* __restrict
   }
 }
 
+// complexMacDiffBatchHalf: as complexMacBatchHalfAvx, over the
+// differences sp * p - sc * c (a multiply each and a subtraction, no fused
+// multiply-add: equal IRs give exactly zero).
+EARSHOT_F16C static inline __m256 halvesDiff(__m256 vp, const uint16_t* a, __m256 vc, const uint16_t* b) {
+  return _mm256_sub_ps(_mm256_mul_ps(vp, loadHalves(a)), _mm256_mul_ps(vc, loadHalves(b)));
+}
+
+EARSHOT_F16C void complexMacDiffBatchHalfAvx(float* __restrict ar, float* __restrict ai, const float* const* x,
+                                             const uint16_t* p, float sp, const uint16_t* c, float sc, size_t k0,
+                                             size_t parts, size_t partitions, size_t stride) {
+  const __m256 vp = _mm256_set1_ps(sp), vc = _mm256_set1_ps(sc);
+  const size_t full = stride / 32 * 32;
+  size_t i = 0;
+  for (; i < full; i += 32) {
+    __m256 r[4], m[4];
+    for (int t = 0; t < 4; ++t) r[t] = m[t] = _mm256_setzero_ps();
+    const size_t off = compactTileOffset(i, k0, partitions, stride);
+    const uint16_t* pp = p + off;
+    const uint16_t* cp = c + off;
+    for (size_t j = 0; j < parts; ++j, pp += 64, cp += 64) {
+      const float* xr = x[j] + i;
+      const float* xi = xr + stride;
+      for (int t = 0; t < 4; ++t) {
+        const __m256 a = _mm256_loadu_ps(xr + 8 * t), b = _mm256_loadu_ps(xi + 8 * t);
+        const __m256 dr = halvesDiff(vp, pp + 8 * t, vc, cp + 8 * t);
+        const __m256 di = halvesDiff(vp, pp + 32 + 8 * t, vc, cp + 32 + 8 * t);
+        r[t] = _mm256_fmadd_ps(a, dr, _mm256_fnmadd_ps(b, di, r[t]));
+        m[t] = _mm256_fmadd_ps(a, di, _mm256_fmadd_ps(b, dr, m[t]));
+      }
+    }
+    for (int t = 0; t < 4; ++t) {
+      _mm256_storeu_ps(ar + i + 8 * t, _mm256_add_ps(r[t], _mm256_loadu_ps(ar + i + 8 * t)));
+      _mm256_storeu_ps(ai + i + 8 * t, _mm256_add_ps(m[t], _mm256_loadu_ps(ai + i + 8 * t)));
+    }
+  }
+  for (; i < stride; i += 8) {  // 8-bin tiles
+    __m256 r = _mm256_setzero_ps(), m = _mm256_setzero_ps();
+    const size_t off = compactTileOffset(i, k0, partitions, stride);
+    const uint16_t* pp = p + off;
+    const uint16_t* cp = c + off;
+    for (size_t j = 0; j < parts; ++j, pp += 16, cp += 16) {
+      const __m256 a = _mm256_loadu_ps(x[j] + i), b = _mm256_loadu_ps(x[j] + i + stride);
+      const __m256 dr = halvesDiff(vp, pp, vc, cp), di = halvesDiff(vp, pp + 8, vc, cp + 8);
+      r = _mm256_fmadd_ps(a, dr, _mm256_fnmadd_ps(b, di, r));
+      m = _mm256_fmadd_ps(a, di, _mm256_fmadd_ps(b, dr, m));
+    }
+    _mm256_storeu_ps(ar + i, _mm256_add_ps(r, _mm256_loadu_ps(ar + i)));
+    _mm256_storeu_ps(ai + i, _mm256_add_ps(m, _mm256_loadu_ps(ai + i)));
+  }
+}
+
 // compactPartitionToFloats with vcvtph2ps (the tiles are 32 or 8 bins
 // wide): the same values, the conversion being exact and the scaling one
 // rounding either way. In software it took more of the audio thread than
@@ -187,6 +238,29 @@ void complexMacBatchHalfPortable(float* ar, float* ai, const float* const* x, co
   }
 }
 
+void complexMacDiffBatchHalfPortable(float* ar, float* ai, const float* const* x, const uint16_t* p, float sp,
+                                     const uint16_t* c, float sc, size_t k0, size_t parts, size_t partitions,
+                                     size_t stride) {
+  for (size_t i = 0; i < stride; i += compactTileWidth(i, stride)) {
+    const size_t w = compactTileWidth(i, stride);
+    const size_t off = compactTileOffset(i, k0, partitions, stride);  // partition k0 + j at + 2 w j
+    for (size_t b = 0; b < w; ++b) {
+      float r = 0.0f, m = 0.0f;
+      for (size_t j = 0; j < parts; ++j) {
+        const uint16_t* tp = p + off + 2 * w * j;
+        const uint16_t* tc = c + off + 2 * w * j;
+        const float a = x[j][i + b], bb = x[j][i + b + stride];
+        const float dr = sp * halfToFloat(tp[b]) - sc * halfToFloat(tc[b]);
+        const float di = sp * halfToFloat(tp[w + b]) - sc * halfToFloat(tc[w + b]);
+        r += a * dr - bb * di;
+        m += a * di + bb * dr;
+      }
+      ar[i + b] += r;
+      ai[i + b] += m;
+    }
+  }
+}
+
 void compactPartitionToFloatsPortable(const uint16_t* h, size_t k, size_t partitions, size_t stride, float scale,
                                       float* out) {
   for (size_t i = 0; i < stride; i += compactTileWidth(i, stride)) {
@@ -231,6 +305,15 @@ void compactPartitionToFloats(const uint16_t* h, size_t k, size_t partitions, si
   if (kF16cPath) return compactPartitionToFloatsAvx(h, k, partitions, stride, scale, out);
 #endif
   compactPartitionToFloatsPortable(h, k, partitions, stride, scale, out);
+}
+
+void complexMacDiffBatchHalf(float* ar, float* ai, const float* const* x, const uint16_t* p, float sp,
+                             const uint16_t* c, float sc, size_t k0, size_t parts, size_t partitions,
+                             size_t stride) {
+#ifdef EARSHOT_HAVE_F16C_PATH
+  if (kF16cPath) return complexMacDiffBatchHalfAvx(ar, ai, x, p, sp, c, sc, k0, parts, partitions, stride);
+#endif
+  complexMacDiffBatchHalfPortable(ar, ai, x, p, sp, c, sc, k0, parts, partitions, stride);
 }
 
 void complexMacBatchHalf(float* ar, float* ai, const float* const* x, const uint16_t* h, size_t k0, size_t parts,

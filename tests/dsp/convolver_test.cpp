@@ -52,12 +52,14 @@ Streamed stream(Convolver& conv, const std::vector<float>& input, const std::fun
   return r;
 }
 
-std::unique_ptr<Convolver> makeConvolver(size_t latency, size_t maxIr, size_t channels, size_t fade = 0) {
+std::unique_ptr<Convolver> makeConvolver(size_t latency, size_t maxIr, size_t channels, size_t fade = 0,
+                                         bool compact = false) {
   ConvolverSettings s;
   s.latencyFrames = latency;
   s.maxIrFrames = maxIr;
   s.channels = channels;
   s.fadeFrames = fade;
+  s.compactSpectra = compact;
   auto c = Convolver::create(s);
   EXPECT_TRUE(c.isOk()) << c.status().message();
   return std::move(*c);
@@ -276,6 +278,88 @@ TEST(Convolver, SwapToSameIrChangesNothing) {
     EXPECT_EQ(r1.out[c], ref.out[c]) << "channel " << c;
     EXPECT_EQ(r2.out[c], ref.out[c]) << "channel " << c;
   }
+}
+
+// The same with compact (binary16) spectra: a fade from an IR to itself
+// adds exactly nothing (the fading path's difference of equal halves is
+// zero, and its main sum is the steady state's).
+TEST(Convolver, SwapToSameCompactIrChangesNothing) {
+  const size_t irLen = 30000, block = 128;
+  std::vector<std::vector<float>> ir = {decayingNoise(irLen, 31), decayingNoise(irLen, 32)};
+  auto x = decayingNoise(60000, 33, 0.0);
+  auto plain = makeConvolver(block, irLen, 2, 0, true);
+  auto p0 = prepare(ir, plain->layout());
+  ASSERT_TRUE(p0->compact());
+  ASSERT_TRUE(plain->setIr(p0).isOk());
+  Streamed ref = stream(*plain, x, [&] { return block; });
+  auto again = makeConvolver(block, irLen, 2, 0, true);
+  ASSERT_TRUE(again->setIr(p0).isOk());
+  Streamed r = stream(*again, x, [&] { return block; },
+                      [&](size_t call) {
+                        if (call % 7 == 3) {
+                          ASSERT_TRUE(again->setIr(prepare(ir, again->layout())).isOk());
+                        }
+                      });
+  for (size_t c = 0; c < 2; ++c) EXPECT_EQ(r.out[c], ref.out[c]) << "channel " << c;
+}
+
+// Fades between compact IRs follow the float mixer's to the storage's
+// error: two sources whose IRs change every few blocks between a long one
+// and a short one with leading silence (so that levels fade where only the
+// old IR, or only the new one, has partitions), against the same swaps in
+// a float mixer. Bound as in CompactSpectraErrorIsSmallAndBounded: the
+// error's energy under 2^-22 of the output's (-66.2 dB).
+TEST(ConvolutionMixer, CompactFadesFollowTheFloatMixersToTheStorageError) {
+  const size_t channels = 4, irLen = 9000, block = 256, frames = 40000;
+  std::vector<std::vector<float>> longIr, shortIr;
+  for (size_t c = 0; c < channels; ++c) {
+    longIr.push_back(decayingNoise(irLen, 80 + c));
+    std::vector<float> s = decayingNoise(2000, 90 + c);
+    s.insert(s.begin(), 1500, 0.0f);
+    shortIr.push_back(std::move(s));
+  }
+  std::vector<std::vector<float>> inputs = {decayingNoise(frames, 101, 0.0), decayingNoise(frames, 102, 0.0)};
+  auto run = [&](bool compact, bool swaps) {
+    ConvolverSettings s;
+    s.latencyFrames = block;
+    s.maxIrFrames = irLen;
+    s.channels = channels;
+    s.compactSpectra = compact;
+    auto mixer = ConvolutionMixer::create(s, 2);
+    EXPECT_TRUE(mixer.isOk());
+    ConvolutionMixer& m = **mixer;
+    auto a = prepare(longIr, m.layout()), b = prepare(shortIr, m.layout());
+    EXPECT_EQ(a->compact(), compact);
+    EXPECT_TRUE(m.setIr(0, a).isOk());
+    EXPECT_TRUE(m.setIr(1, b).isOk());
+    std::vector<std::vector<float>> out(channels, std::vector<float>(frames));
+    std::vector<const float*> ins(2);
+    std::vector<float*> outs(channels);
+    for (size_t pos = 0, call = 0; pos < frames; pos += block, ++call) {
+      if (swaps && call % 5 == 2) {
+        const bool flip = (call / 5) % 2 == 0;
+        EXPECT_TRUE(m.setIr(0, flip ? b : a).isOk());
+        EXPECT_TRUE(m.setIr(1, flip ? a : b).isOk());
+      }
+      for (size_t src = 0; src < 2; ++src) ins[src] = inputs[src].data() + pos;
+      for (size_t c = 0; c < channels; ++c) outs[c] = out[c].data() + pos;
+      m.process(ins.data(), outs.data(), std::min(block, frames - pos));
+    }
+    return out;
+  };
+  const auto want = run(false, true), got = run(true, true), steady = run(false, false);
+  double signalEnergy = 0, errorEnergy = 0, swapEffect = 0;
+  for (size_t c = 0; c < channels; ++c)
+    for (size_t t = 0; t < frames; ++t) {
+      const double e = double(want[c][t]) - got[c][t];
+      signalEnergy += double(want[c][t]) * want[c][t];
+      errorEnergy += e * e;
+      swapEffect = std::max(swapEffect, std::fabs(double(want[c][t]) - steady[c][t]));
+    }
+  EXPECT_GT(swapEffect, 0.1);  // the swaps changed the output
+  const double errorDb = 10 * std::log10(errorEnergy / signalEnergy);
+  EXPECT_LE(errorDb, 20 * std::log10(std::ldexp(1.0, -11)));
+  std::printf("compact fades: error energy %.1f dB of the output's\n", errorDb);
 }
 
 // A mixer of three sources equals the sum of three separate convolvers
@@ -501,6 +585,58 @@ TEST(CompactSpectra, MultiplyAccumulateEqualsTheFloatKernel) {
   }
   EXPECT_GT(sum, 10.0);  // the products were added
   EXPECT_LE(worst, 1e-6);
+}
+
+// The fading difference over binary16 spectra (AVX2 + F16C here) equals
+// the float kernel on the converted differences, and its portable loop, to
+// float rounding; for equal spectra and scales it adds exactly nothing.
+TEST(CompactSpectra, DifferenceMultiplyAccumulateEqualsTheFloatKernel) {
+  const size_t partitions = 7, stride = 264, k0 = 1, parts = 6;
+  const float sp = 0.125f, sc = 0.5f;
+  Pcg32 rng(18, 19);
+  std::vector<std::vector<float>> x(parts, std::vector<float>(2 * stride)), d(partitions);
+  std::vector<uint16_t> p(partitions * 2 * stride), c(partitions * 2 * stride);
+  for (auto& v : x)
+    for (auto& e : v) e = float(rng.uniformDouble() * 2 - 1);
+  for (size_t k = 0; k < partitions; ++k) {
+    d[k].resize(2 * stride);
+    for (size_t i = 0; i < stride; i += dsp_detail::compactTileWidth(i, stride)) {
+      const size_t w = dsp_detail::compactTileWidth(i, stride);
+      const size_t off = dsp_detail::compactTileOffset(i, k, partitions, stride);
+      for (size_t b = 0; b < 2 * w; ++b) {
+        p[off + b] = dsp_detail::floatToHalf(float(rng.uniformDouble() * 2 - 1));
+        c[off + b] = dsp_detail::floatToHalf(float(rng.uniformDouble() * 2 - 1));
+        d[k][(b < w ? 0 : stride) + i + b % w] =
+            sp * dsp_detail::halfToFloat(p[off + b]) - sc * dsp_detail::halfToFloat(c[off + b]);
+      }
+    }
+  }
+  std::vector<const float*> xs, ds;
+  for (size_t j = 0; j < parts; ++j) {
+    xs.push_back(x[j].data());
+    ds.push_back(d[k0 + j].data());
+  }
+  std::vector<float> a(2 * stride, 0.25f), b(2 * stride, 0.25f), ref(2 * stride, 0.25f);
+  dsp_detail::complexMacDiffBatchHalf(a.data(), a.data() + stride, xs.data(), p.data(), sp, c.data(), sc, k0, parts,
+                                      partitions, stride);
+  dsp_detail::complexMacDiffBatchHalfPortable(b.data(), b.data() + stride, xs.data(), p.data(), sp, c.data(), sc, k0,
+                                              parts, partitions, stride);
+  dsp_detail::complexMacBatch(ref.data(), ref.data() + stride, xs.data(), ds.data(), parts, stride, stride);
+  double worst = 0, sum = 0;
+  for (size_t i = 0; i < 2 * stride; ++i) {
+    worst = std::max({worst, std::fabs(double(a[i]) - ref[i]), std::fabs(double(b[i]) - ref[i])});
+    sum += std::fabs(double(ref[i]) - 0.25);
+  }
+  EXPECT_GT(sum, 10.0);  // the products were added
+  EXPECT_LE(worst, 2e-6);
+  // Equal spectra under equal scales: the accumulator unchanged, bit for bit.
+  std::vector<float> same(2 * stride, 0.25f), samePortable(2 * stride, 0.25f);
+  dsp_detail::complexMacDiffBatchHalf(same.data(), same.data() + stride, xs.data(), p.data(), sp, p.data(), sp, k0,
+                                      parts, partitions, stride);
+  dsp_detail::complexMacDiffBatchHalfPortable(samePortable.data(), samePortable.data() + stride, xs.data(), p.data(),
+                                              sp, p.data(), sp, k0, parts, partitions, stride);
+  EXPECT_EQ(same, std::vector<float>(2 * stride, 0.25f));
+  EXPECT_EQ(samePortable, std::vector<float>(2 * stride, 0.25f));
 }
 
 // The ambisonic bus stores its IR spectra as binary16 (compactSpectra):
