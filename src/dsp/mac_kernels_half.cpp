@@ -250,8 +250,11 @@ void complexMacDiffBatchHalfPortable(float* ar, float* ai, const float* const* x
         const uint16_t* tp = p + off + 2 * w * j;
         const uint16_t* tc = c + off + 2 * w * j;
         const float a = x[j][i + b], bb = x[j][i + b + stride];
-        const float dr = sp * halfToFloat(tp[b]) - sc * halfToFloat(tc[b]);
-        const float di = sp * halfToFloat(tp[w + b]) - sc * halfToFloat(tc[w + b]);
+        // Products apart from the subtraction (no contraction into a fused
+        // multiply-add where the target has one): equal IRs give zero.
+        const float pr = sp * halfToFloat(tp[b]), cr = sc * halfToFloat(tc[b]);
+        const float pi = sp * halfToFloat(tp[w + b]), ci = sc * halfToFloat(tc[w + b]);
+        const float dr = pr - cr, di = pi - ci;
         r += a * dr - bb * di;
         m += a * di + bb * dr;
       }
