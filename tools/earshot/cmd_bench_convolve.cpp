@@ -115,7 +115,7 @@ int run(const BenchOptions& o) {
     // Every source's IR changed every swapEvery blocks (all at once, as
     // when a simulation posts every source): the blocks that crossfade
     // against the others. The IRs are posted between the timed calls.
-    std::vector<double> all, quiet;
+    std::vector<double> all;
     size_t v = 0;
     for (size_t i = 0; i < blocks; ++i) {
       if (i % o.swapEvery == 0) {

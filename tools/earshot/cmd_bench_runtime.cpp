@@ -56,9 +56,10 @@ double threadCpuSeconds() {
 
 // The machine's steal time so far (Linux /proc/stat: time a hypervisor ran
 // something else while this guest's CPUs had work), summed over CPUs, in
-// seconds; negative where unknown. A guest's thread CPU clock counts stolen
-// time as its own, so a block the hypervisor held up looks slow even in CPU
-// time.
+// seconds; negative where unknown. A guest's thread CPU clock may count
+// time stolen while the thread ran as its own (tools/stall_probe.py
+// measured it), so a block the hypervisor held up can look slow even in
+// CPU time.
 double stealSeconds() {
   std::FILE* f = std::fopen("/proc/stat", "r");
   if (!f) return -1.0;
