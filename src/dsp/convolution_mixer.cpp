@@ -84,6 +84,15 @@ struct SourceLevel {
   Holder* cur = nullptr;
   Holder* prev = nullptr;
   bool fading = false;
+  // xs[j]: the input spectrum that partition k0 + j multiplies (the level
+  // holds k partitions of `stride` bins), for j < count.
+  void inputsOf(size_t k0, size_t count, size_t k, size_t stride, const float** xs) const {
+    for (size_t j = 0; j < count; ++j) {
+      const size_t kk = k0 + j;
+      const size_t slot = head >= kk ? head - kk : head + k - kk;
+      xs[j] = fdl.data() + slot * 2 * stride;
+    }
+  }
 };
 
 struct Source {
@@ -305,11 +314,7 @@ struct ConvolutionMixer::Impl {
       for (size_t kb = std::max(k0, cur->firstActivePartition(li)); kb < kEnd; kb += kBatch) {
         const size_t cnt = std::min(kBatch, kEnd - kb);
         const float* xs[kBatch];
-        for (size_t j = 0; j < cnt; ++j) {
-          const size_t kk = kb + j;
-          const size_t slot = sl.head >= kk ? sl.head - kk : sl.head + lv.k - kk;
-          xs[j] = sl.fdl.data() + slot * 2 * st;
-        }
+        sl.inputsOf(kb, cnt, lv.k, st, xs);
         if (cur->compact()) {
           for (size_t c = c0; c < c1; ++c) {
             float* mr = lv.accMain.data() + c * 2 * st;
@@ -372,11 +377,7 @@ struct ConvolutionMixer::Impl {
       auto passes = [&](size_t from, size_t to, auto&& pass) {
         for (size_t kb = from; kb < to; kb += kBatch) {
           const size_t cnt = std::min(kBatch, to - kb);
-          for (size_t j = 0; j < cnt; ++j) {
-            const size_t kk = kb + j;
-            const size_t slot = sl.head >= kk ? sl.head - kk : sl.head + lv.k - kk;
-            xs[j] = sl.fdl.data() + slot * 2 * st;
-          }
+          sl.inputsOf(kb, cnt, lv.k, st, xs);
           pass(kb, cnt);
         }
       };

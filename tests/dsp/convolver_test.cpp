@@ -628,7 +628,7 @@ TEST(CompactSpectra, DifferenceMultiplyAccumulateEqualsTheFloatKernel) {
     sum += std::fabs(double(ref[i]) - 0.25);
   }
   EXPECT_GT(sum, 10.0);  // the products were added
-  EXPECT_LE(worst, 2e-6);
+  EXPECT_LE(worst, 1e-6);  // measured 2.4e-7
   // Equal spectra under equal scales: the accumulator unchanged, bit for bit.
   std::vector<float> same(2 * stride, 0.25f), samePortable(2 * stride, 0.25f);
   dsp_detail::complexMacDiffBatchHalf(same.data(), same.data() + stride, xs.data(), p.data(), sp, p.data(), sp, k0,
