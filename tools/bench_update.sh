@@ -7,7 +7,8 @@
 # trace for 32 sources beside a trace from each, the render benchmark
 # (three runs), and the runtime with 32 moving sources in the furnished
 # room, shared trace and per source (and, for information, shared with the
-# simulation on every core). Usage (from the repository
+# simulation on every core), then issue 16's criteria as a table
+# (tools/bench_update_summary.py). Usage (from the repository
 # root, after the build): bash tools/bench_update.sh [build-dir]
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -15,6 +16,7 @@ bin="${1:-build}/tools/earshot"
 [ -x "$bin" ] || { echo "bench_update: no $bin (build first)" >&2; exit 2; }
 tmp="$(mktemp -d)"
 trap 'rm -rf "$tmp"' EXIT
+run_all() {
 echo "# $(date -u +%FT%TZ) $(nproc) cores, load $(cut -d' ' -f1-3 /proc/loadavg)"
 for scene in shoebox/shoebox.gltf furnished_room/furnished_room.glb; do
   dir="samples/$(dirname "$scene")"
@@ -73,3 +75,8 @@ echo "## runtime, trace shared, simulation on all $(nproc) cores"
 "$bin" bench runtime samples/furnished_room/furnished_room.glb \
   --material-map samples/furnished_room/materials_map.json --sources 32 --seconds 10 --ir-seconds 2 --trace shared \
   --threads "$(nproc)"
+}
+# Everything above, then issue 16's criteria from it (tools/bench_update_summary.py).
+run_all | tee "$tmp/update.log"
+echo "## issue 16's criteria, from this run"
+/usr/bin/python3 tools/bench_update_summary.py "$tmp/update.log"
