@@ -32,6 +32,7 @@ struct BenchTraceOptions {
   int runs = 15;
   bool embree = true;
   unsigned sharedSources = 0;
+  bool perSource = true;  // with sharedSources: also a trace from each source
   double shadowRoulette = ReflectionSettings{}.sharedShadowRoulette;
 };
 
@@ -76,7 +77,8 @@ int runShared(const BenchTraceOptions& o, const RayTracer& tracer, const Materia
     keptBytes = paths.bytes();
     double per = 0;
     perSegments = perShadows = 0;
-    for (const Vec3d& p : positions) {
+    for (size_t k = 0; o.perSource && k < positions.size(); ++k) {
+      const Vec3d& p = positions[k];
       auto one = traceReflections(tracer, materials, p, lis, s, pool);
       if (!check(one.status())) return 2;
       per += one->stats.traceMs;
@@ -91,11 +93,17 @@ int runShared(const BenchTraceOptions& o, const RayTracer& tracer, const Materia
                                                          : -1.0);
   }
   const double sh = median(sharedMs), per = median(perSourceMs);
-  std::printf("shared_trace sources=%u threads=%u runs=%d shared_ms=%.1f (segments=%llu shadow_rays=%llu) "
-              "per_source_ms=%.1f (segments=%llu shadow_rays=%llu) ratio_per_source_over_shared=%.2f\n",
-              o.sharedSources, pool.threadCount(), runs, sh, (unsigned long long)sharedSegments,
-              (unsigned long long)sharedShadows, per, (unsigned long long)perSegments, (unsigned long long)perShadows,
-              per / sh);
+  if (!o.perSource)
+    std::printf("shared_trace sources=%u threads=%u runs=%d shared_ms=%.1f (segments=%llu shadow_rays=%llu) "
+                "(no per-source traces)\n",
+                o.sharedSources, pool.threadCount(), runs, sh, (unsigned long long)sharedSegments,
+                (unsigned long long)sharedShadows);
+  else
+    std::printf("shared_trace sources=%u threads=%u runs=%d shared_ms=%.1f (segments=%llu shadow_rays=%llu) "
+                "per_source_ms=%.1f (segments=%llu shadow_rays=%llu) ratio_per_source_over_shared=%.2f\n",
+                o.sharedSources, pool.threadCount(), runs, sh, (unsigned long long)sharedSegments,
+                (unsigned long long)sharedShadows, per, (unsigned long long)perSegments,
+                (unsigned long long)perShadows, per / sh);
   std::printf("kept_paths sources=%u keeping_ms=%.1f reused_ms=%.1f kept_mb=%.1f ratio_shared_over_reused=%.2f "
               "(the same trace keeping the listener's paths, then detecting the sources in them: SharedTracePaths)\n",
               o.sharedSources, median(recordMs), median(reusedMs), double(keptBytes) / 1048576.0,
@@ -206,6 +214,9 @@ const Registrar registrar([](CLI::App& root) {
                   "Instead: one shared listener-centred trace for this many sources (on a ring at 0.6 of the "
                   "scene's half extents, z up) beside a trace from each of them, same run (median of up to 5)")
       ->check(CLI::Range(1u, 4096u));
+  cmd->add_flag("!--no-per-source", o->perSource,
+                "With --shared-sources: skip the trace from each source (times the shared trace and the detection "
+                "in kept paths alone)");
   cmd->add_option("--shadow-roulette", o->shadowRoulette,
                   "With --shared-sources: the shared trace's shadow-ray roulette (a source gets a reflection's "
                   "shadow ray with probability min(1, this x R^2 cos / d^2); 0: every shadow ray)")
