@@ -12,6 +12,7 @@
 #include <array>
 #include <cstdint>
 #include <cstring>
+#include <memory>
 #include <string>
 
 #if defined(__SSE2__)
@@ -27,10 +28,17 @@
 #include "earshot/core/random.h"
 #include "earshot/core/thread_pool.h"
 #include "earshot/scene/ray_tracer.h"
+#include "fixed_point.h"
 
 namespace earshot {
 
 namespace {
+
+using detail::addSat;
+using detail::kFixedBatch;
+using detail::kFixedScale;
+using detail::toFixed;
+using detail::toFixedBatch;
 
 // A hit this close to an edge (smallest barycentric coordinate) has the
 // offset of its next ray checked against the neighbouring triangles
@@ -48,37 +56,6 @@ Vec3d clearOffset(const RayTracer& tracer, const Vec3d& p, const Vec3f& n, float
   Hit h;
   if (tracer.intersect(probe, h) && h.t < eps) return Vec3d(n) * (0.5 * double(h.t));
   return Vec3d(n * eps);
-}
-
-// Fixed point for order-independent (hence thread-count-independent) sums:
-// 2^-50 ~ 8.9e-16 of the energy of a direct sound at 1 m; the largest bin
-// value is 2^13 = 8192 (a reflection 1 cm away is 1e4; saturates there).
-constexpr double kFixedScale = 1125899906842624.0;  // 2^50
-constexpr double kFixedMax = 9.2e18;
-
-// Saturating add: a bin of an absurd scene (a 1 cm room, 1000 bounces) can
-// exceed the format's 2^13 range; it then stays at the limit instead of
-// overflowing. For non-negative sums (energies) saturation is associative,
-// so results stay thread-count independent; only a saturated signed
-// direction sum could depend on the order.
-inline void addSat(int64_t& acc, int64_t v) {
-  if (__builtin_add_overflow(acc, v, &acc)) acc = v > 0 ? INT64_MAX : INT64_MIN;
-}
-
-// Round to nearest (ties away from zero) by truncation: no libm call. The
-// clamp keeps NaN at +kFixedMax. Branch-free (minsd/maxsd, copysign): the
-// tracer makes ~20 of these per segment.
-inline int64_t toFixed(double v) {
-#if defined(__SSE2__)
-  __m128d x = _mm_set_sd(v * kFixedScale);
-  x = _mm_min_sd(x, _mm_set_sd(kFixedMax));   // x < max ? x : max (NaN -> max)
-  x = _mm_max_sd(x, _mm_set_sd(-kFixedMax));  // x > -max ? x : -max
-  const double s = _mm_cvtsd_f64(x);
-#else
-  double s = v * kFixedScale;
-  s = std::max(-kFixedMax, std::min(kFixedMax, s));
-#endif
-  return int64_t(s + std::copysign(0.5, s));
 }
 
 // exp(-m L) per band from two tables, L = whole metres + centimetres:
@@ -371,37 +348,46 @@ class DetectorLanes {
 // the same bits in any order.
 class PendingAdds {
  public:
+  static constexpr size_t kMaxRun = kNumBands + 3;  // a deposit's bands and direction sums
   /** `direct`: every add made at once (one detector's histograms stay in
    *  the cache: holding its adds back only costs time). */
   explicit PendingAdds(bool direct) : mDirect(direct) {
-    if (direct) return;
-    mTargets.reserve(kCapacity);
-    mValues.reserve(kCapacity);
+    if (!direct) mRuns.reset(new Run[kRuns]);
   }
-  /** Room for n more adds (applies the held ones when short), and the
-   *  lines of [first, last] fetched meanwhile. */
-  void reserve(size_t n, const int64_t* first, const int64_t* last) {
-    if (mDirect) return;
-    if (mTargets.size() + n > kCapacity) flush();
-    __builtin_prefetch(first, 1, 3);
-    __builtin_prefetch(last, 1, 3);
-  }
-  void add(int64_t* target, int64_t v) {
-    if (mDirect) return addSat(*target, v);
-    mTargets.push_back(target);
-    mValues.push_back(v);
+  /** Adds v[0, n) to target[0, n) (n <= kMaxRun), later: held, and the
+   *  target's lines fetched meanwhile. A run a record (the adds of one
+   *  deposit together: one pointer, not one per value). */
+  void addRun(int64_t* target, const int64_t* v, size_t n) {
+    if (mDirect) {
+      for (size_t k = 0; k < n; ++k) addSat(target[k], v[k]);
+      return;
+    }
+    if (mCount == kRuns) flush();
+    __builtin_prefetch(target, 1, 3);
+    __builtin_prefetch(target + n - 1, 1, 3);
+    Run& r = mRuns[mCount++];
+    r.target = target;
+    r.n = uint32_t(n);
+    std::memcpy(r.v, v, kMaxRun * sizeof(int64_t));  // a fixed size: plain vector moves
   }
   void flush() {
-    for (size_t i = 0; i < mTargets.size(); ++i) addSat(*mTargets[i], mValues[i]);
-    mTargets.clear();
-    mValues.clear();
+    for (size_t i = 0; i < mCount; ++i) {
+      const Run& r = mRuns[i];
+      for (uint32_t k = 0; k < r.n; ++k) addSat(r.target[k], r.v[k]);
+    }
+    mCount = 0;
   }
 
  private:
-  static constexpr size_t kCapacity = 512;
+  struct Run {
+    int64_t* target;
+    uint32_t n;
+    int64_t v[kMaxRun];
+  };
+  static constexpr size_t kRuns = 48;  // ~500 adds held, as many as the per-value version held
   bool mDirect;
-  std::vector<int64_t*> mTargets;
-  std::vector<int64_t> mValues;
+  std::unique_ptr<Run[]> mRuns;
+  size_t mCount = 0;
 };
 
 // What the detectors need of a ray's path, recorded as it is traced: the
@@ -993,6 +979,7 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
   constexpr float kSurvival = 0.1f;
 
   auto binOf = [&](float pathLength) { return std::min(bins, size_t(pathLength * invC * invBin)); };
+  const bool avx = __builtin_cpu_supports("avx");
   auto deposit = [&](DetectorSums& a, PendingAdds& pending, float pathLength, const float* energy, float weight,
                      const Vec3f& doa, uint32_t order) {
     const size_t bin = size_t(pathLength * invC * invBin);
@@ -1002,21 +989,22 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
     }
     float f[kNumBands];
     air.factors(pathLength, f);
-    int64_t* h = &a.hist[bin * EnergyHistogram::kStride];
-    int64_t* po = &a.perOrder[size_t(order) * kNumBands];
-    pending.reserve(kNumBands + 3, h, h + kNumBands + 2);
+    // The bands' energies, then their mean along the direction.
+    double v[kFixedBatch] = {};
     double mean = 0;
     for (int b = 0; b < kNumBands; ++b) {
-      const double e = double(energy[b]) * weight * f[b];
-      const int64_t q = toFixed(e);
-      pending.add(&h[b], q);
-      addSat(po[b], q);
-      mean += e;
+      v[b] = double(energy[b]) * weight * f[b];
+      mean += v[b];
     }
     mean *= 1.0 / kNumBands;
-    pending.add(&h[kNumBands], toFixed(mean * doa.x));
-    pending.add(&h[kNumBands + 1], toFixed(mean * doa.y));
-    pending.add(&h[kNumBands + 2], toFixed(mean * doa.z));
+    v[kNumBands] = mean * doa.x;
+    v[kNumBands + 1] = mean * doa.y;
+    v[kNumBands + 2] = mean * doa.z;
+    int64_t q[kFixedBatch];
+    toFixedBatch(v, q, avx);
+    pending.addRun(&a.hist[bin * EnergyHistogram::kStride], q, kNumBands + 3);
+    int64_t* po = &a.perOrder[size_t(order) * kNumBands];
+    for (int b = 0; b < kNumBands; ++b) addSat(po[b], q[b]);
   };
   // A tail probe's detection (no direction, no order): kept apart, for tail completion.
   auto depositProbe = [&](DetectorSums& a, PendingAdds& pending, float pathLength, const float* energy,
@@ -1025,9 +1013,11 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
     if (bin >= bins) return;
     float f[kNumBands];
     air.factors(pathLength, f);
-    int64_t* h = &a.probeHist[bin * kNumBands];
-    pending.reserve(kNumBands, h, h + kNumBands - 1);
-    for (int b = 0; b < kNumBands; ++b) pending.add(&h[b], toFixed(double(energy[b]) * weight * f[b]));
+    double v[kFixedBatch] = {};
+    for (int b = 0; b < kNumBands; ++b) v[b] = double(energy[b]) * weight * f[b];
+    int64_t q[kFixedBatch];
+    toFixedBatch(v, q, avx);
+    pending.addRun(&a.probeHist[bin * kNumBands], q, kNumBands);
   };
   // A detection by detector r. `away` is the direction from the detector
   // toward the event: forward, where the sound arrives from; in a shared
