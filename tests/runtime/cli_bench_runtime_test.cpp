@@ -54,3 +54,31 @@ TEST(CliBenchRuntime, ReportsTheWorstBlocksWallAndCpuTimeAndTheMachinesSteal) {
 }
 
 }  // namespace
+
+// `bench trace --shared-sources N --no-per-source`: the shared trace and
+// the detection in its kept paths, without a trace from each source.
+TEST(CliBenchTrace, SharedSourcesWithoutPerSourceTraces) {
+  const std::string shoebox = std::string(EARSHOT_SOURCE_DIR) + "/samples/shoebox/shoebox.gltf";
+  const std::string common = "bench trace '" + shoebox +
+                             "' --shared-sources 3 --rays 512 --bounces 4 --runs 1 --threads 1 --no-embree-limit";
+  Ran alone = runCli(common + " --no-per-source");
+  ASSERT_EQ(alone.code, 0) << alone.out;
+  EXPECT_NE(alone.out.find("(no per-source traces)"), std::string::npos) << alone.out;
+  EXPECT_EQ(alone.out.find("per_source_ms"), std::string::npos) << alone.out;
+  const auto f = figures(alone.out);
+  ASSERT_EQ(f.count("reused_ms"), 1u) << alone.out;
+  EXPECT_GT(f.at("reused_ms"), 0.0);
+  EXPECT_GT(f.at("shared_ms"), 0.0);
+  Ran both = runCli(common);
+  ASSERT_EQ(both.code, 0) << both.out;
+  const auto g = figures(both.out);
+  ASSERT_EQ(g.count("per_source_ms"), 1u) << both.out;
+  EXPECT_GT(g.at("per_source_ms"), 0.0);
+  // The same shared trace either way (its segments, the first of the line's two counts).
+  const std::regex sharedSegments(R"(shared_ms=[0-9.]+ \(segments=([0-9]+))");
+  std::smatch a, b;
+  ASSERT_TRUE(std::regex_search(alone.out, a, sharedSegments)) << alone.out;
+  ASSERT_TRUE(std::regex_search(both.out, b, sharedSegments)) << both.out;
+  EXPECT_EQ(a[1].str(), b[1].str());
+  EXPECT_GT(std::stoul(a[1].str()), 0ul);
+}
