@@ -1,4 +1,4 @@
-// `earshot bench runtime` end to end: the report's figures and how they
+// `earshot bench runtime` (and `bench trace --no-per-source`) end to end: the report's figures and how they
 // relate (a short run: two sources in the shoebox, 1.5 s of audio).
 #include <gtest/gtest.h>
 #include <sys/wait.h>
