@@ -73,27 +73,17 @@ Result<AudioBuffer> synthesizeAmbisonicIr(const std::vector<Arrival>& arrivals, 
 
   // Arrivals: the omni arrival's spectrum times the harmonics of its direction.
   std::vector<detail::Spectrum> spectra(size_t(channels), plan.emptySpectrum());
-  detail::Spectrum one = plan.emptySpectrum();
-  double y[kMaxAmbisonicChannels];
-  for (const Arrival& a : arrivals) {
-    if (a.gain == 0) continue;
-    std::fill(one.re.begin(), one.re.end(), 0.0f);
-    std::fill(one.im.begin(), one.im.end(), 0.0f);
-    plan.addArrival(a, a.delaySeconds, {}, one);
-    const double len = length(a.direction);
-    const Vec3d d = len > 0 ? rotate(frame.worldToFrame, a.direction / len) : Vec3d(1, 0, 0);
-    realSphericalHarmonics(d, order, y);
-    const size_t used = plan.arrivalSamples() > 0 ? plan.bins() : 0;
-    for (int c = 0; c < channels; ++c) {
-      const float g = float(y[c]);
-      if (g == 0.0f) continue;
-      float* re = spectra[size_t(c)].re.data();
-      float* im = spectra[size_t(c)].im.data();
-      for (size_t k = 0; k < used; ++k) {
-        re[k] += g * one.re[k];
-        im[k] += g * one.im[k];
-      }
+  if (plan.arrivalSamples() > 0) {
+    std::vector<float> weights(arrivals.size() * size_t(channels), 0.0f);
+    double y[kMaxAmbisonicChannels];
+    for (size_t i = 0; i < arrivals.size(); ++i) {
+      const Arrival& a = arrivals[i];
+      const double len = length(a.direction);
+      const Vec3d d = len > 0 ? rotate(frame.worldToFrame, a.direction / len) : Vec3d(1, 0, 0);
+      realSphericalHarmonics(d, order, y);
+      for (int c = 0; c < channels; ++c) weights[i * size_t(channels) + size_t(c)] = float(y[c]);
     }
+    plan.addWeightedArrivals(arrivals, weights.data(), size_t(channels), spectra.data());
   }
   AudioBuffer out(size_t(channels), 0, fs);
   for (int c = 0; c < channels; ++c) plan.inverse(spectra[size_t(c)], out.channels[size_t(c)]);

@@ -339,6 +339,84 @@ void SpectralSynth::addArrival(const Arrival& a, double delaySeconds, const Grid
   if (mN % 2 == 0) im[mBins - 1] = 0.0f;
 }
 
+EARSHOT_CLONES
+void SpectralSynth::addWeightedArrivals(const std::vector<Arrival>& arrivals, const float* weights, size_t channels,
+                                       Spectrum* spectra) {
+  // Each arrival's phasor as addArrival makes it (see there): a table of
+  // the steps within a block and the blocks' first phases by products of
+  // double-precision unit phasors, carried from block to block.
+  constexpr size_t kBlock = 64;
+  struct Phasor {
+    float stepRe[kBlock], stepIm[kBlock];
+    double blockCos, blockSin, blockRe = 1.0, blockIm = 0.0;
+    float gains[kNumBands + 1];
+    const float* weights;
+  };
+  std::vector<Phasor> phasors;
+  phasors.reserve(arrivals.size());
+  for (size_t i = 0; i < arrivals.size(); ++i) {
+    const Arrival& a = arrivals[i];
+    if (a.gain == 0) continue;
+    Phasor& p = phasors.emplace_back();
+    const double angle = -2.0 * kPi * (a.delaySeconds * mFs) / double(mN);
+    const double c1 = std::cos(angle), s1 = std::sin(angle);
+    double zr = 1.0, zi = 0.0;
+    for (size_t m = 0; m < kBlock; ++m) {
+      p.stepRe[m] = float(zr);
+      p.stepIm[m] = float(zi);
+      const double nr = zr * c1 - zi * s1;
+      zi = zr * s1 + zi * c1;
+      zr = nr;
+    }
+    p.blockCos = std::cos(angle * double(kBlock));
+    p.blockSin = std::sin(angle * double(kBlock));
+    for (int b = 0; b < kNumBands; ++b) p.gains[b] = float(a.gain * a.bandGain[size_t(b)]);
+    p.gains[kNumBands] = 0.0f;
+    p.weights = weights + i * channels;
+  }
+  float pr[kBlock], pi[kBlock], g[kBlock];
+  for (size_t k0 = 0; k0 < mBins; k0 += kBlock) {
+    const size_t count = std::min(kBlock, mBins - k0);
+    for (Phasor& p : phasors) {
+      const float br = float(p.blockRe), bi = float(p.blockIm);
+      {
+        const double nr = p.blockRe * p.blockCos - p.blockIm * p.blockSin;
+        p.blockIm = p.blockRe * p.blockSin + p.blockIm * p.blockCos;
+        p.blockRe = nr;
+      }
+      for (size_t m = 0; m < count; ++m) {
+        pr[m] = br * p.stepRe[m] - bi * p.stepIm[m];
+        pi[m] = br * p.stepIm[m] + bi * p.stepRe[m];
+      }
+      for (size_t m = 0; m < count;) {
+        const size_t k = k0 + m;
+        const uint8_t lb = mBands->lowerBand[k];
+        const size_t end = std::min(count, size_t(mBands->runEnd[k]) - k0);
+        const float ga = p.gains[lb], gb = p.gains[lb + 1];
+        const float* wk = mBands->lowerWeight.data() + k0;
+        for (; m < end; ++m) g[m] = ga * wk[m] + gb * (1.0f - wk[m]);
+      }
+      for (size_t m = 0; m < count; ++m) {
+        pr[m] = g[m] * pr[m];
+        pi[m] = g[m] * pi[m];
+      }
+      for (size_t c = 0; c < channels; ++c) {
+        const float w = p.weights[c];
+        if (w == 0.0f) continue;
+        float* re = spectra[c].re.data() + k0;
+        float* im = spectra[c].im.data() + k0;
+        for (size_t m = 0; m < count; ++m) {
+          re[m] += w * pr[m];
+          im[m] += w * pi[m];
+        }
+      }
+    }
+  }
+  // The Nyquist bin of a real signal must be real.
+  if (mN % 2 == 0)
+    for (size_t c = 0; c < channels; ++c) spectra[c].im[mBins - 1] = 0.0f;
+}
+
 std::vector<float> whiteNoise(uint64_t seed, uint64_t stream, size_t count) {
   std::vector<float> out(count);
   Pcg32 rng(seed, stream);

@@ -60,6 +60,14 @@ class SpectralSynth {
   /** spectrum += gain * G_a(f) * H(f) * exp(-j 2 pi f delay), where G_a is the
    *  arrival's band gains through the complementary band weights. */
   void addArrival(const Arrival& a, double delaySeconds, const GridFilter& h, Spectrum& spectrum);
+  /** spectra[c] += weights[i * channels + c] x (arrival i's addArrival with
+   *  no filter, at its own delay), for every arrival i and channel c < channels.
+   *  The sums of addArrival into one spectrum and its weighted adds into each
+   *  channel, arrival by arrival, but a block of bins at a time for all
+   *  arrivals: the channels' spectra pass through the cache once, not once
+   *  per arrival. */
+  void addWeightedArrivals(const std::vector<Arrival>& arrivals, const float* weights, size_t channels,
+                           Spectrum* spectra);
 
   /** Per band, white noise of (seed, stream) through sqrt(W_band), with its
    *  slow fluctuations of level taken out: divided by its RMS over a moving
