@@ -152,23 +152,29 @@ Result<EnergyHistogram> completeTail(const EnergyHistogram& h, const TailData& t
   // ends, or all of it without probes), and what the probes deposited, scaled.
   std::vector<BandArrayD> extrapolated(bins, BandArrayD{}), probeDeposits(bins, BandArrayD{});
   if (anyCut) {
+    // With tail probes: their measured energy in flight, scaled from the
+    // energy they were cut with to all cut rays' (beyond the probes' own
+    // end, at the population's rate). Without: every cut ray at that rate.
+    // The bands side by side in one pass over the bins (seven independent
+    // recurrences; band by band, each pass waited on its one chain).
+    bool probed[kNumBands];
+    double scale[kNumBands], step[kNumBands], v[kNumBands];
     for (int b = 0; b < kNumBands; ++b) {
-      // With tail probes: their measured energy in flight, scaled from the
-      // energy they were cut with to all cut rays' (beyond the probes' own
-      // end, at the population's rate). Without: every cut ray at that rate.
-      const bool probed = !tail.probeAlive.empty() && tail.probeCutEnergy[b] > 0;
-      const double scale = probed ? rates->cutTotal[b] / tail.probeCutEnergy[b] : 1.0;
-      const std::vector<BandArrayD>& joining = probed ? rates->probeEnds : rates->cut;
-      info.probed[b] = probed;
-      const double step = std::exp(-delta[b] * dt);
-      double v = 0;
-      for (size_t i = 0; i < bins; ++i) {
-        v *= step;
-        const double measured = probed && i < tail.probeAlive.size() ? tail.probeAlive[i][b] : 0.0;
-        virtualEnergy[i][b] = scale * (measured + v);  // a ray cut in bin i is in flight from bin i + 1
-        extrapolated[i][b] = scale * v;
-        if (probed && i < tail.probeDetected.size()) probeDeposits[i][b] = scale * tail.probeDetected[i][b];
-        v += joining[i][b];
+      probed[b] = !tail.probeAlive.empty() && tail.probeCutEnergy[b] > 0;
+      scale[b] = probed[b] ? rates->cutTotal[b] / tail.probeCutEnergy[b] : 1.0;
+      step[b] = std::exp(-delta[b] * dt);
+      v[b] = 0;
+      info.probed[b] = probed[b];
+    }
+    for (size_t i = 0; i < bins; ++i) {
+      const bool alive = i < tail.probeAlive.size(), detected = i < tail.probeDetected.size();
+      for (int b = 0; b < kNumBands; ++b) {
+        v[b] *= step[b];
+        const double measured = probed[b] && alive ? tail.probeAlive[i][b] : 0.0;
+        virtualEnergy[i][b] = scale[b] * (measured + v[b]);  // a ray cut in bin i is in flight from bin i + 1
+        extrapolated[i][b] = scale[b] * v[b];
+        if (probed[b] && detected) probeDeposits[i][b] = scale[b] * tail.probeDetected[i][b];
+        v[b] += (probed[b] ? rates->probeEnds : rates->cut)[i][b];
       }
     }
   }
