@@ -979,7 +979,11 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
   constexpr float kSurvival = 0.1f;
 
   auto binOf = [&](float pathLength) { return std::min(bins, size_t(pathLength * invC * invBin)); };
-  const bool avx = __builtin_cpu_supports("avx");
+#if defined(EARSHOT_FIXED_AVX)
+  const bool avx = __builtin_cpu_supports("avx");  // toFixedBatch's four at a time
+#else
+  const bool avx = false;
+#endif
   auto deposit = [&](DetectorSums& a, PendingAdds& pending, float pathLength, const float* energy, float weight,
                      const Vec3f& doa, uint32_t order) {
     const size_t bin = size_t(pathLength * invC * invBin);
