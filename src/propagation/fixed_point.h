@@ -53,7 +53,7 @@ inline int64_t toFixed(double v) {
 // double's mantissa by adding 2^52 + 2^51), the scalar code for a group
 // with a value at or beyond 2^51 - 2 of the fixed scale (or NaN), where
 // that move is not exact. A deposit's ten values at once (with the held adds
-// kept as runs: 32 sources detected in kept paths, 195 -> 171 ms).
+// kept as runs: 32 sources detected in kept paths, 195 -> 172 ms).
 constexpr size_t kFixedBatch = 12;
 #if defined(EARSHOT_FIXED_AVX)
 __attribute__((target("avx"))) inline void toFixedBatchAvx(const double* v, int64_t* q) {

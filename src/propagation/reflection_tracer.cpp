@@ -354,9 +354,10 @@ class PendingAdds {
   explicit PendingAdds(bool direct) : mDirect(direct) {
     if (!direct) mRuns.reset(new Run[kRuns]);
   }
-  /** Adds v[0, n) to target[0, n) (n <= kMaxRun), later: held, and the
-   *  target's lines fetched meanwhile. A run a record (the adds of one
-   *  deposit together: one pointer, not one per value). */
+  /** Adds v[0, n) to target[0, n) (n <= kMaxRun; v holds kMaxRun values,
+   *  copied whole), later: held, and the target's lines fetched meanwhile.
+   *  Each run is one record (a deposit's adds together: one pointer, not
+   *  one per value). */
   void addRun(int64_t* target, const int64_t* v, size_t n) {
     if (mDirect) {
       for (size_t k = 0; k < n; ++k) addSat(target[k], v[k]);
