@@ -51,6 +51,11 @@ struct Validator {
     const Vec3d delta = point - from;
     const double dist = length(delta);
     if (!(dist > 0)) return false;
+    // A crossing well beyond the bounds of the plane's triangles is on none
+    // of them, and the ray below would find that out: no ray (in the
+    // runtime's 32 sources, half the legs traced were such). The margin is
+    // far above the 8 eps the tests below allow.
+    if (!nearPlaneBounds(plane, point, 64.0 * eps)) return false;
     Ray ray{from, fromSurface ? 4 * eps : 0.0f, Vec3f(delta / dist), float(dist) + 8 * eps};
     Hit hit;
     if (!tracer.intersect(ray, hit)) return false;
@@ -68,6 +73,17 @@ struct Validator {
         return true;
       }
     return false;
+  }
+
+  // True when p lies within `margin` of the plane's bounds (or the tracer's
+  // planes have none).
+  bool nearPlaneBounds(uint32_t plane, const Vec3d& p, double margin) const {
+    const auto& bounds = tracer.planes().bounds;
+    if (plane >= bounds.size()) return true;
+    const Vec3f& lo = bounds[plane][0];
+    const Vec3f& hi = bounds[plane][1];
+    return p.x >= double(lo.x) - margin && p.x <= double(hi.x) + margin && p.y >= double(lo.y) - margin &&
+           p.y <= double(hi.y) + margin && p.z >= double(lo.z) - margin && p.z <= double(hi.z) + margin;
   }
 
   bool unobstructed(const Vec3d& from, const Vec3d& to) const {

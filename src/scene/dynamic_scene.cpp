@@ -377,6 +377,7 @@ Result<std::shared_ptr<const RayTracer>> DynamicScene::commit() {
   std::merge(sp.planeEntries.begin(), sp.planeEntries.end(), movableEntries.begin(), movableEntries.end(),
              planeEntries.begin(), detail::byOffset);
   rt->mPlanes = detail::groupSortedPlaneEntries(planeEntries, world.triangles.size());
+  addPlaneBounds(world, rt->mPlanes);
   rt->mConvexSides = convexSides(world, rt->mPlanes, rt->mEpsilon);
 
   auto impl = std::make_unique<RayTracer::Impl>();

@@ -85,7 +85,24 @@ PlaneSet groupSortedPlaneEntries(const std::vector<PlaneEntry>& entries, size_t 
 }  // namespace detail
 
 PlaneSet groupCoplanarTriangles(const TriangleMesh& mesh, double angleTol, double offsetTol) {
-  return detail::groupSortedPlaneEntries(detail::sortedPlaneEntries(mesh), mesh.triangles.size(), angleTol, offsetTol);
+  PlaneSet set =
+      detail::groupSortedPlaneEntries(detail::sortedPlaneEntries(mesh), mesh.triangles.size(), angleTol, offsetTol);
+  addPlaneBounds(mesh, set);
+  return set;
+}
+
+void addPlaneBounds(const TriangleMesh& mesh, PlaneSet& set) {
+  set.bounds.assign(set.planes.size(), {Vec3f(INFINITY, INFINITY, INFINITY), Vec3f(-INFINITY, -INFINITY, -INFINITY)});
+  for (size_t t = 0; t < set.triangleToPlane.size() && t < mesh.triangles.size(); ++t) {
+    const uint32_t p = set.triangleToPlane[t];
+    if (p == PlaneSet::kNoPlane) continue;
+    auto& [lo, hi] = set.bounds[p];
+    for (uint32_t v : mesh.triangles[t]) {
+      const Vec3f& q = mesh.positions[v];
+      lo = {std::min(lo.x, q.x), std::min(lo.y, q.y), std::min(lo.z, q.z)};
+      hi = {std::max(hi.x, q.x), std::max(hi.y, q.y), std::max(hi.z, q.z)};
+    }
+  }
 }
 
 std::vector<int8_t> convexSides(const TriangleMesh& mesh, const PlaneSet& planes, double tolerance) {

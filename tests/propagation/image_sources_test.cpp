@@ -206,4 +206,37 @@ TEST(ImageSources, ListenerCandidatesFindWhatTheSourcesFindAmidFurniture) {
   EXPECT_EQ(imageSourceCandidates(**tracer, listener, s, true, &two), fromListener);
 }
 
+// A mirror smaller than the scene: a reflection exists where its point lies
+// on the panel, edge included, and not 2 cm beyond it (the bounds of a
+// plane's triangles reject such legs before a ray is traced: the result
+// must be the ray's). Two panels on one plane with a gap between them: a
+// point in the gap is within the plane's bounds, so the ray decides.
+TEST(ImageSources, ASmallMirrorReflectsOnItAndNotBesideIt) {
+  MaterialTable materials;
+  TriangleMesh mesh;
+  // Plane x = 5: panel A y in [0, 1], panel B y in [2, 3]; z in [0, 1].
+  mesh.positions = {{5, 0, 0}, {5, 1, 0}, {5, 1, 1}, {5, 0, 1}, {5, 2, 0}, {5, 3, 0}, {5, 3, 1}, {5, 2, 1}};
+  mesh.triangles = {{0, 1, 2}, {0, 2, 3}, {4, 5, 6}, {4, 6, 7}};
+  mesh.materialIds = {0, 0, 0, 0};
+  auto tracer = RayTracer::create(mesh);
+  ASSERT_TRUE(tracer.isOk());
+  ASSERT_EQ((*tracer)->planes().planes.size(), 1u);
+  ImageSourceSettings s;
+  s.maxOrder = 1;
+  // Source and listener at x = 3, z = 0.5: the reflection point's y is the
+  // mean of theirs.
+  auto reflections = [&](double pointY) {
+    auto r = findImageSources(**tracer, materials, {3, pointY - 0.4, 0.5}, {3, pointY + 0.4, 0.5}, s);
+    EXPECT_TRUE(r.isOk());
+    return r.isOk() ? r->paths.size() : size_t(99);
+  };
+  EXPECT_EQ(reflections(0.5), 1u);   // on panel A
+  EXPECT_EQ(reflections(1.0), 1u);   // on its edge
+  EXPECT_EQ(reflections(1.02), 0u);  // in the gap, 2 cm beside A: within the plane's bounds, the ray misses
+  EXPECT_EQ(reflections(1.5), 0u);   // the gap's middle
+  EXPECT_EQ(reflections(2.5), 1u);   // on panel B
+  EXPECT_EQ(reflections(3.02), 0u);  // 2 cm beyond B: beyond the plane's bounds
+  EXPECT_EQ(reflections(-0.02), 0u); // 2 cm before A
+}
+
 }  // namespace earshot

@@ -221,6 +221,11 @@ TEST(DynamicScene, MovedMeshIsHitWhereItIsAndItsPlanesAndNormalsFollow) {
     ASSERT_NE(p, PlaneSet::kNoPlane);
     EXPECT_EQ(open->planes().trianglesOfPlane[p], fresh.trianglesOfPlane[q]) << "triangle " << t;
     EXPECT_NEAR(open->planes().planes[p].offset, fresh.planes[q].offset, 1e-4);
+    for (int k = 0; k < 2; ++k) {  // the bounds follow the moved door too
+      EXPECT_EQ(open->planes().bounds[p][size_t(k)].x, fresh.bounds[q][size_t(k)].x) << "triangle " << t;
+      EXPECT_EQ(open->planes().bounds[p][size_t(k)].y, fresh.bounds[q][size_t(k)].y) << "triangle " << t;
+      EXPECT_EQ(open->planes().bounds[p][size_t(k)].z, fresh.bounds[q][size_t(k)].z) << "triangle " << t;
+    }
   }
 
   // Image sources mirror in the door's plane: a first-order reflection off

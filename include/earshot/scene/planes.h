@@ -1,6 +1,7 @@
 #pragma once
 /** @file Coplanar triangles grouped into planes: image sources mirror in
  *  planes, and a wall of many triangles is one mirror. */
+#include <array>
 #include <cstdint>
 #include <vector>
 
@@ -21,8 +22,15 @@ struct PlaneSet {
   std::vector<Plane> planes;
   std::vector<uint32_t> triangleToPlane;  ///< per triangle; degenerate triangles get kNoPlane
   std::vector<std::vector<uint32_t>> trianglesOfPlane;  ///< per plane, its triangles
+  /** Per plane, the bounding box of its triangles' vertices (min, max):
+   *  a point beyond it is on none of them. Filled by groupCoplanarTriangles
+   *  and addPlaneBounds; empty in a PlaneSet made otherwise. */
+  std::vector<std::array<Vec3f, 2>> bounds;
   static constexpr uint32_t kNoPlane = 0xFFFFFFFFu;
 };
+
+/** Fills set.bounds from the mesh whose triangles set groups. */
+void addPlaneBounds(const TriangleMesh& mesh, PlaneSet& set);
 
 /** Groups triangles whose planes agree within `angleTolerance` (radians) and
  *  `offsetTolerance` (metres). */
