@@ -77,13 +77,14 @@ int runShared(const BenchTraceOptions& o, const RayTracer& tracer, const Materia
     keptBytes = paths.bytes();
     double per = 0;
     perSegments = perShadows = 0;
-    for (size_t k = 0; o.perSource && k < positions.size(); ++k) {
-      const Vec3d& p = positions[k];
-      auto one = traceReflections(tracer, materials, p, lis, s, pool);
-      if (!check(one.status())) return 2;
-      per += one->stats.traceMs;
-      perSegments += one->stats.segmentsTraced;
-      perShadows += one->stats.shadowRays;
+    if (o.perSource) {
+      for (const Vec3d& p : positions) {
+        auto one = traceReflections(tracer, materials, p, lis, s, pool);
+        if (!check(one.status())) return 2;
+        per += one->stats.traceMs;
+        perSegments += one->stats.segmentsTraced;
+        perShadows += one->stats.shadowRays;
+      }
     }
     if (i == 0) continue;
     sharedMs.push_back(shared);
@@ -93,17 +94,14 @@ int runShared(const BenchTraceOptions& o, const RayTracer& tracer, const Materia
                                                          : -1.0);
   }
   const double sh = median(sharedMs), per = median(perSourceMs);
-  if (!o.perSource)
-    std::printf("shared_trace sources=%u threads=%u runs=%d shared_ms=%.1f (segments=%llu shadow_rays=%llu) "
-                "(no per-source traces)\n",
-                o.sharedSources, pool.threadCount(), runs, sh, (unsigned long long)sharedSegments,
-                (unsigned long long)sharedShadows);
+  std::printf("shared_trace sources=%u threads=%u runs=%d shared_ms=%.1f (segments=%llu shadow_rays=%llu) ",
+              o.sharedSources, pool.threadCount(), runs, sh, (unsigned long long)sharedSegments,
+              (unsigned long long)sharedShadows);
+  if (o.perSource)
+    std::printf("per_source_ms=%.1f (segments=%llu shadow_rays=%llu) ratio_per_source_over_shared=%.2f\n", per,
+                (unsigned long long)perSegments, (unsigned long long)perShadows, per / sh);
   else
-    std::printf("shared_trace sources=%u threads=%u runs=%d shared_ms=%.1f (segments=%llu shadow_rays=%llu) "
-                "per_source_ms=%.1f (segments=%llu shadow_rays=%llu) ratio_per_source_over_shared=%.2f\n",
-                o.sharedSources, pool.threadCount(), runs, sh, (unsigned long long)sharedSegments,
-                (unsigned long long)sharedShadows, per, (unsigned long long)perSegments,
-                (unsigned long long)perShadows, per / sh);
+    std::printf("(no per-source traces)\n");
   std::printf("kept_paths sources=%u keeping_ms=%.1f reused_ms=%.1f kept_mb=%.1f ratio_shared_over_reused=%.2f "
               "(the same trace keeping the listener's paths, then detecting the sources in them: SharedTracePaths)\n",
               o.sharedSources, median(recordMs), median(reusedMs), double(keptBytes) / 1048576.0,
