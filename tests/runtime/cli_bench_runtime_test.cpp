@@ -81,4 +81,8 @@ TEST(CliBenchTrace, SharedSourcesWithoutPerSourceTraces) {
   ASSERT_TRUE(std::regex_search(both.out, b, sharedSegments)) << both.out;
   EXPECT_EQ(a[1].str(), b[1].str());
   EXPECT_GT(std::stoul(a[1].str()), 0ul);
+  // Without --shared-sources it means nothing: refused, saying which option it needs.
+  Ran alone2 = runCli("bench trace '" + shoebox + "' --rays 512 --runs 1 --no-per-source");
+  EXPECT_EQ(alone2.code, 2) << alone2.out;
+  EXPECT_NE(alone2.out.find("--shared-sources"), std::string::npos) << alone2.out;
 }

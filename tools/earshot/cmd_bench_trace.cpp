@@ -208,13 +208,14 @@ const Registrar registrar([](CLI::App& root) {
   cmd->add_option("--bounces", o->bounces, "Bounces")->check(CLI::Range(0u, 100000u))->capture_default_str();
   cmd->add_option("--threads", o->threads, "Threads")->check(CLI::Range(1u, 256u))->capture_default_str();
   cmd->add_option("--runs", o->runs, "Timed runs (median reported)")->check(CLI::Range(1, 10000))->capture_default_str();
-  cmd->add_option("--shared-sources", o->sharedSources,
+  CLI::Option* shared = cmd->add_option("--shared-sources", o->sharedSources,
                   "Instead: one shared listener-centred trace for this many sources (on a ring at 0.6 of the "
                   "scene's half extents, z up) beside a trace from each of them, same run (median of up to 5)")
       ->check(CLI::Range(1u, 4096u));
   cmd->add_flag("!--no-per-source", o->perSource,
                 "With --shared-sources: skip the trace from each source (times the shared trace and the detection "
-                "in kept paths alone)");
+                "in kept paths alone)")
+      ->needs(shared);
   cmd->add_option("--shadow-roulette", o->shadowRoulette,
                   "With --shared-sources: the shared trace's shadow-ray roulette (a source gets a reflection's "
                   "shadow ray with probability min(1, this x R^2 cos / d^2); 0: every shadow ray)")
