@@ -245,47 +245,45 @@ void SpectralSynth::prepareGrid(size_t gridSize) {
     mGridRunEnd[k] = uint32_t(k + 1 < mBins && mGridIndex[k + 1] == mGridIndex[k] ? mGridRunEnd[k + 1] : k + 1);
 }
 
-EARSHOT_CLONES
-void SpectralSynth::addArrival(const Arrival& a, double delaySeconds, const GridFilter& h, Spectrum& spectrum) {
-  if (a.gain == 0) return;
-  if (h.values) prepareGrid(h.gridSize);
-  const double tau = delaySeconds * mFs;  // samples
-  // exp(-j 2 pi k tau / n) per block of kBlock bins: the block's first phase
-  // in double precision, the others from it by a table of the steps
-  // exp(-j 2 pi m tau / n), m < kBlock, so that the inner loops are plain
-  // float arithmetic the compiler vectorises. The table and the blocks'
-  // first phases follow by products of double-precision unit phasors
-  // (a sincos per block and per step was a quarter of an omni IR's
-  // synthesis): each product adds ~1e-16 of error, so after the largest
-  // IR's 2.3e5 blocks the phase is within ~5e-11 of exact, far under a
-  // float's 6e-8.
-  constexpr size_t kBlock = 64;
-  const double angle = -2.0 * kPi * tau / double(mN);
-  float stepRe[kBlock], stepIm[kBlock];
-  {
+namespace {
+// An arrival's values, kPhasorBlock bins at a time: the phasor
+// exp(-j 2 pi k tau / n) per block, the block's first phase in double
+// precision and the others from it by a table of the steps
+// exp(-j 2 pi m tau / n), m < kPhasorBlock, so that the inner loops are plain
+// float arithmetic the compiler vectorises. The table and the blocks' first
+// phases follow by products of double-precision unit phasors (a sincos per
+// block and per step was a quarter of an omni IR's synthesis): each product
+// adds ~1e-16 of error, so after the largest IR's 2.3e5 blocks the phase is
+// within ~5e-11 of exact, far under a float's 6e-8. And the arrival's band
+// gains through the complementary band weights: bin k takes
+// g[lb] w + g[lb + 1] (1 - w) of its (at most two) bands.
+// Inlined into its callers' clones (EARSHOT_CLONES).
+constexpr size_t kPhasorBlock = 64;
+struct ArrivalBlocks {
+  float stepRe[kPhasorBlock], stepIm[kPhasorBlock];
+  double blockCos, blockSin, blockRe = 1.0, blockIm = 0.0;  // block: exp(j angle k0)
+  float gains[kNumBands + 1];
+
+  __attribute__((always_inline)) inline ArrivalBlocks(const Arrival& a, double angle) {
     const double c1 = std::cos(angle), s1 = std::sin(angle);
     double zr = 1.0, zi = 0.0;
-    for (size_t m = 0; m < kBlock; ++m) {
+    for (size_t m = 0; m < kPhasorBlock; ++m) {
       stepRe[m] = float(zr);
       stepIm[m] = float(zi);
       const double nr = zr * c1 - zi * s1;
       zi = zr * s1 + zi * c1;
       zr = nr;
     }
+    blockCos = std::cos(angle * double(kPhasorBlock));
+    blockSin = std::sin(angle * double(kPhasorBlock));
+    for (int b = 0; b < kNumBands; ++b) gains[b] = float(a.gain * a.bandGain[size_t(b)]);
+    gains[kNumBands] = 0.0f;
   }
-  const double blockCos = std::cos(angle * double(kBlock)), blockSin = std::sin(angle * double(kBlock));
-  double blockRe = 1.0, blockIm = 0.0;  // exp(j angle k0)
-  // The arrival's band gains through the complementary band weights: bin k
-  // takes g[lb] w + g[lb + 1] (1 - w) of its (at most two) bands.
-  float gains[kNumBands + 1];
-  for (int b = 0; b < kNumBands; ++b) gains[b] = float(a.gain * a.bandGain[size_t(b)]);
-  gains[kNumBands] = 0.0f;
-  const float* hv = h.values ? reinterpret_cast<const float*>(h.values) : nullptr;
-  float* re = spectrum.re.data();
-  float* im = spectrum.im.data();
-  float pr[kBlock], pi[kBlock], g[kBlock];
-  for (size_t k0 = 0; k0 < mBins; k0 += kBlock) {
-    const size_t count = std::min(kBlock, mBins - k0);
+  /** This block's phasor (count bins) and band gains into pr, pi and g;
+   *  then on to the next block. */
+  __attribute__((always_inline)) inline void next(size_t k0, size_t count, const uint8_t* lowerBand,
+                                                  const uint32_t* runEnd, const float* lowerWeight, float* pr,
+                                                  float* pi, float* g) {
     const float br = float(blockRe), bi = float(blockIm);
     {
       const double nr = blockRe * blockCos - blockIm * blockSin;
@@ -300,12 +298,29 @@ void SpectralSynth::addArrival(const Arrival& a, double delaySeconds, const Grid
     // loop vectorised.
     for (size_t m = 0; m < count;) {
       const size_t k = k0 + m;
-      const uint8_t lb = mBands->lowerBand[k];
-      const size_t end = std::min(count, size_t(mBands->runEnd[k]) - k0);
+      const uint8_t lb = lowerBand[k];
+      const size_t end = std::min(count, size_t(runEnd[k]) - k0);
       const float ga = gains[lb], gb = gains[lb + 1];
-      const float* wk = mBands->lowerWeight.data() + k0;
+      const float* wk = lowerWeight + k0;
       for (; m < end; ++m) g[m] = ga * wk[m] + gb * (1.0f - wk[m]);
     }
+  }
+};
+}  // namespace
+
+EARSHOT_CLONES
+void SpectralSynth::addArrival(const Arrival& a, double delaySeconds, const GridFilter& h, Spectrum& spectrum) {
+  if (a.gain == 0) return;
+  if (h.values) prepareGrid(h.gridSize);
+  ArrivalBlocks blocks(a, -2.0 * kPi * (delaySeconds * mFs) / double(mN));
+  constexpr size_t kBlock = kPhasorBlock;
+  const float* hv = h.values ? reinterpret_cast<const float*>(h.values) : nullptr;
+  float* re = spectrum.re.data();
+  float* im = spectrum.im.data();
+  float pr[kBlock], pi[kBlock], g[kBlock];
+  for (size_t k0 = 0; k0 < mBins; k0 += kBlock) {
+    const size_t count = std::min(kBlock, mBins - k0);
+    blocks.next(k0, count, mBands->lowerBand.data(), mBands->runEnd.data(), mBands->lowerWeight.data(), pr, pi, g);
     if (hv) {
       // The filter on these bins, a run of bins per grid interval (the
       // interval's two points loaded once, the run's loop vectorised).
@@ -342,66 +357,30 @@ void SpectralSynth::addArrival(const Arrival& a, double delaySeconds, const Grid
 EARSHOT_CLONES
 void SpectralSynth::addWeightedArrivals(const std::vector<Arrival>& arrivals, const float* weights, size_t channels,
                                        Spectrum* spectra) {
-  // Each arrival's phasor as addArrival makes it (see there): a table of
-  // the steps within a block and the blocks' first phases by products of
-  // double-precision unit phasors, carried from block to block.
-  constexpr size_t kBlock = 64;
-  struct Phasor {
-    float stepRe[kBlock], stepIm[kBlock];
-    double blockCos, blockSin, blockRe = 1.0, blockIm = 0.0;
-    float gains[kNumBands + 1];
-    const float* weights;
-  };
-  std::vector<Phasor> phasors;
-  phasors.reserve(arrivals.size());
+  // Each arrival's phasor and band gains as addArrival makes them (ArrivalBlocks).
+  constexpr size_t kBlock = kPhasorBlock;
+  std::vector<ArrivalBlocks> arrivalBlocks;
+  std::vector<const float*> arrivalWeights;
+  arrivalBlocks.reserve(arrivals.size());
+  arrivalWeights.reserve(arrivals.size());
   for (size_t i = 0; i < arrivals.size(); ++i) {
     const Arrival& a = arrivals[i];
     if (a.gain == 0) continue;
-    Phasor& p = phasors.emplace_back();
-    const double angle = -2.0 * kPi * (a.delaySeconds * mFs) / double(mN);
-    const double c1 = std::cos(angle), s1 = std::sin(angle);
-    double zr = 1.0, zi = 0.0;
-    for (size_t m = 0; m < kBlock; ++m) {
-      p.stepRe[m] = float(zr);
-      p.stepIm[m] = float(zi);
-      const double nr = zr * c1 - zi * s1;
-      zi = zr * s1 + zi * c1;
-      zr = nr;
-    }
-    p.blockCos = std::cos(angle * double(kBlock));
-    p.blockSin = std::sin(angle * double(kBlock));
-    for (int b = 0; b < kNumBands; ++b) p.gains[b] = float(a.gain * a.bandGain[size_t(b)]);
-    p.gains[kNumBands] = 0.0f;
-    p.weights = weights + i * channels;
+    arrivalBlocks.emplace_back(a, -2.0 * kPi * (a.delaySeconds * mFs) / double(mN));
+    arrivalWeights.push_back(weights + i * channels);
   }
   float pr[kBlock], pi[kBlock], g[kBlock];
   for (size_t k0 = 0; k0 < mBins; k0 += kBlock) {
     const size_t count = std::min(kBlock, mBins - k0);
-    for (Phasor& p : phasors) {
-      const float br = float(p.blockRe), bi = float(p.blockIm);
-      {
-        const double nr = p.blockRe * p.blockCos - p.blockIm * p.blockSin;
-        p.blockIm = p.blockRe * p.blockSin + p.blockIm * p.blockCos;
-        p.blockRe = nr;
-      }
-      for (size_t m = 0; m < count; ++m) {
-        pr[m] = br * p.stepRe[m] - bi * p.stepIm[m];
-        pi[m] = br * p.stepIm[m] + bi * p.stepRe[m];
-      }
-      for (size_t m = 0; m < count;) {
-        const size_t k = k0 + m;
-        const uint8_t lb = mBands->lowerBand[k];
-        const size_t end = std::min(count, size_t(mBands->runEnd[k]) - k0);
-        const float ga = p.gains[lb], gb = p.gains[lb + 1];
-        const float* wk = mBands->lowerWeight.data() + k0;
-        for (; m < end; ++m) g[m] = ga * wk[m] + gb * (1.0f - wk[m]);
-      }
+    for (size_t j = 0; j < arrivalBlocks.size(); ++j) {
+      arrivalBlocks[j].next(k0, count, mBands->lowerBand.data(), mBands->runEnd.data(), mBands->lowerWeight.data(),
+                            pr, pi, g);
       for (size_t m = 0; m < count; ++m) {
         pr[m] = g[m] * pr[m];
         pi[m] = g[m] * pi[m];
       }
       for (size_t c = 0; c < channels; ++c) {
-        const float w = p.weights[c];
+        const float w = arrivalWeights[j][c];
         if (w == 0.0f) continue;
         float* re = spectra[c].re.data() + k0;
         float* im = spectra[c].im.data() + k0;
