@@ -49,6 +49,8 @@ std::string irReportJson(const OmniIrResult& r, const OmniIrSettings& settings, 
   stats["shadow_rays_skipped"] = st.shadowRaysSkipped;
   stats["shadow_rays_rouletted"] = st.shadowRaysRouletted;
   stats["specular_detections_left_to_image_sources"] = st.specularExcluded;
+  stats["detections"] = st.detections;
+  stats["tail_probe_detections"] = st.probeDetections;
   stats["energy_escaped_fraction"] = st.energyEscaped;
   stats["receiver_radius_m"] = st.receiverRadiusMeters;
   // Per band, the decay of the traced energies: what the IR's bands decay

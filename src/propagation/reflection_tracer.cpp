@@ -438,6 +438,7 @@ struct alignas(64) DetectorSums {
   std::vector<int64_t> probeHist;            // [bin][band]: what tail probes past their cut deposit
   int64_t late[kNumBands] = {};
   uint64_t shadows = 0, shadowsSkipped = 0, shadowsRouletted = 0, excluded = 0;
+  uint64_t detections = 0, probeDetections = 0;
 };
 
 // One per worker thread. NOTE: cache-line aligned: side by side in a vector,
@@ -1037,6 +1038,8 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
       for (int b = 0; b < kNumBands; ++b) weighted[b] = float(double(energy[b]) * d[size_t(b)]);
       e = weighted;
     }
+    ++a.detections;
+    a.probeDetections += probe;
     if (probe)
       depositProbe(a, pending, pathLength, e, weight);
     else
@@ -1492,6 +1495,8 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
       t.shadowsSkipped += o.shadowsSkipped;
       t.shadowsRouletted += o.shadowsRouletted;
       t.excluded += o.excluded;
+      t.detections += o.detections;
+      t.probeDetections += o.probeDetections;
     }
     for (size_t i = 0; i < total.aliveDiff.size(); ++i) addSat(total.aliveDiff[i], acc[w].aliveDiff[i]);
     for (size_t i = 0; i < total.probeAliveDiff.size(); ++i) addSat(total.probeAliveDiff[i], acc[w].probeAliveDiff[i]);
@@ -1607,6 +1612,8 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
     result.stats.shadowRaysSkipped = t.shadowsSkipped;
     result.stats.shadowRaysRouletted = t.shadowsRouletted;
     result.stats.specularExcluded = t.excluded;
+    result.stats.detections = t.detections;
+    result.stats.probeDetections = t.probeDetections;
   }
   return results;
 }

@@ -342,6 +342,12 @@ TEST(SharedTrace, KeptPathsGiveTheSameBitsAsATrace) {
     EXPECT_EQ(r.stats.energyLate, f.stats.energyLate) << "source " << i;
     EXPECT_EQ(r.stats.shadowRays, f.stats.shadowRays) << "source " << i;
     EXPECT_EQ(r.stats.shadowRaysRouletted, f.stats.shadowRaysRouletted) << "source " << i;
+    // The same deposits, counted (what detection costs), tail probes'
+    // only where the sphere detects them.
+    EXPECT_EQ(r.stats.detections, f.stats.detections) << "source " << i;
+    EXPECT_EQ(r.stats.probeDetections, f.stats.probeDetections) << "source " << i;
+    EXPECT_GT(r.stats.detections, r.stats.probeDetections) << "source " << i;
+    EXPECT_EQ(r.stats.probeDetections > 0, !r.tail.probeDetected.empty()) << "source " << i;
     EXPECT_EQ(r.stats.segmentsTraced, f.stats.segmentsTraced);
     EXPECT_EQ(r.stats.receiverRadiusMeters, f.stats.receiverRadiusMeters) << "source " << i;
   }

@@ -81,6 +81,15 @@ TEST(CliBenchTrace, SharedSourcesWithoutPerSourceTraces) {
   ASSERT_TRUE(std::regex_search(both.out, b, sharedSegments)) << both.out;
   EXPECT_EQ(a[1].str(), b[1].str());
   EXPECT_GT(std::stoul(a[1].str()), 0ul);
+  // Its detections (every source's), of them the tail probes': the same
+  // either way, and some of each.
+  const std::regex counted(R"(detections=([0-9]+) of_them_tail_probes=([0-9]+))");
+  ASSERT_TRUE(std::regex_search(alone.out, a, counted)) << alone.out;
+  ASSERT_TRUE(std::regex_search(both.out, b, counted)) << both.out;
+  EXPECT_EQ(a[1].str(), b[1].str());
+  EXPECT_EQ(a[2].str(), b[2].str());
+  EXPECT_GT(std::stoull(a[1].str()), std::stoull(a[2].str()));
+  EXPECT_GT(std::stoull(a[2].str()), 0ull);
   // Without --shared-sources it means nothing: refused, saying which option it needs.
   Ran alone2 = runCli("bench trace '" + shoebox + "' --rays 512 --runs 1 --no-per-source");
   EXPECT_EQ(alone2.code, 2) << alone2.out;

@@ -55,6 +55,7 @@ int runShared(const BenchTraceOptions& o, const RayTracer& tracer, const Materia
   for (size_t i = 0; i < positions.size(); ++i) sources[i].position = positions[i];
   std::vector<double> sharedMs, perSourceMs, recordMs, reusedMs;
   uint64_t sharedSegments = 0, sharedShadows = 0, perSegments = 0, perShadows = 0;
+  uint64_t detections = 0, probeDetections = 0;  // the shared trace's, every source's summed
   size_t keptBytes = 0;
   const int runs = std::max(1, std::min(o.runs, 5));
   for (int i = 0; i < runs + 1; ++i) {  // the first run warms up and is dropped
@@ -65,7 +66,12 @@ int runShared(const BenchTraceOptions& o, const RayTracer& tracer, const Materia
     const double shared = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     sharedSegments = r->front().stats.segmentsTraced;
     sharedShadows = 0;
-    for (const ReflectionResult& x : *r) sharedShadows += x.stats.shadowRays;
+    detections = probeDetections = 0;
+    for (const ReflectionResult& x : *r) {
+      sharedShadows += x.stats.shadowRays;
+      detections += x.stats.detections;
+      probeDetections += x.stats.probeDetections;
+    }
     // The same trace keeping its paths, then again from them (SharedTracePaths).
     SharedTracePaths paths;
     auto t1 = std::chrono::steady_clock::now();
@@ -94,9 +100,11 @@ int runShared(const BenchTraceOptions& o, const RayTracer& tracer, const Materia
                                                          : -1.0);
   }
   const double sh = median(sharedMs), per = median(perSourceMs);
-  std::printf("shared_trace sources=%u threads=%u runs=%d shared_ms=%.1f (segments=%llu shadow_rays=%llu) ",
+  std::printf("shared_trace sources=%u threads=%u runs=%d shared_ms=%.1f (segments=%llu shadow_rays=%llu "
+              "detections=%llu of_them_tail_probes=%llu) ",
               o.sharedSources, pool.threadCount(), runs, sh, (unsigned long long)sharedSegments,
-              (unsigned long long)sharedShadows);
+              (unsigned long long)sharedShadows, (unsigned long long)detections,
+              (unsigned long long)probeDetections);
   if (o.perSource)
     std::printf("per_source_ms=%.1f (segments=%llu shadow_rays=%llu) ratio_per_source_over_shared=%.2f\n", per,
                 (unsigned long long)perSegments, (unsigned long long)perShadows, per / sh);

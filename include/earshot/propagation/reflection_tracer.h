@@ -163,6 +163,11 @@ struct ReflectionStats {
   uint64_t shadowRays = 0;            ///< occlusion queries
   uint64_t shadowRaysSkipped = 0;     ///< not needed: a convex room around the listener (RayTracer::convexAround)
   uint64_t shadowRaysRouletted = 0;   ///< not sent: a shared trace's roulette (ReflectionSettings::sharedShadowRoulette)
+  /** Energy deposits in this receiver's sums: sphere crossings and visible
+   *  next-event estimates, tail probes' included (what detection costs,
+   *  beside the rays; a shared trace's sources each count their own). */
+  uint64_t detections = 0;
+  uint64_t probeDetections = 0;       ///< of detections: tail probes past their cut
   BandArrayD energyEscaped{};         ///< fraction of emitted energy that escaped, per band
   BandArrayD energyLate{};            ///< detected energy arriving after maxTimeSeconds
   std::vector<BandArrayD> detectedPerOrder;  ///< detected energy by reflection order (index 0 unused)
