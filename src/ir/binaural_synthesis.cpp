@@ -403,8 +403,10 @@ Result<AudioBuffer> synthesizeBinauralIr(const std::vector<Arrival>& arrivals, c
       if (!plan.bandEnvelope(*reflections, b, gl, env)) continue;
       plan.addEnvelopedNoise((*l)[size_t(b)], offset, env, out.channels[0].data());
       if (directional) plan.bandEnvelope(*reflections, b, gr, env);
-      plan.addEnvelopedNoise((*ru)[size_t(b)], offset, env, out.channels[1].data());
-      if (independent) plan.addEnvelopedNoise((*rv)[size_t(b)], offset, env, out.channels[1].data());
+      if (independent)
+        plan.addEnvelopedNoises((*ru)[size_t(b)], (*rv)[size_t(b)], offset, env, out.channels[1].data());
+      else
+        plan.addEnvelopedNoise((*ru)[size_t(b)], offset, env, out.channels[1].data());
     }
   }
   return out;

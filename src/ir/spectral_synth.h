@@ -128,6 +128,10 @@ class SpectralSynth {
    *  stationary stretch of it. */
   void addEnvelopedNoise(const std::vector<float>& noise, size_t offset, const std::vector<float>& env, float* out,
                          size_t count = SIZE_MAX) const;
+  /** addEnvelopedNoise of a, then of b, under one envelope, in one pass
+   *  over out and env: the same bits as the two calls. */
+  void addEnvelopedNoises(const std::vector<float>& a, const std::vector<float>& b, size_t offset,
+                          const std::vector<float>& env, float* out, size_t count = SIZE_MAX) const;
 
   /** A zeroed spectrum of bins() values. */
   Spectrum emptySpectrum() const { return Spectrum{std::vector<float>(mBins, 0.0f), std::vector<float>(mBins, 0.0f)}; }
@@ -194,6 +198,11 @@ class ThreadScratch {
  private:
   size_t mBase = 0, mCount = 0;
 };
+
+/** bandEnvelope's samples from its grid: env[m q + k] = amp[m] + (amp[m + 1]
+ *  - amp[m]) (k / q) for m q + k < length (amp[m] where q is 1); amp holds
+ *  length / q + 2 points. */
+void expandEnvelope(const float* amp, size_t q, size_t length, float* env);
 
 /** The offset into a noise of `period` samples that IrSynthesisSettings'
  *  seed and noiseKey give (0 for key 0). */
