@@ -685,17 +685,36 @@ bool SpectralSynth::bandEnvelope(const EnergyHistogram& h, int band, const float
   return true;
 }
 
+namespace {
+
+// out[i] += a[j] env[i], then (Two) += b[j] env[i], j = (i + offset) mod
+// period (offset < period): two runs, up to the noises' wrap and from
+// their start (length <= period).
+template <bool Two>
+void addEnveloped(const float* a, const float* b, size_t period, size_t offset, const float* env, float* out,
+                  size_t length) {
+  const size_t first = std::min(length, period - offset);
+  const float* na = a + offset;
+  const float* nb = Two ? b + offset : nullptr;  // (b is null for one noise)
+  for (size_t i = 0; i < first; ++i) {
+    float o = out[i] + na[i] * env[i];
+    if (Two) o = o + nb[i] * env[i];
+    out[i] = o;
+  }
+  for (size_t i = first; i < length; ++i) {
+    float o = out[i] + a[i - first] * env[i];
+    if (Two) o = o + b[i - first] * env[i];
+    out[i] = o;
+  }
+}
+
+}  // namespace
+
 void SpectralSynth::addEnvelopedNoise(const std::vector<float>& noise, size_t offset, const std::vector<float>& env,
                                       float* out, size_t count) const {
   const size_t period = noise.size();
   if (period == 0) return;
-  offset %= period;
-  const size_t length = std::min(mLength, count);
-  // Two runs: up to the noise's wrap, then from its start (length <= period).
-  const size_t first = std::min(length, period - offset);
-  const float* n = noise.data() + offset;
-  for (size_t i = 0; i < first; ++i) out[i] += n[i] * env[i];
-  for (size_t i = first; i < length; ++i) out[i] += noise[i - first] * env[i];
+  addEnveloped<false>(noise.data(), nullptr, period, offset % period, env.data(), out, std::min(mLength, count));
 }
 
 void SpectralSynth::addEnvelopedNoises(const std::vector<float>& a, const std::vector<float>& b, size_t offset,
@@ -707,12 +726,7 @@ void SpectralSynth::addEnvelopedNoises(const std::vector<float>& a, const std::v
     return;
   }
   if (period == 0) return;
-  offset %= period;
-  const size_t length = std::min(mLength, count);
-  const size_t first = std::min(length, period - offset);
-  const float *na = a.data() + offset, *nb = b.data() + offset;
-  for (size_t i = 0; i < first; ++i) out[i] = (out[i] + na[i] * env[i]) + nb[i] * env[i];
-  for (size_t i = first; i < length; ++i) out[i] = (out[i] + a[i - first] * env[i]) + b[i - first] * env[i];
+  addEnveloped<true>(a.data(), b.data(), period, offset % period, env.data(), out, std::min(mLength, count));
 }
 
 std::shared_ptr<const std::vector<std::vector<float>>> SpectralSynth::finishedBandNoise(uint64_t seed,

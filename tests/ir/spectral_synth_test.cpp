@@ -59,7 +59,6 @@ TEST(SpectralSynth, WeightedArrivalsEqualArrivalByArrivalSums) {
   }
 }
 
-
 // The envelope from its grid (expandEnvelope): every sample on the line
 // between its cell's two grid points, bit for bit as the formula gives it,
 // for the q that have straight-line cells (2-6), those that do not, and
