@@ -188,7 +188,9 @@ typedef struct earshot_context_settings {
   uint32_t block_frames;
   uint32_t max_sources;        /**< source slots allocated up front, [1, 4096]; default 32 */
   double max_ir_seconds;       /**< reflections are cut here (10 ms fade), (0, 60]; default 3 */
-  uint32_t rays;               /**< rays traced per source and simulation, [1, 100000000]; default 16384 */
+  uint32_t rays;               /**< rays traced per source and simulation, [1, 100000000]; default 16384;
+                                    a count whose trace state (~150 bytes a ray) passes the memory limit
+                                    (1 GiB) is refused (EARSHOT_ERROR_OUT_OF_RANGE) */
   uint32_t bounces;            /**< reflections per ray, [0, 100000]; default 12 */
   uint32_t image_source_order; /**< order of exact early reflections, [0, 4]; default 3 */
   uint32_t threads;            /**< simulation threads, [0, 256], 0 = the cores less one (the audio thread's); default 0. They run at a lower priority (nice + 5 on Linux), the built-in simulation thread too */

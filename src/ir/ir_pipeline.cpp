@@ -9,6 +9,7 @@
 
 #include "earshot/analysis/room_acoustics.h"
 #include "earshot/core/thread_pool.h"
+#include "earshot/io/input_file.h"
 #include "earshot/scene/ray_tracer.h"
 
 namespace earshot {
@@ -361,6 +362,7 @@ Result<std::vector<OmniIrResult>> computeIrs(const RayTracer& tracer, const Mate
   // Shared: every source's checks, direct sound and image sources (one per
   // thread), one trace from the listener on every thread, then each
   // source's tail and synthesis (one per thread).
+  if (requests.empty()) return out;
   std::vector<IrJob> jobs(requests.size());
   std::vector<Status> status(requests.size());
   // Where the image sources' candidates come from rays (many planes), the
@@ -397,15 +399,16 @@ Result<std::vector<OmniIrResult>> computeIrs(const RayTracer& tracer, const Mate
   for (size_t i = 0; i < requests.size(); ++i)
     if (!status[i].isOk()) return named(i, status[i]);
   // Sources go through the trace in groups whose sums and results fit
-  // kSharedTraceBudgetBytes: per source, each thread keeps a histogram and
-  // the probes' detections (EnergyHistogram::kStride + kNumBands int64 per
-  // bin), and its result a histogram and the tail data until its IR is made.
-  const double bins = std::ceil((s.lengthSeconds > 0 ? s.lengthSeconds : ReflectionSettings{}.maxTimeSeconds) /
-                                s.binSeconds);
-  const double perSource =
-      bins * (double(pool.threadCount()) * (EnergyHistogram::kStride + kNumBands) * 8.0 + 32.0 * 8.0) +
-      double(s.rays) * (sizeof(CutRay) * 2.0);
-  const size_t group = size_t(std::clamp(std::floor(double(kSharedTraceBudgetBytes) / perSource), 1.0,
+  // kSharedTraceBudgetBytes (or the memory limit, if lower): per source,
+  // each thread keeps a histogram and the probes' detections, and its
+  // result a histogram and the tail data until its IR is made
+  // (traceMemoryBytes, affine in the sources). A single source over the
+  // limit is refused by the trace.
+  const ReflectionSettings sized = reflectionSettingsOf(s, jobs[0]);
+  const double one = traceMemoryBytes(sized, 1, pool.threadCount());
+  const double perSource = traceMemoryBytes(sized, 2, pool.threadCount()) - one;
+  const double budget = std::min(double(kSharedTraceBudgetBytes), double(defaultInputLimits().maxMemoryBytes));
+  const size_t group = size_t(std::clamp(std::floor((budget - (one - perSource)) / perSource), 1.0,
                                          double(kMaxSharedTraceSources)));
   for (size_t g0 = 0; g0 < requests.size(); g0 += group) {
     const size_t g1 = std::min(requests.size(), g0 + group);

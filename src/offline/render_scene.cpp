@@ -158,6 +158,23 @@ Result<RenderResult> renderScene(const SceneDescription& scene, const RenderOpti
                       " sources need about " + formatBytes(uint64_t(engineBytes)) +
                       " of convolution state, over the memory limit of " + formatBytes(budget) + " (--max-memory)");
   double heldBytes = engineBytes;
+  // And a simulation's trace (its rays' and histogram's state,
+  // traceMemoryBytes): the scene's ray count is refused here, naming it,
+  // rather than by the first simulation.
+  {
+    ReflectionSettings traced;
+    traced.rays = es.simulation.rays;
+    traced.binSeconds = es.simulation.binSeconds;
+    if (es.simulation.lengthSeconds > 0) traced.maxTimeSeconds = es.simulation.lengthSeconds;
+    const double traceBytes = traceMemoryBytes(traced, 1, es.threads);
+    if (heldBytes + traceBytes > double(budget))
+      return outOfRange(scene.sceneFile + ": " + (ss.rays && !options.quality ? "settings.rays: " : "") +
+                        std::to_string(traced.rays) + " rays need about " + formatBytes(uint64_t(traceBytes)) +
+                        " for a trace" + (engineBytes > 0 ? " besides " + formatBytes(uint64_t(engineBytes)) +
+                        " of convolution state" : std::string()) + ", over the memory limit of " +
+                        formatBytes(budget) + " (--max-memory)");
+    heldBytes += traceBytes;
+  }
 
   // The HRTF (~0.6 s for the default set) loads on another thread while
   // the geometry and the dry audio load here.

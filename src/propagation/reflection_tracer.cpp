@@ -27,6 +27,7 @@
 #include "earshot/core/math.h"
 #include "earshot/core/random.h"
 #include "earshot/core/thread_pool.h"
+#include "earshot/io/input_file.h"
 #include "earshot/scene/ray_tracer.h"
 #include "fixed_point.h"
 
@@ -782,7 +783,35 @@ Status validate(const ReflectionSettings& s) {
   return validate(s.air);
 }
 
+double traceMemoryBytes(const ReflectionSettings& s, size_t detectors, unsigned threads) {
+  const double nd = double(std::max<size_t>(1, detectors)), sums = double(std::max(1u, threads)) + 1.0;
+  const double bins = std::ceil(s.maxTimeSeconds / s.binSeconds) + 1.0;
+  // traceCore's per-ray slots (cutRays, wasCut, probeEnds, probeEnded), and
+  // each result's tail: at most a cut and a probe's end per ray.
+  const double perRay = 2.0 * (double(sizeof(CutRay)) + 1.0) + nd * 2.0 * double(sizeof(CutRay));
+  // Each thread's Accumulator and the merged one: every detector's hist and
+  // probeHist, the in-flight diffs (aliveDiff, probeAliveDiff); each
+  // result's histogram (doubles) and its tail's alive, probeAlive and
+  // probeDetected curves.
+  const double perBin =
+      sums * (nd * double(EnergyHistogram::kStride + kNumBands) + 2.0 * kNumBands) * double(sizeof(int64_t)) +
+      nd * (double(EnergyHistogram::kStride) * sizeof(double) + 3.0 * double(sizeof(BandArrayD)));
+  return double(s.rays) * perRay + bins * perBin;
+}
+
 namespace {
+
+// A trace's state against the memory limit, before any of it is allocated.
+Status checkTraceMemory(const ReflectionSettings& s, size_t detectors, unsigned threads) {
+  const double bytes = traceMemoryBytes(s, detectors, threads);
+  const uint64_t limit = defaultInputLimits().maxMemoryBytes;
+  if (bytes <= double(limit)) return Status::ok();
+  return outOfRange("a trace of " + std::to_string(s.rays) + " rays and " +
+                    std::to_string(size_t(std::ceil(s.maxTimeSeconds / s.binSeconds))) + " histogram bins" +
+                    (detectors > 1 ? " for " + std::to_string(detectors) + " sources" : std::string()) + " on " +
+                    std::to_string(threads) + " threads needs about " + formatBytes(uint64_t(std::min(bytes, 1.8e19))) +
+                    ", over the memory limit of " + formatBytes(limit) + " (--max-memory)");
+}
 
 // What a trace's paths depend on besides the detectors (SharedTracePaths).
 struct PathKey {
@@ -1633,6 +1662,7 @@ Result<ReflectionResult> traceReflections(const RayTracer& tracer, const Materia
   EARSHOT_RETURN_IF_ERROR(validate(settings));
   if (!isFinite(source) || !isFinite(listener)) return invalidArgument("source or listener position is not finite");
   EARSHOT_RETURN_IF_ERROR(checkMaterials(tracer, materials));
+  EARSHOT_RETURN_IF_ERROR(checkTraceMemory(settings, 1, pool.threadCount()));
   Detector d;
   d.position = listener;
   d.radius = settings.receiverRadiusMeters;
@@ -1657,6 +1687,7 @@ Result<std::vector<ReflectionResult>> traceReflectionsShared(const RayTracer& tr
     return invalidArgument("a shared trace of " + std::to_string(sources.size()) + " sources x " +
                            std::to_string(size_t(bins)) + " histogram bins is over 5e7 bins");
   EARSHOT_RETURN_IF_ERROR(checkMaterials(tracer, materials));
+  if (!sources.empty()) EARSHOT_RETURN_IF_ERROR(checkTraceMemory(settings, sources.size(), pool.threadCount()));
   std::vector<Detector> detectors;
   for (size_t i = 0; i < sources.size(); ++i) {
     const SharedTraceSource& s = sources[i];

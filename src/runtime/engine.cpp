@@ -13,6 +13,7 @@
 #include "earshot/core/thread_pool.h"
 #include "earshot/dsp/convolution_mixer.h"
 #include "earshot/dsp/prepared_ir.h"
+#include "earshot/io/input_file.h"
 #include "earshot/runtime/direct_voice.h"
 #include "earshot/scene/ray_tracer.h"
 
@@ -411,6 +412,24 @@ Result<std::unique_ptr<Engine>> Engine::create(const EngineSettings& s, Binaural
   e->mMaterials = std::make_shared<const MaterialTable>();
   const unsigned threads = s.threads > 0 ? s.threads : std::max(2u, std::thread::hardware_concurrency()) - 1;
   e->mSettings.threads = threads;
+  {
+    // A simulation's traces within the memory limit (traceMemoryBytes):
+    // one on every worker, or one per worker side by side. Refused here
+    // rather than by every simulate(); invalid settings are left to it.
+    ReflectionSettings traced;
+    traced.rays = s.simulation.rays;
+    traced.binSeconds = s.simulation.binSeconds;
+    if (s.simulation.lengthSeconds > 0) traced.maxTimeSeconds = s.simulation.lengthSeconds;
+    if (validate(traced).isOk()) {
+      const double bytes =
+          std::max(traceMemoryBytes(traced, 1, threads), double(threads) * traceMemoryBytes(traced, 1, 1));
+      const uint64_t limit = defaultInputLimits().maxMemoryBytes;
+      if (bytes > double(limit))
+        return outOfRange("engine: simulation.rays " + std::to_string(traced.rays) + " and its histogram need about " +
+                          formatBytes(uint64_t(std::min(bytes, 1.8e19))) + " on " + std::to_string(threads) +
+                          " threads, over the memory limit of " + formatBytes(limit) + " (--max-memory)");
+    }
+  }
   e->mPool = std::make_unique<ThreadPool>(threads, s.workerNice);
   for (unsigned w = 0; w < e->mPool->threadCount(); ++w) e->mWorkerPools.push_back(std::make_unique<ThreadPool>(1));
   e->mInputs.assign(s.maxSources, nullptr);

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "earshot/core/thread_pool.h"
+#include "earshot/io/input_file.h"
 #include "earshot/ir/ir_pipeline.h"
 #include "earshot/scene/ray_tracer.h"
 
@@ -45,10 +46,10 @@ std::vector<IrRequest> ringOfSources(size_t n) {
 
 }  // namespace
 
-// 20 sources with a 30 s histogram: on 2 threads their sums exceed
-// kSharedTraceBudgetBytes and they go through two traces, on 1 thread
-// through one; every IR is the same bit for bit, and the same as the
-// source's shared trace alone.
+// 20 sources with a 30 s histogram: their sums exceed
+// kSharedTraceBudgetBytes and they go through two traces, of 16 and 4
+// sources on 1 thread, of 12 and 8 on 2 (traceMemoryBytes); every IR is
+// the same bit for bit, and the same as the source's shared trace alone.
 TEST(ComputeIrs, SharedTracesGiveTheSameIrsHoweverTheSourcesAreGrouped) {
   Room room;
   OmniIrSettings s;
@@ -75,6 +76,44 @@ TEST(ComputeIrs, SharedTracesGiveTheSameIrsHoweverTheSourcesAreGrouped) {
     ASSERT_TRUE(alone.isOk());
     EXPECT_EQ(alone->front().ir.channels, (*b)[i].ir.channels) << "source " << i;
   }
+}
+
+// Under a memory limit below kSharedTraceBudgetBytes (--max-memory 48M)
+// the sources go through traces of two (~20 MB each with a 30 s histogram
+// on 2 threads; the six together would be refused), and the IRs are the
+// bits of the unlimited run. Below one source's trace, an error naming
+// the limit.
+TEST(ComputeIrs, UnderAMemoryLimitSharedTracesTakeFewerSourcesAndGiveTheSameIrs) {
+  Room room;
+  OmniIrSettings s;
+  s.sampleRateHz = 8000;
+  s.rays = 1000;
+  s.bounces = 6;
+  s.imageSourceOrder = 1;
+  s.lengthSeconds = 30;
+  const std::vector<IrRequest> requests = ringOfSources(6);
+  const Vec3d listener{7.2, 2.6, 1.6};
+  ThreadPool pool(2);
+  auto whole = computeIrs(*room.tracer, room.materials, listener, requests, s, TraceMode::kShared, pool);
+  ASSERT_TRUE(whole.isOk()) << whole.status().message();
+  struct Restore {
+    InputLimits saved = defaultInputLimits();
+    ~Restore() { setDefaultInputLimits(saved); }
+  } restore;
+  InputLimits low = restore.saved;
+  low.maxMemoryBytes = uint64_t(48) << 20;
+  setDefaultInputLimits(low);
+  auto limited = computeIrs(*room.tracer, room.materials, listener, requests, s, TraceMode::kShared, pool);
+  ASSERT_TRUE(limited.isOk()) << limited.status().message();
+  ASSERT_EQ(limited->size(), requests.size());
+  for (size_t i = 0; i < requests.size(); ++i)
+    EXPECT_EQ((*limited)[i].ir.channels, (*whole)[i].ir.channels) << "source " << i;
+  low.maxMemoryBytes = uint64_t(8) << 20;
+  setDefaultInputLimits(low);
+  auto refused = computeIrs(*room.tracer, room.materials, listener, requests, s, TraceMode::kShared, pool);
+  ASSERT_FALSE(refused.isOk());
+  EXPECT_EQ(refused.status().code(), StatusCode::kOutOfRange);
+  EXPECT_NE(refused.status().message().find("--max-memory"), std::string::npos) << refused.status().message();
 }
 
 // A ListenerCache kept between shared simulations: from the same place the

@@ -8,6 +8,7 @@
 
 #include "earshot/core/math.h"
 #include "earshot/core/thread_pool.h"
+#include "earshot/io/input_file.h"
 #include "earshot/propagation/reflection_tracer.h"
 #include "earshot/scene/embree_limit.h"
 #include "earshot/scene/ray_tracer.h"
@@ -232,6 +233,69 @@ TEST(ReflectionTracer, BadSettingsAreErrorsNamingTheField) {
   auto q = traceReflections(*room.tracer, room.materials, {std::nan(""), 0, 0}, kListener, ReflectionSettings{}, pool);
   ASSERT_FALSE(q.isOk());
   EXPECT_NE(q.status().message().find("not finite"), std::string::npos);
+}
+
+// A ray count or histogram whose trace would hold more than the memory
+// limit is refused before anything is allocated (with the check gone, the
+// first trace below would allocate ~12 GiB): the default 1 GiB, and a
+// lower limit set the way --max-memory sets it. Under the limit the same
+// trace runs. The estimate covers the trace's per-ray slots and each
+// thread's per-bin sums, and grows with every term.
+TEST(ReflectionTracer, ATraceOverTheMemoryLimitIsRefusedBeforeItAllocates) {
+  Shoebox room(0.2f, 0.5f);
+  ThreadPool pool(2);
+  ReflectionSettings many;
+  many.rays = 100000000;
+  auto r = traceReflections(*room.tracer, room.materials, kSource, kListener, many, pool);
+  ASSERT_FALSE(r.isOk());
+  EXPECT_EQ(r.status().code(), StatusCode::kOutOfRange);
+  EXPECT_NE(r.status().message().find("100000000 rays"), std::string::npos) << r.status().message();
+  EXPECT_NE(r.status().message().find("--max-memory"), std::string::npos) << r.status().message();
+  ReflectionSettings fine;  // 1e7 bins: within validate()'s 5e7
+  fine.binSeconds = 1e-5;
+  fine.maxTimeSeconds = 100;
+  auto f = traceReflections(*room.tracer, room.materials, kSource, kListener, fine, pool);
+  ASSERT_FALSE(f.isOk());
+  EXPECT_NE(f.status().message().find("10000000 histogram bins"), std::string::npos) << f.status().message();
+
+  // Under a limit of 8 MiB: one detector of a balanced trace fits, eight
+  // sharing it do not, a trace of 200k rays does not.
+  struct Restore {
+    InputLimits saved = defaultInputLimits();
+    ~Restore() { setDefaultInputLimits(saved); }
+  } restore;
+  InputLimits low = restore.saved;
+  low.maxMemoryBytes = uint64_t(8) << 20;
+  setDefaultInputLimits(low);
+  ReflectionSettings balanced;
+  balanced.bounces = 2;
+  EXPECT_LT(traceMemoryBytes(balanced, 1, 2), double(low.maxMemoryBytes));
+  auto one = traceReflections(*room.tracer, room.materials, kSource, kListener, balanced, pool);
+  ASSERT_TRUE(one.isOk()) << one.status().message();
+  EXPECT_GT(one->stats.segmentsTraced, 0u);
+  std::vector<SharedTraceSource> eight(8);
+  for (size_t i = 0; i < eight.size(); ++i) eight[i].position = {1.0 + double(i), 2.0, 1.5};
+  auto shared = traceReflectionsShared(*room.tracer, room.materials, kListener, eight, balanced, pool);
+  ASSERT_FALSE(shared.isOk());
+  EXPECT_NE(shared.status().message().find("for 8 sources"), std::string::npos) << shared.status().message();
+  auto sharedOne = traceReflectionsShared(*room.tracer, room.materials, kListener, {eight[0]}, balanced, pool);
+  EXPECT_TRUE(sharedOne.isOk()) << sharedOne.status().message();
+  ReflectionSettings more = balanced;
+  more.rays = 200000;
+  auto m = traceReflections(*room.tracer, room.materials, kSource, kListener, more, pool);
+  ASSERT_FALSE(m.isOk());
+  EXPECT_NE(m.status().message().find("8.0 MiB"), std::string::npos) << m.status().message();
+
+  // What the estimate must cover: two CutRay slots per ray, each thread's
+  // and the merged histogram and probe sums per bin; more of anything costs more.
+  const double bins = std::ceil(balanced.maxTimeSeconds / balanced.binSeconds);
+  EXPECT_GE(traceMemoryBytes(more, 1, 1), double(more.rays) * 2.0 * double(sizeof(CutRay)));
+  EXPECT_GE(traceMemoryBytes(balanced, 3, 2),
+            bins * 3.0 * 3.0 * double(EnergyHistogram::kStride + kNumBands) * double(sizeof(int64_t)));
+  EXPECT_GT(traceMemoryBytes(more, 1, 2), traceMemoryBytes(balanced, 1, 2));
+  EXPECT_GT(traceMemoryBytes(balanced, 2, 2), traceMemoryBytes(balanced, 1, 2));
+  EXPECT_GT(traceMemoryBytes(balanced, 1, 4), traceMemoryBytes(balanced, 1, 2));
+  EXPECT_GT(traceMemoryBytes(fine, 1, 2), traceMemoryBytes(balanced, 1, 2));
 }
 
 }  // namespace earshot

@@ -376,6 +376,13 @@ TEST(Engine, BadArgumentsAreErrors) {
   EXPECT_FALSE(Engine::create(es, model).isOk()) << "rate differs from the HRTF model";
   EXPECT_FALSE(Engine::create(test::fastSettings(), nullptr).isOk());
   es = test::fastSettings();
+  es.simulation.rays = 100000000;  // ~12 GiB of trace state: refused now, not at every simulate()
+  auto many = Engine::create(es, model);
+  ASSERT_FALSE(many.isOk());
+  EXPECT_EQ(many.status().code(), StatusCode::kOutOfRange);
+  EXPECT_NE(many.status().message().find("simulation.rays 100000000"), std::string::npos) << many.status().message();
+  EXPECT_NE(many.status().message().find("--max-memory"), std::string::npos) << many.status().message();
+  es = test::fastSettings();
   es.maxSources = 2;
   auto engine = Engine::create(es, model);
   ASSERT_TRUE(engine.isOk());

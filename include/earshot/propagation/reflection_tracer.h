@@ -197,6 +197,21 @@ struct ReflectionResult {
 /** Validates settings (message names the field). */
 Status validate(const ReflectionSettings& settings);
 
+/** About what a trace with these settings holds while it runs, in bytes
+ *  (an estimate from above): per ray, its slots for where it was cut and
+ *  where a tail probe ended, and those ends in each detector's TailData;
+ *  per histogram bin (maxTimeSeconds / binSeconds), each thread's and the
+ *  merged sums of every detector and the energy in flight, and each
+ *  result's histogram and tail curves. A trace from a source has one
+ *  detector; a shared trace one per source. Kept paths (SharedTracePaths)
+ *  have their own budget. traceReflections and traceReflectionsShared
+ *  refuse (kOutOfRange, before allocating) a trace over
+ *  defaultInputLimits().maxMemoryBytes (earshot/io/input_file.h: 1 GiB
+ *  unless the CLI's --max-memory or setDefaultInputLimits says otherwise):
+ *  a file's or an argument's ray count or histogram length cannot make
+ *  the engine exhaust the host. */
+double traceMemoryBytes(const ReflectionSettings& settings, size_t detectors, unsigned threads);
+
 /** Traces reflections from `source` to `listener`. `pool` supplies the
  *  threads (the result does not depend on how many). */
 Result<ReflectionResult> traceReflections(const RayTracer& tracer, const MaterialTable& materials, const Vec3d& source,
