@@ -70,6 +70,14 @@ Result<AudioBuffer> synthesizeAmbisonicIr(const std::vector<Arrival>& arrivals, 
   detail::SpectralSynth& plan = synth.value();
   const int channels = ambisonicChannels(order);
   const double fs = settings.sampleRateHz;
+  // The levelled and W's finished noise; a noise per channel where the
+  // period is too short for the channels to share W's (sharedNoise, below).
+  {
+    size_t spread = 1;
+    while (spread < size_t(channels)) spread *= 2;
+    const bool shared = double(plan.noisePeriod() / spread) >= detail::kMinNoiseSpacingSeconds * fs;
+    EARSHOT_RETURN_IF_ERROR(plan.checkMemory(size_t(channels), shared ? 2 : 2 + size_t(channels)));
+  }
 
   // Arrivals: the omni arrival's spectrum times the harmonics of its direction.
   std::vector<detail::Spectrum> spectra(size_t(channels), plan.emptySpectrum());

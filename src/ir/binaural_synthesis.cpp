@@ -334,6 +334,7 @@ Result<AudioBuffer> synthesizeBinauralIr(const std::vector<Arrival>& arrivals, c
   auto synth = detail::SpectralSynth::plan(arrivals, reflections, settings);
   if (!synth.isOk()) return synth.status();
   detail::SpectralSynth& plan = synth.value();
+  EARSHOT_RETURN_IF_ERROR(plan.checkMemory(2, 4));  // the levelled noise, finished for the left and two right filters
   const double fs = settings.sampleRateHz;
   const size_t grid = model.gridSize(), gridBins = grid / 2 + 1;
   detail::Spectrum spectrum[2] = {plan.emptySpectrum(), plan.emptySpectrum()};

@@ -73,6 +73,7 @@ Result<AudioBuffer> synthesizeOmniIr(const std::vector<Arrival>& arrivals, const
   if (!synth.isOk()) return synth.status();
   const double fs = settings.sampleRateHz;
   detail::SpectralSynth& plan = synth.value();
+  EARSHOT_RETURN_IF_ERROR(plan.checkMemory(1, 2));  // the levelled and the finished noise
   auto spectrum = plan.emptySpectrum();
   for (const Arrival& a : arrivals) plan.addArrival(a, a.delaySeconds, {}, spectrum);
   AudioBuffer out(1, 0, fs);

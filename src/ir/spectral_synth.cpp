@@ -22,6 +22,7 @@
 #include "earshot/core/thread_runs.h"
 #include "earshot/dsp/fir.h"
 #include "earshot/io/disk_cache.h"
+#include "earshot/io/input_file.h"
 #include "earshot/ir/band_filter_bank.h"
 
 namespace earshot::detail {
@@ -226,6 +227,23 @@ Result<SpectralSynth> SpectralSynth::plan(const std::vector<Arrival>& arrivals, 
 }
 
 size_t SpectralSynth::noisePeriod() const { return detail::noisePeriod(mLength); }
+
+double SpectralSynth::memoryBytes(size_t channels, size_t noises) const {
+  const double perSample = 2.0 * double(channels) * sizeof(float) + double(kNumBands + 4) * sizeof(float);
+  // A set's bands, and (once, while one is made) the white noise, its
+  // spectrum and each of two threads' inverse, filtered bins and level sums.
+  const double perNoiseSample = double(noises) * kNumBands * sizeof(float) + 6.0 * sizeof(float) + 2.0 * 3.0 * 8.0;
+  return double(mLength) * perSample + double(noisePeriod()) * perNoiseSample;
+}
+
+Status SpectralSynth::checkMemory(size_t channels, size_t noises) const {
+  const double bytes = memoryBytes(channels, noises);
+  const uint64_t limit = defaultInputLimits().maxMemoryBytes;
+  if (bytes <= double(limit)) return Status::ok();
+  return outOfRange("an IR of " + std::to_string(mLength) + " samples at " + std::to_string(std::lround(mFs)) +
+                    " Hz in " + std::to_string(channels) + " channels needs about " + formatBytes(uint64_t(bytes)) +
+                    " to synthesise, over the memory limit of " + formatBytes(limit) + " (--max-memory)");
+}
 
 void SpectralSynth::prepareGrid(size_t gridSize) {
   if (mGridSize == gridSize) return;

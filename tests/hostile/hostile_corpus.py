@@ -297,7 +297,8 @@ def cases(src):
         buffer_views=[{"buffer": 0, "byteOffset": 0, "byteLength": 12}, {"buffer": 0, "byteOffset": 12, "byteLength": 4}],
         accessors=[sparse])}, base_ir, "error", contains="over the", outputs=["ir.wav"]))
     # A ray count or histogram whose trace would hold gigabytes (1e8 rays:
-    # ~12 GiB; 0.01 ms bins over 60 s: ~5.5 GiB): refused before tracing.
+    # ~12 GiB; 0.01 ms bins over 60 s: ~5.5 GiB): refused before tracing;
+    # likewise an IR whose synthesis would.
     c.append(Case("scene rays 1e8", dict(scene_files, **{"scene.json": scene_json(
         settings={"rays": 100000000, "duration": 0.5})}),
         ["render", "{dir}/scene.json", "-o", "{dir}/out.wav", "--quiet"], "error", contains="settings.rays",
@@ -307,6 +308,11 @@ def cases(src):
     c.append(Case("cli 0.01 ms bins over 60 s", {"room.gltf": room},
                   base_ir + ["--bin-ms", "0.01", "--length", "60"], "error", contains="--max-memory",
                   outputs=["ir.wav"]))
+    # An IR whose synthesis would hold ~8 GiB (60 s at 384 kHz, 16 channels).
+    c.append(Case("cli 60 s third-order IR at 384 kHz", {"room.gltf": room},
+                  [a if a != "omni" else "ambisonic" for a in base_ir] + ["--order", "3", "--rate", "384000",
+                                                                          "--length", "60"],
+                  "error", contains="--max-memory", outputs=["ir.wav"]))
     c.append(Case("wav at 1 Hz resampled", dict(scene_files, **{"dry.wav": wav_bytes(1, 200000),
                                                                   "scene.json": scene_json()}),
                   ["render", "{dir}/scene.json", "-o", "{dir}/out.wav", "--quiet"], "error", contains="memory limit",

@@ -8,6 +8,8 @@
 
 #include "earshot/analysis/room_acoustics.h"
 #include "earshot/core/math.h"
+#include "earshot/ir/ambisonic_synthesis.h"
+#include "earshot/io/input_file.h"
 #include "earshot/ir/ir_synthesis.h"
 
 namespace earshot {
@@ -142,6 +144,40 @@ TEST(IrSynthesis, LengthIsExactWhenGivenAndRatesOutOfRangeAreErrors) {
   auto bad = synthesizeOmniIr(&d, nullptr, s);
   ASSERT_FALSE(bad.isOk());
   EXPECT_NE(bad.status().message().find("sample rate"), std::string::npos);
+}
+
+// An IR whose synthesis would hold more than the memory limit is refused
+// before it is made (kOutOfRange, naming --max-memory): under 64 MiB a 10 s
+// omni IR (~92 MB: the IR, its band envelopes, its noises of 2^19 samples)
+// and a 10 s third-order ambisonic IR are refused, a 2 s one is made.
+// Without the check the 10 s IRs are made (checked).
+TEST(IrSynthesis, AnIrOverTheMemoryLimitIsRefusedBeforeItIsMade) {
+  EnergyHistogram h(0.001, 2000);
+  for (size_t bin = 10; bin < 2000; ++bin)
+    h.add(bin, filledBands(1e-3 * std::exp(-double(bin) / 300.0)), {1, 0, 0});
+  struct Restore {
+    InputLimits saved = defaultInputLimits();
+    ~Restore() { setDefaultInputLimits(saved); }
+  } restore;
+  InputLimits low = restore.saved;
+  low.maxMemoryBytes = uint64_t(64) << 20;
+  setDefaultInputLimits(low);
+  IrSynthesisSettings s;
+  s.lengthSeconds = 10;
+  auto omni = synthesizeOmniIr(nullptr, &h, s);
+  ASSERT_FALSE(omni.isOk());
+  EXPECT_EQ(omni.status().code(), StatusCode::kOutOfRange);
+  EXPECT_NE(omni.status().message().find("480000 samples"), std::string::npos) << omni.status().message();
+  EXPECT_NE(omni.status().message().find("--max-memory"), std::string::npos) << omni.status().message();
+  auto ambi = synthesizeAmbisonicIr({}, &h, s, 3, worldAmbisonicFrame());
+  ASSERT_FALSE(ambi.isOk());
+  EXPECT_NE(ambi.status().message().find("16 channels"), std::string::npos) << ambi.status().message();
+  s.lengthSeconds = 2;
+  auto shorter = synthesizeOmniIr(nullptr, &h, s);
+  ASSERT_TRUE(shorter.isOk()) << shorter.status().message();
+  EXPECT_EQ(shorter->frameCount(), 96000u);
+  auto shorterAmbi = synthesizeAmbisonicIr({}, &h, s, 3, worldAmbisonicFrame());
+  ASSERT_TRUE(shorterAmbi.isOk()) << shorterAmbi.status().message();
 }
 
 }  // namespace earshot
