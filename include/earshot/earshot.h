@@ -358,6 +358,17 @@ EARSHOT_API earshot_status earshot_process_channels(earshot_context* context, co
  *  *length says how much is needed). Any thread but the audio thread. */
 EARSHOT_API earshot_status earshot_hrtf_default_path(char* buffer, size_t capacity, size_t* length);
 
+/** The process's memory limit (bytes; default 1 GiB, the CLI's --max-memory):
+ *  what an input file, a ray count (a trace's state, ~150 bytes a ray) or
+ *  an IR's length and channels (its synthesis) may make earshot allocate,
+ *  estimated before allocating and refused past it (OUT_OF_RANGE). 0 sets
+ *  the default back. Applies to every context from the next call on (a
+ *  context created before checks its rays against the limit it saw).
+ *  Any thread but the audio thread. */
+EARSHOT_API earshot_status earshot_set_memory_limit(uint64_t bytes);
+/** Stores the process's memory limit (bytes) in *bytes. */
+EARSHOT_API earshot_status earshot_get_memory_limit(uint64_t* bytes);
+
 /* ------------------------------------------------------------------- scene */
 
 typedef struct earshot_scene_settings {

@@ -34,7 +34,8 @@ RECEIVERS = ("omni", "binaural")
 QUALITIES = ("draft", "balanced", "high", "reference")
 TRACE_MODES = ("per-source", "shared", "auto")
 
-__all__ = ["Scene", "IR", "Render", "render", "analysis", "BANDS_HZ", "RECEIVERS", "QUALITIES", "TRACE_MODES"]
+__all__ = ["Scene", "IR", "Render", "render", "analysis", "BANDS_HZ", "RECEIVERS", "QUALITIES", "TRACE_MODES",
+           "set_memory_limit", "memory_limit"]
 
 _MAX_JSON_FILE_BYTES = 64 << 20
 
@@ -452,6 +453,22 @@ def _optional_uint_big(name, value):
     if not 0 < int(value) < 2**63:
         raise ValueError(f"{name}: expected a positive number of bytes")
     return int(value)
+
+
+def set_memory_limit(bytes_):
+    """The process's memory limit in bytes (default 1 GiB; the CLI's
+    --max-memory): what a ray count (a trace's state, ~150 bytes a ray), an
+    IR's length and channels (its synthesis) or a scene's render may make
+    the engine allocate, estimated before allocating and refused past it
+    (ValueError naming the limit). None or 0 sets the default back. A
+    Scene's own max_memory caps its file's loading."""
+    _earshot._set_memory_limit(0 if bytes_ is None or (not isinstance(bytes_, bool) and bytes_ == 0)
+                               else _optional_uint_big("bytes", bytes_))
+
+
+def memory_limit():
+    """The process's memory limit in bytes (set_memory_limit)."""
+    return int(_earshot._memory_limit())
 
 
 class Render:

@@ -235,6 +235,27 @@ def test_bad_arguments_raise(shoebox, kwargs, exc, text):
         shoebox.ir(s, l, **args)
 
 
+def test_memory_limit_refuses_a_trace_past_it_until_raised(shoebox):
+    # 30000 rays hold ~6 MB of trace state: refused under 4 MiB, traced
+    # under 64 MiB; None sets the default (1 GiB) back.
+    assert earshot.memory_limit() == 1 << 30
+    try:
+        earshot.set_memory_limit(4 << 20)
+        assert earshot.memory_limit() == 4 << 20
+        with pytest.raises(ValueError, match="30000 rays.*over the memory limit of 4.0 MiB"):
+            shoebox.ir(SRC, LIS, quality="draft", receiver="omni", rays=30000)
+        earshot.set_memory_limit(64 << 20)
+        ir = shoebox.ir(SRC, LIS, quality="draft", receiver="omni", rays=30000)
+        assert ir.samples.shape[-1] > 0
+    finally:
+        earshot.set_memory_limit(None)
+    assert earshot.memory_limit() == 1 << 30
+    with pytest.raises(ValueError):
+        earshot.set_memory_limit(-1)
+    with pytest.raises(TypeError):
+        earshot.set_memory_limit("1G")
+
+
 def test_bad_scenes_raise(tmp_path):
     with pytest.raises(FileNotFoundError):
         earshot.Scene(tmp_path / "missing.gltf")

@@ -6,6 +6,7 @@
 #include <cstring>
 
 #include "capi_internal.h"
+#include "earshot/io/input_file.h"
 #include "earshot/hrtf/hrtf_set.h"
 
 namespace earshot::capi {
@@ -153,6 +154,25 @@ earshot_status earshot_hrtf_default_path(char* buffer, size_t capacity, size_t* 
                   "the path needs " + std::to_string(path->size() + 1) + " bytes, buffer has " +
                       std::to_string(capacity));
     std::memcpy(buffer, path->c_str(), path->size() + 1);
+    return EARSHOT_OK;
+  });
+}
+
+earshot_status earshot_set_memory_limit(uint64_t bytes) {
+  static const char* kFn = "earshot_set_memory_limit";
+  return guard(nullptr, kFn, [&]() -> earshot_status {
+    earshot::InputLimits limits = earshot::defaultInputLimits();
+    limits.maxMemoryBytes = bytes > 0 ? bytes : earshot::kDefaultMaxMemoryBytes;
+    earshot::setDefaultInputLimits(limits);
+    return EARSHOT_OK;
+  });
+}
+
+earshot_status earshot_get_memory_limit(uint64_t* bytes) {
+  static const char* kFn = "earshot_get_memory_limit";
+  return guard(nullptr, kFn, [&]() -> earshot_status {
+    if (!bytes) return argError(nullptr, kFn, "bytes is NULL");
+    *bytes = earshot::defaultInputLimits().maxMemoryBytes;
     return EARSHOT_OK;
   });
 }

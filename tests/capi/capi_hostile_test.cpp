@@ -113,6 +113,31 @@ TEST_F(CApiHostile, MemoryLimitIsTheCallersToSet) {
   EXPECT_EQ(load(path, 0, 0), EARSHOT_OK) << message();
 }
 
+// A context whose rays' trace would pass the process's memory limit is
+// refused (1e8 rays: ~12 GiB); the caller may raise the limit
+// (earshot_set_memory_limit, the CLI's --max-memory), and 0 sets the
+// default back.
+TEST_F(CApiHostile, RaysPastTheMemoryLimitAreRefusedUntilTheCallerRaisesIt) {
+  uint64_t limit = 0;
+  ASSERT_EQ(earshot_get_memory_limit(&limit), EARSHOT_OK);
+  EXPECT_EQ(limit, uint64_t(1) << 30);
+  EXPECT_NE(earshot_get_memory_limit(nullptr), EARSHOT_OK);
+  earshot_context_settings cs = fastSettings();
+  cs.rays = 20000000;  // ~2.8 GiB of trace state
+  earshot_context* ctx = nullptr;
+  EXPECT_EQ(earshot_context_create(&cs, &ctx), EARSHOT_ERROR_OUT_OF_RANGE) << message();
+  EXPECT_NE(message().find("simulation.rays 20000000"), std::string::npos) << message();
+  EXPECT_EQ(ctx, nullptr);
+  ASSERT_EQ(earshot_set_memory_limit(uint64_t(8) << 30), EARSHOT_OK);
+  ASSERT_EQ(earshot_get_memory_limit(&limit), EARSHOT_OK);
+  EXPECT_EQ(limit, uint64_t(8) << 30);
+  EXPECT_EQ(earshot_context_create(&cs, &ctx), EARSHOT_OK) << message();  // nothing simulated: nothing traced
+  earshot_context_release(ctx);
+  ASSERT_EQ(earshot_set_memory_limit(0), EARSHOT_OK);
+  ASSERT_EQ(earshot_get_memory_limit(&limit), EARSHOT_OK);
+  EXPECT_EQ(limit, uint64_t(1) << 30);
+}
+
 TEST_F(CApiHostile, DeepJsonAndHugeCoordinatesAreErrorsNotCrashes) {
   const std::string deep = level("deep.gltf", gltfDoc("data:application/octet-stream;base64," + kTriangle,
                                                       R"([{"mesh":0}])",
