@@ -414,15 +414,17 @@ Result<std::unique_ptr<Engine>> Engine::create(const EngineSettings& s, Binaural
   e->mSettings.threads = threads;
   {
     // A simulation's traces within the memory limit (traceMemoryBytes):
-    // one on every worker, or one per worker side by side. Refused here
-    // rather than by every simulate(); invalid settings are left to it.
+    // one on every worker, or one per worker side by side (one per source,
+    // at most). Refused here rather than by every simulate(); invalid
+    // settings are left to it.
     ReflectionSettings traced;
     traced.rays = s.simulation.rays;
     traced.binSeconds = s.simulation.binSeconds;
     if (s.simulation.lengthSeconds > 0) traced.maxTimeSeconds = s.simulation.lengthSeconds;
     if (validate(traced).isOk()) {
       const double bytes =
-          std::max(traceMemoryBytes(traced, 1, threads), double(threads) * traceMemoryBytes(traced, 1, 1));
+          std::max(traceMemoryBytes(traced, 1, threads),
+                   double(std::min<size_t>(threads, s.maxSources)) * traceMemoryBytes(traced, 1, 1));
       const uint64_t limit = defaultInputLimits().maxMemoryBytes;
       if (bytes > double(limit))
         return outOfRange("engine: simulation.rays " + std::to_string(traced.rays) + " and its histogram need about " +
