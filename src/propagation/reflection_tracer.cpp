@@ -964,6 +964,10 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
   std::vector<PathEvents> recorded;
   std::atomic<size_t> recordedBytes{0};
   std::atomic<bool> overBudget{false};
+  // Paths are kept within their budget and within what the memory limit
+  // leaves beside the trace's own state (traceMemoryBytes).
+  const double keepable = double(defaultInputLimits().maxMemoryBytes) - traceMemoryBytes(settings, nd, pool.threadCount());
+  const size_t keepBudget = paths ? size_t(std::clamp(keepable, 0.0, double(paths->budget))) : 0;
 
   // Flutter cones need the whole trace: the convergence rounds compare
   // subsets that must each cover the sphere alike.
@@ -1490,7 +1494,7 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
             const size_t added = (ev.segments.size() - segmentsBefore) * sizeof(SegmentEvent) +
                                  (ev.reflections.size() - reflectionsBefore) * sizeof(ReflectionEvent) +
                                  (ev.planes.size() - planesBefore) * sizeof(PlaneSequence);
-            if (recordedBytes.fetch_add(added, std::memory_order_relaxed) + added > paths->budget)
+            if (recordedBytes.fetch_add(added, std::memory_order_relaxed) + added > keepBudget)
               overBudget.store(true, std::memory_order_relaxed);
           }
           if (overBudget.load(std::memory_order_relaxed)) ev.clear();  // none will be kept

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "earshot/core/thread_pool.h"
+#include "earshot/io/input_file.h"
 #include "earshot/propagation/reflection_tracer.h"
 #include "earshot/scene/ray_tracer.h"
 
@@ -388,6 +389,27 @@ TEST(SharedTrace, KeptPathsGiveTheSameBitsAsATrace) {
   auto again = traceReflectionsShared(*room.tracer, room.materials, kListener, second, s, two, &small);
   ASSERT_TRUE(again.isOk());
   EXPECT_FALSE(again->front().stats.pathsReused);
+  // A memory limit that leaves the paths less than they need beside the
+  // trace's own state: none kept either (the default budget would keep
+  // them), the results the same.
+  {
+    struct Restore {
+      InputLimits saved = defaultInputLimits();
+      ~Restore() { setDefaultInputLimits(saved); }
+    } restore;
+    InputLimits low = restore.saved;
+    low.maxMemoryBytes = uint64_t(traceMemoryBytes(s, second.size(), two.threadCount())) + 100000;
+    setDefaultInputLimits(low);
+    SharedTracePaths limited;
+    auto under = traceReflectionsShared(*room.tracer, room.materials, kListener, second, s, two, &limited);
+    ASSERT_TRUE(under.isOk()) << under.status().message();
+    EXPECT_EQ(limited.bytes(), 0u);
+    for (size_t i = 0; i < second.size(); ++i) EXPECT_EQ((*under)[i].histogram.data(), (*fresh)[i].histogram.data());
+    setDefaultInputLimits(restore.saved);
+    auto kept = traceReflectionsShared(*room.tracer, room.materials, kListener, second, s, two, &limited);
+    ASSERT_TRUE(kept.isOk());
+    EXPECT_GT(limited.bytes(), 100000u);
+  }
 }
 
 TEST(SharedTrace, BadInputIsAClearError) {

@@ -204,7 +204,7 @@ Status validate(const ReflectionSettings& settings);
  *  merged sums of every detector and the energy in flight, and each
  *  result's histogram and tail curves. A trace from a source has one
  *  detector; a shared trace one per source. Kept paths (SharedTracePaths)
- *  have their own budget. traceReflections and traceReflectionsShared
+ *  come on top, within their budget and what the limit leaves. traceReflections and traceReflectionsShared
  *  refuse (kOutOfRange, before allocating) a trace over
  *  defaultInputLimits().maxMemoryBytes (earshot/io/input_file.h: 1 GiB
  *  unless the CLI's --max-memory or setDefaultInputLimits says otherwise):
@@ -248,8 +248,9 @@ constexpr size_t kSharedTracePathsBudgetBytes = size_t(256) << 20;
  *  that does not replaces them. A listener that stays in place (a seated
  *  player turning the head, an offline render's fixed listener) then costs
  *  each simulation only its sources' detections and shadow rays. At most
- *  `budgetBytes` (default kSharedTracePathsBudgetBytes) are kept; a trace
- *  whose paths need more keeps none. Not thread-safe: one trace at a time. */
+ *  `budgetBytes` (default kSharedTracePathsBudgetBytes), and at most what
+ *  the memory limit leaves beside the trace's state (traceMemoryBytes), are
+ *  kept; a trace whose paths need more keeps none. Not thread-safe: one trace at a time. */
 class SharedTracePaths {
  public:
   explicit SharedTracePaths(size_t budgetBytes);
