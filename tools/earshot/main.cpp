@@ -165,8 +165,9 @@ int main(int argc, char** argv) {
            limits.maxMemoryBytes = *bytes;
            earshot::setDefaultInputLimits(limits);
          },
-         "Most memory an input file may make earshot allocate (estimated before loading: triangles after "
-         "instancing, samples after resampling, a render's sources), e.g. 512M, 4G (default 1G)")
+         "Most memory an input file or an option may make earshot allocate (estimated first: triangles after "
+         "instancing, samples after resampling, a render's sources, a trace's rays and histogram bins, an IR's "
+         "synthesis), e.g. 512M, 4G (default 1G)")
       ->type_name("SIZE");
   app.add_flag_callback(
       "--allow-outside-paths",
