@@ -462,8 +462,13 @@ def set_memory_limit(bytes_):
     the engine allocate, estimated before allocating and refused past it
     (ValueError naming the limit). None or 0 sets the default back. A
     Scene's own max_memory caps its file's loading."""
-    _earshot._set_memory_limit(0 if bytes_ is None or (not isinstance(bytes_, bool) and bytes_ == 0)
-                               else _optional_uint_big("bytes", bytes_))
+    if bytes_ is None:
+        bytes_ = 0
+    if isinstance(bytes_, bool) or not isinstance(bytes_, (int, _np.integer)):
+        raise TypeError("bytes: expected a whole number of bytes or None")
+    if not 0 <= int(bytes_) < 2**63:
+        raise ValueError("bytes: expected a positive number of bytes, or 0 or None for the default")
+    _earshot._set_memory_limit(int(bytes_))
 
 
 def memory_limit():

@@ -70,14 +70,14 @@ Result<AudioBuffer> synthesizeAmbisonicIr(const std::vector<Arrival>& arrivals, 
   detail::SpectralSynth& plan = synth.value();
   const int channels = ambisonicChannels(order);
   const double fs = settings.sampleRateHz;
-  // The levelled and W's finished noise; a noise per channel where the
-  // period is too short for the channels to share W's (sharedNoise, below).
-  {
-    size_t spread = 1;
-    while (spread < size_t(channels)) spread *= 2;
-    const bool shared = double(plan.noisePeriod() / spread) >= detail::kMinNoiseSpacingSeconds * fs;
-    EARSHOT_RETURN_IF_ERROR(plan.checkMemory(size_t(channels), shared ? 2 : 2 + size_t(channels)));
-  }
+  // Whether the channels share W's late noise (sharedNoise, see below).
+  const size_t period = plan.noisePeriod();
+  size_t spread = 1;
+  while (spread < size_t(channels)) spread *= 2;
+  const size_t spacing = period / spread;
+  const bool sharedNoise = double(spacing) >= detail::kMinNoiseSpacingSeconds * fs;
+  // The levelled and W's finished noise, and one per channel unless shared.
+  EARSHOT_RETURN_IF_ERROR(plan.checkMemory(size_t(channels), sharedNoise ? 2 : 2 + size_t(channels)));
 
   // Arrivals: the omni arrival's spectrum times the harmonics of its direction.
   std::vector<detail::Spectrum> spectra(size_t(channels), plan.emptySpectrum());
@@ -131,12 +131,7 @@ Result<AudioBuffer> synthesizeAmbisonicIr(const std::vector<Arrival>& arrivals, 
   // (finishedBandNoise waits for one that another thread is making).
   std::vector<std::shared_ptr<const std::vector<std::vector<float>>>> noises{size_t(channels)};
   noises[0] = plan.finishedBandNoise(settings.seed, detail::kLateNoiseStream, {}, 0);
-  const size_t period = plan.noisePeriod();
   const size_t offset = detail::noiseOffset(settings.seed, settings.noiseKey, period);
-  size_t spread = 1;
-  while (spread < size_t(channels)) spread *= 2;
-  const size_t spacing = period / spread;
-  const bool sharedNoise = double(spacing) >= detail::kMinNoiseSpacingSeconds * fs;
   const int first = int(settings.noiseKey % uint64_t(channels));
   for (int i = 0; i < channels; ++i) {
     const int c = (first + i) % channels;

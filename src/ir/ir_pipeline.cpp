@@ -94,6 +94,25 @@ Result<OmniIrResult> computeOmniIr(const RayTracer& tracer, const MaterialTable&
   return computeIr(tracer, materials, source, listener, s, pool, nullptr);
 }
 
+ReflectionSettings reflectionSettingsOf(const OmniIrSettings& s) {
+  ReflectionSettings rs;
+  rs.directivity = s.directivity;
+  rs.rays = s.rays;
+  rs.bounces = s.bounces;
+  rs.seed = s.seed;
+  rs.speedOfSound = s.speedOfSound;
+  rs.air = s.air;
+  rs.binSeconds = s.binSeconds;
+  rs.receiverRadiusMeters = s.receiverRadiusMeters;
+  rs.tailProbes = s.completeTail ? s.tailProbes : 0;
+  rs.russianRoulette = s.russianRoulette;
+  rs.flutterCones = s.flutterCones;
+  rs.sharedShadowRoulette = s.sharedShadowRoulette;
+  rs.convergenceDb = s.convergenceDb;
+  if (s.lengthSeconds > 0) rs.maxTimeSeconds = s.lengthSeconds;
+  return rs;
+}
+
 namespace {
 
 // An IR in the making: computeIr's stages, which computeIrs interleaves
@@ -216,21 +235,7 @@ Status prepareIr(const RayTracer& tracer, const MaterialTable& materials, const 
 bool tracesReflections(const RayTracer& tracer, const OmniIrSettings& s) { return !tracer.empty() && s.bounces > 0; }
 
 ReflectionSettings reflectionSettingsOf(const OmniIrSettings& s, const IrJob& job) {
-  ReflectionSettings rs;
-  rs.directivity = s.directivity;
-  rs.rays = s.rays;
-  rs.bounces = s.bounces;
-  rs.seed = s.seed;
-  rs.speedOfSound = s.speedOfSound;
-  rs.air = s.air;
-  rs.binSeconds = s.binSeconds;
-  rs.receiverRadiusMeters = s.receiverRadiusMeters;
-  rs.tailProbes = s.completeTail ? s.tailProbes : 0;
-  rs.russianRoulette = s.russianRoulette;
-  rs.flutterCones = s.flutterCones;
-  rs.sharedShadowRoulette = s.sharedShadowRoulette;
-  rs.convergenceDb = s.convergenceDb;
-  if (s.lengthSeconds > 0) rs.maxTimeSeconds = s.lengthSeconds;
+  ReflectionSettings rs = reflectionSettingsOf(s);
   rs.excludedSpecular = job.hasImageSources ? &job.ism.found : nullptr;
   rs.excludedMaxOrder = job.hasImageSources ? s.imageSourceOrder : 0;
   return rs;
@@ -404,7 +409,7 @@ Result<std::vector<OmniIrResult>> computeIrs(const RayTracer& tracer, const Mate
   // result a histogram and the tail data until its IR is made
   // (traceMemoryBytes, affine in the sources). A single source over the
   // limit is refused by the trace.
-  const ReflectionSettings sized = reflectionSettingsOf(s, jobs[0]);
+  const ReflectionSettings sized = reflectionSettingsOf(s);
   const double one = traceMemoryBytes(sized, 1, pool.threadCount());
   const double perSource = traceMemoryBytes(sized, 2, pool.threadCount()) - one;
   const double budget = std::min(double(kSharedTraceBudgetBytes), double(defaultInputLimits().maxMemoryBytes));

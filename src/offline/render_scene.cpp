@@ -162,10 +162,7 @@ Result<RenderResult> renderScene(const SceneDescription& scene, const RenderOpti
   // traceMemoryBytes): the scene's ray count is refused here, naming it,
   // rather than by the first simulation.
   {
-    ReflectionSettings traced;
-    traced.rays = es.simulation.rays;
-    traced.binSeconds = es.simulation.binSeconds;
-    if (es.simulation.lengthSeconds > 0) traced.maxTimeSeconds = es.simulation.lengthSeconds;
+    const ReflectionSettings traced = reflectionSettingsOf(es.simulation);
     const double traceBytes = traceMemoryBytes(traced, 1, es.threads);
     if (heldBytes + traceBytes > double(budget))
       return outOfRange(scene.sceneFile + ": " + (ss.rays && !options.quality ? "settings.rays: " : "") +

@@ -417,10 +417,7 @@ Result<std::unique_ptr<Engine>> Engine::create(const EngineSettings& s, Binaural
     // one on every worker, or one per worker side by side (one per source,
     // at most). Refused here rather than by every simulate(); invalid
     // settings are left to it.
-    ReflectionSettings traced;
-    traced.rays = s.simulation.rays;
-    traced.binSeconds = s.simulation.binSeconds;
-    if (s.simulation.lengthSeconds > 0) traced.maxTimeSeconds = s.simulation.lengthSeconds;
+    const ReflectionSettings traced = reflectionSettingsOf(s.simulation);
     if (validate(traced).isOk()) {
       const double bytes =
           std::max(traceMemoryBytes(traced, 1, threads),

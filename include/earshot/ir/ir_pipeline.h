@@ -136,6 +136,9 @@ enum class TraceMode {
 constexpr size_t kAutoSharedTraceSources = 3;
 /** The mode a computeIrs of `sources` sources uses (kAuto resolved). */
 TraceMode effectiveTraceMode(TraceMode mode, size_t sources);
+/** The reflection trace's settings of an IR with these settings (without
+ *  its image sources' exclusions): e.g. for traceMemoryBytes. */
+ReflectionSettings reflectionSettingsOf(const OmniIrSettings& settings);
 /** "per-source", "shared" or "auto". */
 Result<TraceMode> traceModeFromString(const std::string& name);
 const char* toString(TraceMode mode);
