@@ -748,11 +748,7 @@ PYBIND11_MODULE(_earshot, m) {
   m.def("_difference_in_jnd", [](const std::string& metric, double test, double reference) {
     return analysis::differenceInJnd(take(analysis::parseMetric(metric)), test, reference);
   });
-  m.def("_set_memory_limit", [](uint64_t bytes) {
-    InputLimits limits = defaultInputLimits();
-    limits.maxMemoryBytes = bytes > 0 ? bytes : kDefaultMaxMemoryBytes;
-    setDefaultInputLimits(limits);
-  });
+  m.def("_set_memory_limit", [](uint64_t bytes) { setDefaultMaxMemoryBytes(bytes); });
   m.def("_memory_limit", []() { return defaultInputLimits().maxMemoryBytes; });
   m.attr("__version__") = EARSHOT_VERSION;
   m.attr("bands_hz") = std::vector<double>(kBandCentersHz.begin(), kBandCentersHz.end());

@@ -161,9 +161,7 @@ earshot_status earshot_hrtf_default_path(char* buffer, size_t capacity, size_t* 
 earshot_status earshot_set_memory_limit(uint64_t bytes) {
   static const char* kFn = "earshot_set_memory_limit";
   return guard(nullptr, kFn, [&]() -> earshot_status {
-    earshot::InputLimits limits = earshot::defaultInputLimits();
-    limits.maxMemoryBytes = bytes > 0 ? bytes : earshot::kDefaultMaxMemoryBytes;
-    earshot::setDefaultInputLimits(limits);
+    earshot::setDefaultMaxMemoryBytes(bytes);
     return EARSHOT_OK;
   });
 }

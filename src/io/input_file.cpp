@@ -5,6 +5,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -48,6 +49,18 @@ InputLimits defaultInputLimits() {
 void setDefaultInputLimits(const InputLimits& limits) {
   std::lock_guard<std::mutex> lock(gMutex);
   gDefaults = limits;
+}
+
+void setDefaultMaxMemoryBytes(uint64_t bytes) {
+  std::lock_guard<std::mutex> lock(gMutex);
+  gDefaults.maxMemoryBytes = bytes > 0 ? bytes : kDefaultMaxMemoryBytes;
+}
+
+Status checkMemoryEstimate(double bytes, const std::string& what) {
+  const uint64_t limit = defaultInputLimits().maxMemoryBytes;
+  if (bytes <= double(limit)) return Status::ok();
+  return outOfRange(what + " needs about " + formatBytes(uint64_t(std::min(bytes, 1.8e19))) +
+                    ", over the memory limit of " + formatBytes(limit) + " (--max-memory)");
 }
 
 Result<uint64_t> parseByteSize(const std::string& text) {

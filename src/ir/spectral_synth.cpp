@@ -237,12 +237,9 @@ double SpectralSynth::memoryBytes(size_t channels, size_t noises) const {
 }
 
 Status SpectralSynth::checkMemory(size_t channels, size_t noises) const {
-  const double bytes = memoryBytes(channels, noises);
-  const uint64_t limit = defaultInputLimits().maxMemoryBytes;
-  if (bytes <= double(limit)) return Status::ok();
-  return outOfRange("an IR of " + std::to_string(mLength) + " samples at " + std::to_string(std::lround(mFs)) +
-                    " Hz in " + std::to_string(channels) + " channels needs about " + formatBytes(uint64_t(bytes)) +
-                    " to synthesise, over the memory limit of " + formatBytes(limit) + " (--max-memory)");
+  return checkMemoryEstimate(memoryBytes(channels, noises), "synthesising an IR of " + std::to_string(mLength) +
+                                                                " samples at " + std::to_string(std::lround(mFs)) +
+                                                                " Hz in " + std::to_string(channels) + " channels");
 }
 
 void SpectralSynth::prepareGrid(size_t gridSize) {

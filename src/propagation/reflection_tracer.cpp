@@ -803,14 +803,12 @@ namespace {
 
 // A trace's state against the memory limit, before any of it is allocated.
 Status checkTraceMemory(const ReflectionSettings& s, size_t detectors, unsigned threads) {
-  const double bytes = traceMemoryBytes(s, detectors, threads);
-  const uint64_t limit = defaultInputLimits().maxMemoryBytes;
-  if (bytes <= double(limit)) return Status::ok();
-  return outOfRange("a trace of " + std::to_string(s.rays) + " rays and " +
-                    std::to_string(size_t(std::ceil(s.maxTimeSeconds / s.binSeconds))) + " histogram bins" +
-                    (detectors > 1 ? " for " + std::to_string(detectors) + " sources" : std::string()) + " on " +
-                    std::to_string(threads) + " threads needs about " + formatBytes(uint64_t(std::min(bytes, 1.8e19))) +
-                    ", over the memory limit of " + formatBytes(limit) + " (--max-memory)");
+  return checkMemoryEstimate(traceMemoryBytes(s, detectors, threads),
+                             "a trace of " + std::to_string(s.rays) + " rays and " +
+                                 std::to_string(size_t(std::ceil(s.maxTimeSeconds / s.binSeconds))) +
+                                 " histogram bins" +
+                                 (detectors > 1 ? " for " + std::to_string(detectors) + " sources" : std::string()) +
+                                 " on " + std::to_string(threads) + " threads");
 }
 
 // What a trace's paths depend on besides the detectors (SharedTracePaths).

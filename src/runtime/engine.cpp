@@ -418,16 +418,12 @@ Result<std::unique_ptr<Engine>> Engine::create(const EngineSettings& s, Binaural
     // at most). Refused here rather than by every simulate(); invalid
     // settings are left to it.
     const ReflectionSettings traced = reflectionSettingsOf(s.simulation);
-    if (validate(traced).isOk()) {
-      const double bytes =
+    if (validate(traced).isOk())
+      EARSHOT_RETURN_IF_ERROR(checkMemoryEstimate(
           std::max(traceMemoryBytes(traced, 1, threads),
-                   double(std::min<size_t>(threads, s.maxSources)) * traceMemoryBytes(traced, 1, 1));
-      const uint64_t limit = defaultInputLimits().maxMemoryBytes;
-      if (bytes > double(limit))
-        return outOfRange("engine: simulation.rays " + std::to_string(traced.rays) + " and its histogram need about " +
-                          formatBytes(uint64_t(std::min(bytes, 1.8e19))) + " on " + std::to_string(threads) +
-                          " threads, over the memory limit of " + formatBytes(limit) + " (--max-memory)");
-    }
+                   double(std::min<size_t>(threads, s.maxSources)) * traceMemoryBytes(traced, 1, 1)),
+          "engine: simulation.rays " + std::to_string(traced.rays) + " with its histogram on " +
+              std::to_string(threads) + " threads"));
   }
   e->mPool = std::make_unique<ThreadPool>(threads, s.workerNice);
   for (unsigned w = 0; w < e->mPool->threadCount(); ++w) e->mWorkerPools.push_back(std::make_unique<ThreadPool>(1));

@@ -46,6 +46,13 @@ struct InputLimits {
  *  Thread-safe. */
 InputLimits defaultInputLimits();
 void setDefaultInputLimits(const InputLimits& limits);
+/** The process's memory limit set to `bytes` (0: kDefaultMaxMemoryBytes),
+ *  the other limits kept (earshot_set_memory_limit, earshot.set_memory_limit). */
+void setDefaultMaxMemoryBytes(uint64_t bytes);
+/** kOutOfRange "<what> needs about B, over the memory limit of L
+ *  (--max-memory)" when an estimate of `bytes` passes the process's memory
+ *  limit (before allocating it); ok otherwise. */
+Status checkMemoryEstimate(double bytes, const std::string& what);
 
 /** Parses a byte count: "512M", "2G", "1073741824", "64K" (powers of 1024). */
 Result<uint64_t> parseByteSize(const std::string& text);
