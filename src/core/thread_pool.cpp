@@ -49,7 +49,13 @@ void ThreadPool::runTasks(unsigned workerIndex) {
       if (mNextTask >= mTaskCount) return;
       task = mNextTask++;
     }
-    (*mFn)(task, workerIndex);
+    try {
+      (*mFn)(task, workerIndex);
+    } catch (...) {
+      std::lock_guard<std::mutex> lock(mMutex);
+      if (!mError) mError = std::current_exception();
+      mNextTask = mTaskCount;  // no further task starts
+    }
   }
 }
 
@@ -87,6 +93,12 @@ void ThreadPool::parallelFor(size_t taskCount, const std::function<void(size_t, 
   // All tasks handed out; wait until every worker that joined has finished.
   mDone.wait(lock, [&] { return mBusy == 0 && mNextTask >= mTaskCount; });
   mFn = nullptr;
+  if (mError) {
+    std::exception_ptr error = std::move(mError);
+    mError = nullptr;
+    lock.unlock();
+    std::rethrow_exception(error);
+  }
 }
 
 }  // namespace earshot

@@ -5,6 +5,7 @@
  *  only on its index and combine outputs in index order afterwards. */
 #include <condition_variable>
 #include <cstddef>
+#include <exception>
 #include <functional>
 #include <mutex>
 #include <thread>
@@ -33,7 +34,10 @@ class ThreadPool {
   /** Calls fn(taskIndex, workerIndex) for every taskIndex in [0, taskCount),
    *  on the pool's threads and the caller's; returns when all are done.
    *  workerIndex is in [0, threadCount()). Every worker runs with denormals
-   *  flushed. fn must not throw. Not reentrant. */
+   *  flushed. If fn throws (e.g. std::bad_alloc), no further task starts
+   *  and the first exception is rethrown here once the running ones have
+   *  finished (a worker thread never terminates the process). Not
+   *  reentrant. */
   void parallelFor(size_t taskCount, const std::function<void(size_t, unsigned)>& fn);
 
  private:
@@ -44,6 +48,7 @@ class ThreadPool {
   std::mutex mMutex;
   std::condition_variable mWake, mDone;
   const std::function<void(size_t, unsigned)>* mFn = nullptr;
+  std::exception_ptr mError;  // the first task's exception in this parallelFor
   size_t mTaskCount = 0;
   size_t mNextTask = 0;
   unsigned mBusy = 0;
