@@ -359,9 +359,13 @@ EARSHOT_API earshot_status earshot_process_channels(earshot_context* context, co
 EARSHOT_API earshot_status earshot_hrtf_default_path(char* buffer, size_t capacity, size_t* length);
 
 /** The process's memory limit (bytes; default 1 GiB, the CLI's --max-memory):
- *  what an input file, a ray count (a trace's state, ~150 bytes a ray) or
- *  an IR's length and channels (its synthesis) may make earshot allocate,
- *  estimated before allocating and refused past it (OUT_OF_RANGE). 0 sets
+ *  what an input file, a ray count (a trace's state, ~150 bytes a ray), an
+ *  IR's length and channels (its synthesis) or a context's sources (each
+ *  slot in use with the IRs it may hold: 0.85 MB at the defaults, 64 bytes
+ *  per frame of max_ir_seconds with binaural reflections, ambisonic_order
+ *  0: 185 MB for 60 s at 48 kHz) may make earshot
+ *  allocate, estimated before allocating and refused past it
+ *  (OUT_OF_RANGE). 0 sets
  *  the default back. Applies to every context from the next call on (a
  *  context created before checks its rays against the limit it saw).
  *  Any thread but the audio thread. */
@@ -623,8 +627,9 @@ EARSHOT_API earshot_status earshot_source_settings_init(earshot_source_settings*
  *  reference to the context. *out holds one reference (NULL on failure).
  *  The first source waits for the context's HRTF to finish loading; a slot's
  *  first source allocates its state (~0.2 ms). Errors: INVALID_ARGUMENT,
- *  OUT_OF_RANGE (all max_sources slots in use), PARSE / NOT_FOUND (the HRTF
- *  failed to load), OUT_OF_MEMORY. Game thread. */
+ *  OUT_OF_RANGE (all max_sources slots in use, or a new slot's state would
+ *  take the slots in use past the memory limit: earshot_set_memory_limit),
+ *  PARSE / NOT_FOUND (the HRTF failed to load), OUT_OF_MEMORY. Game thread. */
 EARSHOT_API earshot_status earshot_source_create(earshot_context* context, const earshot_source_settings* settings,
                                                  earshot_source** out);
 /** Adds a reference. Game thread. */

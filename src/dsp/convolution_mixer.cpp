@@ -163,6 +163,14 @@ struct ConvolutionMixer::Impl {
   }
 
   // Control side, controlMutex held: the source's state, allocated once.
+  // What reserve() allocates for a source: its input history and each
+  // level's spectra of past input blocks.
+  size_t sourceStateBytes() const {
+    size_t values = historyFrames;
+    for (const LevelState& lv : levels) values += lv.k * 2 * lv.stride;
+    return values * sizeof(float) + sizeof(Source) + levels.size() * sizeof(SourceLevel);
+  }
+
   void reserve(size_t si) {
     if (owned[si]) return;
     auto src = std::make_unique<Source>();
@@ -684,6 +692,8 @@ Status ConvolutionMixer::reserveSource(size_t source) {
   }
   return Status::ok();
 }
+
+size_t ConvolutionMixer::sourceStateBytes() const { return mImpl->sourceStateBytes(); }
 
 size_t ConvolutionMixer::reservedSources() const {
   std::lock_guard<std::mutex> lock(mImpl->controlMutex);

@@ -39,6 +39,28 @@ const uint16_t* PreparedIr::compactSpectra(size_t level, size_t channel) const {
   return mHalf + mLevelOffset[level] + channel * lv.partitionCount * 2 * mStride[level];
 }
 
+namespace {
+
+// Values (floats, or binary16 halves when compact) a level's spectra take
+// for `channels` channels: each partition's split spectrum, padded.
+size_t levelValues(const PartitionLevel& lv, size_t channels) {
+  return channels * lv.partitionCount * 2 * padBins(lv.partitionFrames + 1);
+}
+
+// The spectra's allocation for `values` values, in whole cache lines.
+size_t spectraBytes(size_t values, bool compact) {
+  const size_t bytes = values * (compact ? sizeof(uint16_t) : sizeof(float));
+  return std::max<size_t>(64, (bytes + 63) / 64 * 64);
+}
+
+}  // namespace
+
+size_t PreparedIr::bytesFor(const PartitionLayout& layout, size_t channels) {
+  size_t total = 0;
+  for (const auto& lv : layout.levels()) total += levelValues(lv, channels);
+  return spectraBytes(total, layout.compactSpectra());
+}
+
 Result<std::shared_ptr<const PreparedIr>> PreparedIr::create(const AudioBuffer& ir, const PartitionLayout& layout,
                                                              ThreadPool* pool) {
   return create(ir.channels, layout, pool);
@@ -70,10 +92,9 @@ Result<std::shared_ptr<const PreparedIr>> PreparedIr::create(const std::vector<s
   const auto& levels = layout.levels();
   size_t total = 0;
   for (const auto& lv : levels) {
-    size_t stride = padBins(lv.partitionFrames + 1);
-    out->mStride.push_back(stride);
+    out->mStride.push_back(padBins(lv.partitionFrames + 1));
     out->mLevelOffset.push_back(total);
-    total += channels.size() * lv.partitionCount * 2 * stride;
+    total += levelValues(lv, channels.size());
     // Active partitions: those holding at least one tap of the IR.
     size_t active = 0;
     if (frames > lv.offsetFrames)
@@ -101,13 +122,13 @@ Result<std::shared_ptr<const PreparedIr>> PreparedIr::create(const std::vector<s
     // at <= 2^14 (binary16 holds up to 65504, and values 2^-24 of that scale
     // still count), rounded to binary16 and laid out by bin tiles
     // (compactTileOffset); no float spectra are kept.
-    const size_t halfBytes = ((total * sizeof(uint16_t) + 63) / 64) * 64;
-    out->mHalf = static_cast<uint16_t*>(std::aligned_alloc(64, halfBytes ? halfBytes : 64));
+    const size_t halfBytes = spectraBytes(total, true);
+    out->mHalf = static_cast<uint16_t*>(std::aligned_alloc(64, halfBytes));
     if (!out->mHalf) return outOfRange("prepared IR: cannot allocate " + std::to_string(halfBytes) + " bytes");
     out->mScale.assign(levels.size() * channels.size(), 1.0f);
   } else {
-    const size_t bytes = ((total * sizeof(float) + 63) / 64) * 64;
-    out->mData = static_cast<float*>(std::aligned_alloc(64, bytes ? bytes : 64));
+    const size_t bytes = spectraBytes(total, false);
+    out->mData = static_cast<float*>(std::aligned_alloc(64, bytes));
     if (!out->mData) return outOfRange("prepared IR: cannot allocate " + std::to_string(bytes) + " bytes");
   }
 

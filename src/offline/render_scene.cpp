@@ -36,9 +36,6 @@ constexpr double kMaxIrSeconds = 10.0;
 // length T between two different phases of a sine at f changes its slope by
 // up to 1 / (2 pi f T): 1.2 % at 300 Hz), short next to the update interval.
 constexpr size_t kRenderFadeFrames = 2048;
-// Memory a source slot's convolution state takes per frame of its longest
-// IR (measured: 1000 sources with 10 s IRs at 48 kHz took 12.4 GB).
-constexpr double kBytesPerSourceIrFrame = 26.0;
 
 // What a source's last simulation saw (relative poses decide re-simulation).
 struct SimulatedPose {
@@ -148,11 +145,11 @@ Result<RenderResult> renderScene(const SceneDescription& scene, const RenderOpti
 
   // What the engine will hold before it holds it.
   const uint64_t budget = defaultInputLimits().maxMemoryBytes;
-  // The measured 26 bytes per frame are for two channels; an ambisonic IR
-  // holds (order+1)^2.
-  const double irChannels = ambisonic ? double(ambisonicChannels(es.ambisonicOrder)) : 2.0;
-  const double engineBytes =
-      double(scene.sources.size()) * kBytesPerSourceIrFrame * (irChannels / 2.0) * kMaxIrSeconds * fs;
+  // Each source's slot with the IRs it may hold (Engine::sourceSlotBytes,
+  // which addSource() checks again).
+  auto slotBytes = runtime::Engine::sourceSlotBytes(es);
+  if (!slotBytes.isOk()) return slotBytes.status();
+  const double engineBytes = double(scene.sources.size()) * double(*slotBytes);
   if (engineBytes > double(budget))
     return outOfRange(scene.sceneFile + ": sources: " + std::to_string(scene.sources.size()) +
                       " sources need about " + formatBytes(uint64_t(engineBytes)) +

@@ -174,6 +174,26 @@ double ratioDb(double num, double den) {
 
 }  // namespace
 
+namespace {
+
+double maxDelayFrames(const DirectVoiceSettings& s) {
+  return s.maxDelaySeconds * s.sampleRateHz + double(s.extraDelayFrames);
+}
+
+// The delay line: the delay plus the HRTF's largest onset (|delay| < 2 ms
+// for any head) plus margins, in a power of two.
+size_t ringFrames(const DirectVoiceSettings& s) {
+  return nextPow2(size_t(maxDelayFrames(s) + 0.002 * s.sampleRateHz) + kChunk + 16);
+}
+
+}  // namespace
+
+size_t DirectVoice::stateBytes(const DirectVoiceSettings& s) {
+  const size_t hrirTaps = hrtf::HrirPair::kMaxTaps;  // any HRTF set's
+  const size_t floats = ringFrames(s) + kTaps + 2 * (3 * hrirTaps - 1 + kChunk) + 3 * kChunk;
+  return floats * sizeof(float) + 2 * sizeof(hrtf::HrirPair) + sizeof(DirectVoice);
+}
+
 Result<std::unique_ptr<DirectVoice>> DirectVoice::create(const DirectVoiceSettings& s,
                                                          std::shared_ptr<const hrtf::HrtfSet> hrtf) {
   if (!hrtf) return invalidArgument("direct voice: no HRTF set");
@@ -192,11 +212,9 @@ Result<std::unique_ptr<DirectVoice>> DirectVoice::create(const DirectVoiceSettin
   v->mSincTable = &sincTable();
   v->mHrtf = std::move(hrtf);
   v->mAirDbPerMeter = s.air.enabled ? airAttenuationDbPerMeter(s.air) : filledBands(0.0);
-  // Delay plus the HRTF's largest onset (|delay| < 2 ms for any head) plus margins.
-  v->mMaxDelay = s.maxDelaySeconds * s.sampleRateHz + double(s.extraDelayFrames);
-  const size_t needed = size_t(v->mMaxDelay + 0.002 * s.sampleRateHz) + kChunk + 16;
-  v->mRing.assign(nextPow2(needed) + kTaps, 0.0f);  // + a guard mirroring the start (delayedReads)
-  v->mRingMask = nextPow2(needed) - 1;
+  v->mMaxDelay = maxDelayFrames(s);
+  v->mRing.assign(ringFrames(s) + kTaps, 0.0f);  // + a guard mirroring the start (delayedReads)
+  v->mRingMask = ringFrames(s) - 1;
   v->mHrir = std::make_unique<hrtf::HrirPair>();
   v->mHrirNext = std::make_unique<hrtf::HrirPair>();
   const size_t taps = v->mHrtf->hrirLength();

@@ -5,6 +5,7 @@
 #include <chrono>
 #include <thread>
 #include <cmath>
+#include <cstdio>
 #include <optional>
 #include <string>
 
@@ -110,6 +111,57 @@ struct Engine::Slot {
 namespace {
 
 double dbToGain(double db) { return std::pow(10.0, db / 20.0); }
+
+std::string seconds(double s) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%g s", s);
+  return text;
+}
+
+bool hasSharedTail(const EngineSettings& s) { return s.ambisonicOrder > 0 && s.sharedTailSeconds > 0; }
+
+// The convolver of the sources' own IRs.
+ConvolverSettings convolverSettingsOf(const EngineSettings& s) {
+  ConvolverSettings cs;
+  cs.latencyFrames = s.blockFrames;
+  cs.maxIrFrames = size_t(std::ceil(s.maxIrSeconds * s.sampleRateHz));
+  if (hasSharedTail(s))  // the sources' own IRs end with the crossfade into the shared tail
+    cs.maxIrFrames = std::min(cs.maxIrFrames, size_t(std::ceil((s.sharedTailSeconds + kTailFadeSeconds) * s.sampleRateHz)) + 2);
+  cs.channels = s.ambisonicOrder > 0 ? size_t(ambisonicChannels(s.ambisonicOrder)) : 2;
+  cs.fadeFrames = s.fadeFrames;
+  cs.maxPartitionFrames = s.maxPartitionFrames;
+  cs.compactSpectra = s.ambisonicOrder > 0 && s.compactAmbisonicSpectra;
+  return cs;
+}
+
+// The engine's latency: its convolver's, and with ambisonic reflections
+// heard binaurally the decoder's convolution (one more block) and its bulk
+// delay.
+size_t latencyOf(const EngineSettings& s, size_t mixerLatencyFrames) {
+  if (s.ambisonicOrder > 0 && s.output == OutputFormat::kBinaural)
+    return mixerLatencyFrames + s.blockFrames + ambisonicDecoderDelayFrames(s.sampleRateHz);
+  return mixerLatencyFrames;
+}
+
+// Every source's direct voice.
+DirectVoiceSettings voiceSettingsOf(const EngineSettings& s, size_t latencyFrames) {
+  DirectVoiceSettings ds;
+  ds.sampleRateHz = s.sampleRateHz;
+  ds.speedOfSound = s.simulation.speedOfSound;
+  ds.air = s.simulation.air;
+  ds.maxDelaySeconds = s.maxDistanceMeters / s.simulation.speedOfSound;
+  ds.extraDelayFrames = latencyFrames;
+  return ds;
+}
+
+// Engine::sourceSlotBytes for the engine's convolver `mixer` and latency.
+size_t slotBytesOf(const EngineSettings& s, const ConvolutionMixer& mixer, size_t latencyFrames) {
+  const size_t channels = mixer.settings().channels;
+  const size_t kept =
+      hasSharedTail(s) ? 0 : size_t(std::ceil(s.maxIrSeconds * s.sampleRateHz)) * channels * sizeof(float);
+  return DirectVoice::stateBytes(voiceSettingsOf(s, latencyFrames)) + mixer.sourceStateBytes() +
+         3 * PreparedIr::bytesFor(mixer.layout(), channels) + kept;
+}
 
 /** The pattern of a source's settings (its axis is set apart: orientation). */
 Directivity directivityOf(const SourceSettings& s) {
@@ -363,26 +415,16 @@ Result<std::unique_ptr<Engine>> Engine::create(const EngineSettings& s, Binaural
   if (!(s.sharedTailSeconds >= 0 && s.sharedTailSeconds < s.maxIrSeconds))
     return invalidArgument("engine: sharedTailSeconds " + std::to_string(s.sharedTailSeconds) + " is outside [0, " +
                            std::to_string(s.maxIrSeconds) + ")");
-  const bool sharedTail = s.ambisonicOrder > 0 && s.sharedTailSeconds > 0;
-  ConvolverSettings cs;
-  cs.latencyFrames = s.blockFrames;
-  cs.maxIrFrames = size_t(std::ceil(s.maxIrSeconds * s.sampleRateHz));
-  if (sharedTail)  // the sources' own IRs end with the crossfade into the shared tail
-    cs.maxIrFrames = std::min(cs.maxIrFrames, size_t(std::ceil((s.sharedTailSeconds + kTailFadeSeconds) * s.sampleRateHz)) + 2);
-  cs.channels = s.ambisonicOrder > 0 ? size_t(ambisonicChannels(s.ambisonicOrder)) : 2;
-  cs.fadeFrames = s.fadeFrames;
-  cs.maxPartitionFrames = s.maxPartitionFrames;
-  cs.compactSpectra = s.ambisonicOrder > 0 && s.compactAmbisonicSpectra;
+  const bool sharedTail = hasSharedTail(s);
+  const ConvolverSettings cs = convolverSettingsOf(s);
   auto mixer = ConvolutionMixer::create(cs, s.maxSources);
   if (!mixer.isOk()) return Status(mixer.status().code(), "engine: " + mixer.status().message());
   e->mMixer = std::move(mixer.value());
-  e->mLatency = e->mMixer->latencyFrames();
+  e->mLatency = latencyOf(s, e->mMixer->latencyFrames());
   if (s.output == OutputFormat::kAmbisonic && s.ambisonicOrder < 1)
     return invalidArgument("engine: ambisonic output needs ambisonic reflections (ambisonicOrder 1-3)");
   e->mOutputChannels = s.output == OutputFormat::kAmbisonic ? size_t(ambisonicChannels(s.ambisonicOrder)) : 2;
   if (s.ambisonicOrder > 0) {
-    // Binaural output: the decoder's convolution (one more block) and its bulk delay.
-    if (s.output == OutputFormat::kBinaural) e->mLatency += s.blockFrames + ambisonicDecoderDelayFrames(s.sampleRateHz);
     e->mRotation = std::make_unique<ShRotation>();
     const size_t channels = size_t(ambisonicChannels(s.ambisonicOrder));
     e->mBus.assign(channels * kProcessChunk, 0.0f);
@@ -465,6 +507,16 @@ Status Engine::createDecoder(const BinauralModel& model) {
   return Status::ok();
 }
 
+size_t Engine::sourceSlotBytes() const { return slotBytesOf(mSettings, *mMixer, mLatency); }
+
+Result<size_t> Engine::sourceSlotBytes(const EngineSettings& settings) {
+  // The mixer's layout depends on the slot count; a mixer without sources
+  // holds only its shared buffers.
+  auto mixer = ConvolutionMixer::create(convolverSettingsOf(settings), settings.maxSources);
+  if (!mixer.isOk()) return Status(mixer.status().code(), "engine: " + mixer.status().message());
+  return slotBytesOf(settings, **mixer, latencyOf(settings, (*mixer)->latencyFrames()));
+}
+
 Result<uint32_t> Engine::addSource(const SourceSettings& settings) {
   EARSHOT_RETURN_IF_ERROR(validate(settings));
   std::lock_guard<std::mutex> lock(mAddMutex);
@@ -473,15 +525,15 @@ Result<uint32_t> Engine::addSource(const SourceSettings& settings) {
     if (slot.active.load()) continue;
     if (!slot.voiceOwner) {
       // The slot's first source: its state, published to the audio thread
-      // before the slot turns active.
+      // before the slot turns active; refused before it is allocated when
+      // the slots would pass the memory limit with their IRs.
       auto model = this->model();
       if (!model.isOk()) return model.status();
-      DirectVoiceSettings ds;
-      ds.sampleRateHz = mSettings.sampleRateHz;
-      ds.speedOfSound = mSettings.simulation.speedOfSound;
-      ds.air = mSettings.simulation.air;
-      ds.maxDelaySeconds = mSettings.maxDistanceMeters / mSettings.simulation.speedOfSound;
-      ds.extraDelayFrames = mLatency;
+      const size_t slots = mMixer->reservedSources() + 1;
+      EARSHOT_RETURN_IF_ERROR(checkMemoryEstimate(
+          double(slots) * double(sourceSlotBytes()),
+          "engine: " + std::to_string(slots) + " source slots with IRs of up to " + seconds(mSettings.maxIrSeconds)));
+      const DirectVoiceSettings ds = voiceSettingsOf(mSettings, mLatency);
       if (mSettings.ambisonicOrder > 0 && mSettings.output == OutputFormat::kBinaural && !mDecoder)
         EARSHOT_RETURN_IF_ERROR(createDecoder(**model));
       auto voice = DirectVoice::create(ds, (*model)->hrtfPtr());

@@ -138,6 +138,51 @@ TEST_F(CApiHostile, RaysPastTheMemoryLimitAreRefusedUntilTheCallerRaisesIt) {
   EXPECT_EQ(limit, uint64_t(1) << 30);
 }
 
+// A context of 4096 slots with 60 s binaural reflections: each slot in use
+// may hold ~185 MB (its convolution state and IRs), 760 GB for all. A source
+// whose slot would take the slots in use past the memory limit is refused
+// before it allocates (5 fit under the default 1 GiB); a higher limit admits
+// more. Without the check the loop allocated every slot's state (~23 MB
+// each) until the host ran out.
+TEST_F(CApiHostile, SourcesPastTheMemoryLimitAreRefusedUntilTheCallerRaisesIt) {
+  earshot_context_settings cs = fastSettings();
+  cs.max_sources = 4096;
+  cs.max_ir_seconds = 60;
+  cs.ambisonic_order = 0;
+  earshot_context* ctx = nullptr;
+  ASSERT_EQ(earshot_context_create(&cs, &ctx), EARSHOT_OK) << message();
+  std::vector<earshot_source*> sources;
+  earshot_status refused = EARSHOT_OK;
+  for (uint32_t i = 0; i < cs.max_sources; ++i) {
+    earshot_source* src = nullptr;
+    refused = earshot_source_create(ctx, nullptr, &src);
+    if (refused != EARSHOT_OK) {
+      EXPECT_EQ(src, nullptr);
+      break;
+    }
+    sources.push_back(src);
+  }
+  EXPECT_EQ(refused, EARSHOT_ERROR_OUT_OF_RANGE) << message();
+  EXPECT_NE(message().find("source slots"), std::string::npos) << message();
+  EXPECT_GE(sources.size(), 1u);
+  EXPECT_LE(sources.size(), 8u) << "~185 MB a slot under 1 GiB";
+  const size_t admitted = sources.size();
+  ASSERT_EQ(earshot_set_memory_limit(uint64_t(4) << 30), EARSHOT_OK);
+  earshot_source* more = nullptr;
+  EXPECT_EQ(earshot_source_create(ctx, nullptr, &more), EARSHOT_OK) << message();
+  earshot_source_release(more);
+  ASSERT_EQ(earshot_set_memory_limit(0), EARSHOT_OK);
+  // A released slot is reused under the default limit again.
+  earshot_source_release(sources.back());
+  sources.pop_back();
+  earshot_source* again = nullptr;
+  EXPECT_EQ(earshot_source_create(ctx, nullptr, &again), EARSHOT_OK) << message();
+  earshot_source_release(again);
+  EXPECT_EQ(sources.size() + 1, admitted);
+  for (earshot_source* src : sources) earshot_source_release(src);
+  earshot_context_release(ctx);
+}
+
 TEST_F(CApiHostile, DeepJsonAndHugeCoordinatesAreErrorsNotCrashes) {
   const std::string deep = level("deep.gltf", gltfDoc("data:application/octet-stream;base64," + kTriangle,
                                                       R"([{"mesh":0}])",

@@ -15,9 +15,14 @@
 #include <string>
 #include <vector>
 
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
+
 #include "earshot/core/math.h"
 #include "earshot/core/random.h"
 #include "earshot/core/thread_pool.h"
+#include "earshot/io/input_file.h"
 #include "earshot/ir/ir_pipeline.h"
 #include "earshot/runtime/direct_voice.h"
 #include "earshot/runtime/engine.h"
@@ -398,6 +403,117 @@ TEST(Engine, BadArgumentsAreErrors) {
   EXPECT_TRUE(e.removeSource(*a).isOk());
   EXPECT_FALSE(e.removeSource(*a).isOk()) << "removed twice";
   EXPECT_TRUE(e.addSource({}).isOk()) << "the slot is free again";
+}
+
+#if defined(__GLIBC__)
+// In use: in the heap's arenas and in chunks of their own (mmap).
+double heapBytes() {
+  const struct mallinfo2 m = mallinfo2();
+  return double(m.uordblks) + double(m.hblkhd);
+}
+#endif
+
+// Sets the memory limit (as --max-memory does) until it goes out of scope.
+struct MemoryLimitFor {
+  explicit MemoryLimitFor(uint64_t bytes) { setDefaultMaxMemoryBytes(bytes); }
+  ~MemoryLimitFor() { setDefaultMaxMemoryBytes(0); }
+};
+
+// Binaural reflections (each source keeps its whole IR) of 2 s, IRs as long
+// as the convolver takes.
+EngineSettings slotTestSettings() {
+  EngineSettings es = test::fastSettings();
+  es.ambisonicOrder = 0;
+  es.maxIrSeconds = 2;
+  es.simulation.lengthSeconds = 2;
+  es.maxSources = 64;
+  es.traceMode = TraceMode::kShared;  // one or three sources: the same listener's paths kept
+  return es;
+}
+
+// A slot's state is allocated when a source first uses it; the slots in
+// use, each with what it may hold (sourceSlotBytes: its voice, convolution
+// state, three IRs in the convolver and the IR kept for sourceIr()), stay
+// within the memory limit: the source past it is refused before its slot
+// allocates, a released slot is reused, a higher limit admits more.
+TEST(Engine, SourceSlotsPastTheMemoryLimitAreRefusedBeforeTheyAllocate) {
+  auto model = test::ku100();
+  ASSERT_TRUE(model);
+  auto engine = Engine::create(slotTestSettings(), model);
+  ASSERT_TRUE(engine.isOk()) << engine.status().message();
+  Engine& e = **engine;
+  const size_t slot = e.sourceSlotBytes();
+  const size_t irBytes = size_t(2 * kFs) * 2 * sizeof(float);
+  EXPECT_GT(slot, 4 * irBytes) << "three IRs in the convolver and the one kept, at least their samples each";
+
+  MemoryLimitFor limit(uint64_t(3.5 * double(slot)));
+  std::vector<uint32_t> ids;
+  for (int i = 0; i < 3; ++i) {
+    auto id = e.addSource({});
+    ASSERT_TRUE(id.isOk()) << i << ": " << id.status().message();
+    ids.push_back(*id);
+  }
+  auto refused = e.addSource({});
+  ASSERT_FALSE(refused.isOk()) << "a fourth slot passes 3.5 slots' bytes";
+  EXPECT_EQ(refused.status().code(), StatusCode::kOutOfRange);
+  EXPECT_NE(refused.status().message().find("4 source slots"), std::string::npos) << refused.status().message();
+  EXPECT_NE(refused.status().message().find("--max-memory"), std::string::npos) << refused.status().message();
+  ASSERT_TRUE(e.removeSource(ids[1]).isOk());
+  EXPECT_TRUE(e.addSource({}).isOk()) << "a released slot's state is reused, not allocated";
+  setDefaultMaxMemoryBytes(uint64_t(6.5 * double(slot)));  // (`limit` restores the default)
+  for (int i = 0; i < 3; ++i) EXPECT_TRUE(e.addSource({}).isOk()) << "under a higher limit: " << i;
+  EXPECT_FALSE(e.addSource({}).isOk()) << "a seventh slot";
+}
+
+// sourceSlotBytes() is from above: what two more simulated sources hold
+// (glibc's heap count: an engine with three sources against one with one,
+// each after two rounds of IRs with audio between, so that the convolver
+// holds new IRs beside the ones it plays) is within two slots' estimate.
+TEST(Engine, WhatASimulatedSourceHoldsIsWithinItsSlotsEstimate) {
+#if !defined(__GLIBC__)
+  GTEST_SKIP() << "heap measured with glibc's mallinfo2";
+#else
+  {
+    const double before = heapBytes();
+    std::vector<char> probe(1 << 20, 1);
+    if (heapBytes() - before < 1e6) GTEST_SKIP() << "malloc is not glibc's (a sanitizer): mallinfo2 sees nothing";
+  }
+  auto model = test::ku100();
+  ASSERT_TRUE(model);
+  test::Room room;
+  size_t slot = 0;
+  auto heldBy = [&](int sources) {
+    const double start = heapBytes();
+    auto engine = Engine::create(slotTestSettings(), model);
+    EXPECT_TRUE(engine.isOk());
+    if (!engine.isOk()) return 0.0;
+    Engine& e = **engine;
+    slot = e.sourceSlotBytes();
+    e.setScene(room.tracer, room.materials);
+    std::vector<float> in(256, 0.5f), l(256), r(256);
+    std::vector<const float*> inputs(64, nullptr);
+    std::vector<uint32_t> ids;
+    for (int i = 0; i < sources; ++i) {
+      auto id = e.addSource({});
+      EXPECT_TRUE(id.isOk());
+      ids.push_back(*id);
+      inputs[*id] = in.data();
+      EXPECT_TRUE(e.setSourcePosition(*id, {2.0 + i, 3, 1.5}).isOk());
+    }
+    EXPECT_TRUE(e.simulate().isOk());
+    for (int b = 0; b < 200; ++b) e.process(inputs.data(), l.data(), r.data(), 256);
+    for (uint32_t id : ids) EXPECT_TRUE(e.setSourcePosition(id, {3.0, 4, 1.0}).isOk());
+    EXPECT_TRUE(e.simulate().isOk());
+    for (int b = 0; b < 10; ++b) e.process(inputs.data(), l.data(), r.data(), 256);
+    for (uint32_t id : ids) EXPECT_EQ(e.sourceIr(id).ir->frameCount(), size_t(2 * kFs));
+    return heapBytes() - start;
+  };
+  heldBy(1);  // the process's caches (band noise, FFT plans), made once
+  const double one = heldBy(1), three = heldBy(3);
+  EXPECT_LT((three - one) / 2, double(slot)) << "a source holds more than its slot's estimate";
+  EXPECT_GT((three - one) / 2, double(slot) / 4) << "the estimate is far from what a source holds";
+  std::printf("a simulated source holds %.2f MB, its slot's estimate %.2f MB\n", (three - one) / 2e6, double(slot) / 1e6);
+#endif
 }
 
 // Issue 16: sources whose geometry changed most since their IR are

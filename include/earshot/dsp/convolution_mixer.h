@@ -57,6 +57,9 @@ class ConvolutionMixer {
    *  before feeding a source input that must reach its first IR's output.
    *  Thread: control side. Error: out of range, or out of memory. */
   Status reserveSource(size_t source);
+  /** The bytes reserveSource() allocates for one source (its IRs apart:
+   *  PreparedIr::bytesFor each). */
+  size_t sourceStateBytes() const;
   /** Sources whose state has been allocated. Thread: control side. */
   size_t reservedSources() const;
   /** Releases IRs the audio thread has finished with. Thread: control side.

@@ -33,6 +33,11 @@ class PreparedIr {
   static Result<std::shared_ptr<const PreparedIr>> create(const AudioBuffer& ir, const PartitionLayout& layout,
                                                           ThreadPool* pool = nullptr);
 
+  /** The spectra's bytes of an IR of `channels` channels for `layout`
+   *  (whatever its length: every partition of the layout is stored), what
+   *  create() allocates beside a few per-level numbers. */
+  static size_t bytesFor(const PartitionLayout& layout, size_t channels);
+
   const PartitionLayout& layout() const { return mLayout; }
   size_t channelCount() const { return mChannels; }
   /** Length of the IR it was built from (frames). */

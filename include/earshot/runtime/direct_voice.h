@@ -58,6 +58,10 @@ class DirectVoice {
   static Result<std::unique_ptr<DirectVoice>> create(const DirectVoiceSettings& settings,
                                                      std::shared_ptr<const hrtf::HrtfSet> hrtf);
 
+  /** What create() allocates for these settings (as create() accepts
+   *  them) and any HRTF set (up to hrtf::HrirPair::kMaxTaps taps). */
+  static size_t stateBytes(const DirectVoiceSettings& settings);
+
   /** Renders `frames` frames of `input` (mono, nullptr = silence) and ADDS the
    *  two ears to left and right. Parameters move from the previous call's
    *  target to `target` across these frames. Thread: audio only; no

@@ -234,8 +234,9 @@ using BinauralModelFuture = std::shared_future<Result<std::shared_ptr<const Bina
 class Engine {
  public:
   /** The shared state only: every source slot's state (its direct voice and
-   *  convolution history, ~2 MB for 3 s IRs) is allocated by addSource() the
-   *  first time the slot is used, and kept for the slot's next source.
+   *  convolution history, ~0.4 MB at the defaults, ~2 MB for 3 s binaural
+   *  IRs) is allocated by addSource() the first time the slot is used, and
+   *  kept for the slot's next source.
    *  Thread: any but audio. */
   static Result<std::unique_ptr<Engine>> create(const EngineSettings& settings,
                                                 std::shared_ptr<const BinauralModel> model);
@@ -266,8 +267,22 @@ class Engine {
    *  next process() call, its reflections once simulated. Error when all
    *  maxSources slots are in use, the settings are out of range, the HRTF
    *  model failed to load, or memory for the slot's state ran out. The first
-   *  use of a slot allocates its state (and waits for a loading model). */
+   *  use of a slot allocates its state (and waits for a loading model); it
+   *  is refused (kOutOfRange) when the slots in use would hold more than
+   *  the memory limit (defaultInputLimits().maxMemoryBytes) with their IRs:
+   *  sourceSlotBytes() each. */
   Result<uint32_t> addSource(const SourceSettings& settings);
+  /** What one source slot may hold, from above: its direct voice, its
+   *  convolution state, the three IRs the convolver may hold for it at
+   *  once (the one playing, the one it fades from, one waiting) and,
+   *  without a shared tail, the IR kept for sourceIr(). Not counted: the
+   *  whole IRs sourceIr() makes and keeps for sources with a shared tail,
+   *  and the shared state (the decoder, the shared tail). */
+  size_t sourceSlotBytes() const;
+  /** The same for an engine of these settings, before one is made (e.g.
+   *  to refuse a scene's sources before loading it). Error: settings the
+   *  convolver refuses. */
+  static Result<size_t> sourceSlotBytes(const EngineSettings& settings);
   Status removeSource(uint32_t source);
   Status setSourcePosition(uint32_t source, const Vec3d& position);
   Status setSourceGainDb(uint32_t source, double gainDb);
