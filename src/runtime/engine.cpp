@@ -685,6 +685,27 @@ Status Engine::simulate(const std::vector<uint32_t>& sources) {
   return simulateLocked(sources);
 }
 
+size_t Engine::simulationGroupSize() const {
+  const EngineSettings& s = mSettings;
+  // A source's IR in the making, from above: its synthesised IR (the set
+  // length, else the automatic one's cap), only W whole with a shared tail,
+  // and its completed histogram.
+  const double seconds =
+      (s.simulation.lengthSeconds > 0
+           ? s.simulation.lengthSeconds
+           : std::max(TailCompletionSettings{}.maxAutoSeconds, reflectionSettingsOf(s.simulation).maxTimeSeconds)) +
+      0.05;
+  const double frames = std::ceil(seconds * s.sampleRateHz);
+  const double channels = double(mMixer->settings().channels);
+  const double perSource = frames * (mTailMixer ? 1.0 : channels) * sizeof(float) +
+                           std::ceil(seconds / s.simulation.binSeconds) * EnergyHistogram::kStride * sizeof(double);
+  // What the limit leaves beside the slots in use and the last source's IR
+  // (whole in every channel).
+  const double left = double(defaultInputLimits().maxMemoryBytes) -
+                      double(mMixer->reservedSources()) * double(sourceSlotBytes()) - frames * channels * sizeof(float);
+  return size_t(std::clamp(std::floor(left / perSource), 1.0, 4096.0));
+}
+
 Status Engine::simulateLocked(const std::vector<uint32_t>& order) {
   const auto t0 = std::chrono::steady_clock::now();
   std::shared_ptr<const RayTracer> tracer;
@@ -719,21 +740,6 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& order) {
     std::optional<Result<OmniIrResult>> result;
     uint32_t denormalMode = 0;  // the synthesis's (pool workers flush denormals)
   };
-  std::vector<Job> jobs;
-  for (uint32_t i : order) {
-    Slot& slot = *mSlots[i];
-    Job j{i, slot.generation.load(), mSettings.simulation,
-          {slot.position[0].load(), slot.position[1].load(), slot.position[2].load()}, std::nullopt};
-    slot.simulatedSource = j.source;
-    slot.simulatedListener = listener;
-    j.settings.includeDirect = DirectMode(slot.direct.load()) == DirectMode::kInImpulseResponse;
-    j.settings.directivity.alpha = slot.directivityAlpha.load();
-    j.settings.directivity.sharpness = slot.directivitySharpness.load();
-    j.settings.directivity.perBand = slot.directivityPerBand.load();
-    for (int b = 0; b < kNumBands; ++b) j.settings.directivity.bandAlpha[size_t(b)] = slot.directivityBandAlpha[b].load();
-    j.settings.directivity.forward = {slot.forward[0].load(), slot.forward[1].load(), slot.forward[2].load()};
-    jobs.push_back(std::move(j));
-  }
   // Shared tail: each source's own IR up to sharedTailSeconds, crossfaded
   // (complementary linear ramps) into its tail, whose W energy is the
   // source's late level; the last source simulated with a tail gives the
@@ -741,47 +747,6 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& order) {
   // up to the crossfade's end only (W whole, for its level).
   const size_t tailSplit = size_t(std::llround(mSettings.sharedTailSeconds * mSettings.sampleRateHz));
   const size_t tailFade = size_t(std::llround(kTailFadeSeconds * mSettings.sampleRateHz));
-  if (mTailMixer)
-    for (size_t k = 0; k + 1 < jobs.size(); ++k) jobs[k].settings.ambisonicPartialFrames = tailSplit + tailFade;
-  uint32_t flushedMode;
-  {
-    ScopedFlushDenormals ftz;
-    flushedMode = currentDenormalMode();
-  }
-  for (Job& j : jobs) j.denormalMode = flushedMode;
-  // Several sources: one per worker, each traced single-threaded (synthesis
-  // is single-threaded anyway); one source: all workers trace it. Either way
-  // each IR is bit-identical (the tracer's result does not depend on threads).
-  if (effectiveTraceMode(mSettings.traceMode, jobs.size()) == TraceMode::kShared && !jobs.empty()) {
-    // One trace from the listener for every source of this simulation.
-    std::vector<IrRequest> requests;
-    for (const Job& j : jobs) {
-      IrRequest q;
-      q.source = j.source;
-      q.directivity = j.settings.directivity;
-      q.includeDirect = j.settings.includeDirect;
-      q.ambisonicPartialFrames = j.settings.ambisonicPartialFrames;
-      q.name = "source " + std::to_string(j.slot);
-      requests.push_back(std::move(q));
-    }
-    if (!mListenerCache) mListenerCache = std::make_unique<ListenerCache>();
-    auto r = computeIrs(*tracer, *materials, listener, requests, mSettings.simulation, TraceMode::kShared, *mPool,
-                        binauralReceiver, ambisonicReceiver, mListenerCache.get());
-    if (!r.isOk()) return r.status();
-    stats.pathsReused = !r->empty() && r->front().traceStats.pathsReused;
-    for (size_t k = 0; k < jobs.size(); ++k) jobs[k].result = std::move((*r)[k]);
-  } else if (jobs.size() >= 2 && mPool->threadCount() >= 2) {
-    mPool->parallelFor(jobs.size(), [&](size_t k, unsigned worker) {
-      Job& j = jobs[k];
-      j.result = computeIr(*tracer, *materials, j.source, listener, j.settings, *mWorkerPools[worker],
-                           binauralReceiver, ambisonicReceiver);
-    });
-  } else {
-    for (Job& j : jobs) j.denormalMode = currentDenormalMode();
-    for (Job& j : jobs)
-      j.result = computeIr(*tracer, *materials, j.source, listener, j.settings, *mPool, binauralReceiver,
-                           ambisonicReceiver);
-  }
   auto tailWeight = [&](size_t i) {
     return i < tailSplit ? 0.0f : i >= tailSplit + tailFade ? 1.0f : float(i - tailSplit) / float(tailFade);
   };
@@ -804,89 +769,159 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& order) {
   // The last source synthesised in part that has a tail: the shared tail's
   // if the last source has none.
   std::shared_ptr<const Slot::WholeIr> tailFallback;
-  for (Job& j : jobs) {
-    Slot& slot = *mSlots[j.slot];
-    auto& r = *j.result;
-    if (!r.isOk()) return Status(r.status().code(), "source " + std::to_string(j.slot) + ": " + r.status().message());
-    stats.traceMs += r->timings.traceMs + r->timings.imageSourcesMs;
-    stats.synthesisMs += r->timings.synthesisMs;
-    const auto tPrepare = std::chrono::steady_clock::now();
-    AudioBuffer& ir = r->ir;
-    cutIr(ir, maxFrames, mSettings.sampleRateHz);
-    const bool partial = j.settings.ambisonicPartialFrames > 0;
-    const DirectPath direct = r->direct;
-    AudioBuffer own;
-    const AudioBuffer* convolved = &ir;
-    bool hasTail = false;
-    if (mTailMixer) {
-      const size_t ownFrames = std::min(ir.frameCount(), tailSplit + tailFade);
-      own = AudioBuffer(ir.channelCount(), ownFrames, ir.sampleRateHz);
-      for (size_t c = 0; c < ir.channelCount(); ++c)
-        for (size_t i = 0; i < ownFrames; ++i) own.channels[c][i] = ir.channels[c][i] * (1.0f - tailWeight(i));
-      const double energy = tailEnergy(ir);  // W whole also when in part
-      slot.tailGain.store(std::sqrt(energy));
-      hasTail = energy > 0;
-      if (!partial && hasTail) sharedTail = normalisedTail(ir, energy);
-      convolved = &own;
+  // The sources in groups whose IRs in the making fit what the memory
+  // limit leaves beside the slots (simulationGroupSize): a group's results
+  // are all held until its IRs are posted. The IRs are the same bits
+  // however the sources are grouped (the trace mode is the whole
+  // simulation's; kept paths give what a trace gives).
+  const TraceMode traceMode = effectiveTraceMode(mSettings.traceMode, order.size());
+  const size_t group = simulationGroupSize();
+  for (size_t g0 = 0; g0 < order.size(); g0 += group) {
+    const size_t g1 = std::min(order.size(), g0 + group);
+    const auto tGroup = g0 == 0 ? t0 : std::chrono::steady_clock::now();
+    ++stats.groups;
+    std::vector<Job> jobs;
+    for (size_t g = g0; g < g1; ++g) {
+      const uint32_t i = order[g];
+      Slot& slot = *mSlots[i];
+      Job j{i, slot.generation.load(), mSettings.simulation,
+            {slot.position[0].load(), slot.position[1].load(), slot.position[2].load()}, std::nullopt};
+      slot.simulatedSource = j.source;
+      slot.simulatedListener = listener;
+      j.settings.includeDirect = DirectMode(slot.direct.load()) == DirectMode::kInImpulseResponse;
+      j.settings.directivity.alpha = slot.directivityAlpha.load();
+      j.settings.directivity.sharpness = slot.directivitySharpness.load();
+      j.settings.directivity.perBand = slot.directivityPerBand.load();
+      for (int b = 0; b < kNumBands; ++b) j.settings.directivity.bandAlpha[size_t(b)] = slot.directivityBandAlpha[b].load();
+      j.settings.directivity.forward = {slot.forward[0].load(), slot.forward[1].load(), slot.forward[2].load()};
+      jobs.push_back(std::move(j));
     }
-    auto prepared = PreparedIr::create(*convolved, mMixer->layout(), mPool.get());
-    if (!prepared.isOk()) return prepared.status();
-    EARSHOT_RETURN_IF_ERROR(mMixer->setIr(j.slot, *prepared));
+    if (mTailMixer)
+      for (size_t k = 0; k < jobs.size(); ++k)
+        if (g0 + k + 1 < order.size()) jobs[k].settings.ambisonicPartialFrames = tailSplit + tailFade;
+    uint32_t flushedMode;
     {
-      // Kept for sourceIr(), unless the slot was released or reused
-      // meanwhile: the IR, or what sourceIr() makes it from.
-      std::shared_ptr<const AudioBuffer> kept;
-      std::shared_ptr<const Slot::WholeIr> inputs;
-      if (partial) {
-        auto w = std::make_shared<Slot::WholeIr>();
-        r->ir = AudioBuffer();
-        w->result = std::move(*r);
-        w->settings = j.settings;
-        w->settings.ambisonicPartialFrames = 0;
-        w->source = j.source;
-        w->listener = listener;
-        w->ambisonic = ambisonic;
-        w->maxFrames = maxFrames;
-        w->denormalMode = j.denormalMode;
-        inputs = std::move(w);
-        if (hasTail) tailFallback = inputs;
-      } else {
-        kept = std::make_shared<const AudioBuffer>(std::move(ir));
-      }
-      std::lock_guard<std::mutex> lock(mIrMutex);
-      if (slot.generation.load() == j.generation) {
-        slot.lastIrPosed = t0;  // the poses were read just after t0
-        slot.lastIr = std::move(kept);
-        slot.lastIrInputs = std::move(inputs);
-        slot.lastIrIncludesDirect = j.settings.includeDirect;
-        ++slot.irCount;
-      }
+      ScopedFlushDenormals ftz;
+      flushedMode = currentDenormalMode();
     }
-    // Transmission through occluders: the direct path's band gains without
-    // air, by the source's occlusion mode (kOff is applied per block).
-    const DirectPath& d = direct;
-    const bool transmissionOn = slot.transmissionOn.load();
-    BandArrayD transmission = filledBands(1.0);
-    if (OcclusionMode(slot.occlusion.load()) == OcclusionMode::kVolumetric) {
-      transmission = volumetricTransmission(*tracer, *materials, j.source, listener, slot.radius.load(),
-                                            transmissionOn);
+    for (Job& j : jobs) j.denormalMode = flushedMode;
+    // Several sources: one per worker, each traced single-threaded (synthesis
+    // is single-threaded anyway); one source: all workers trace it. Either way
+    // each IR is bit-identical (the tracer's result does not depend on threads).
+    if (traceMode == TraceMode::kShared && !jobs.empty()) {
+      // One trace from the listener for every source of this simulation.
+      std::vector<IrRequest> requests;
+      for (const Job& j : jobs) {
+        IrRequest q;
+        q.source = j.source;
+        q.directivity = j.settings.directivity;
+        q.includeDirect = j.settings.includeDirect;
+        q.ambisonicPartialFrames = j.settings.ambisonicPartialFrames;
+        q.name = "source " + std::to_string(j.slot);
+        requests.push_back(std::move(q));
+      }
+      if (!mListenerCache) mListenerCache = std::make_unique<ListenerCache>();
+      auto r = computeIrs(*tracer, *materials, listener, requests, mSettings.simulation, TraceMode::kShared, *mPool,
+                          binauralReceiver, ambisonicReceiver, mListenerCache.get());
+      if (!r.isOk()) return r.status();
+      stats.pathsReused = (g0 == 0 || stats.pathsReused) && !r->empty() && r->front().traceStats.pathsReused;
+      for (size_t k = 0; k < jobs.size(); ++k) jobs[k].result = std::move((*r)[k]);
+    } else if (jobs.size() >= 2 && mPool->threadCount() >= 2) {
+      mPool->parallelFor(jobs.size(), [&](size_t k, unsigned worker) {
+        Job& j = jobs[k];
+        j.result = computeIr(*tracer, *materials, j.source, listener, j.settings, *mWorkerPools[worker],
+                             binauralReceiver, ambisonicReceiver);
+      });
     } else {
-      const BandArrayD air = j.settings.air.enabled ? airAttenuationDbPerMeter(j.settings.air) : filledBands(0.0);
-      for (int b = 0; b < kNumBands; ++b) {
-        const double airGain = std::pow(10.0, -air[b] * d.distanceMeters / 20.0);
-        transmission[b] = airGain > 0 ? d.bandGain[b] / airGain : 0.0;
-        if (!transmissionOn && d.surfacesCrossed > 0) transmission[b] = 0.0;
+      for (Job& j : jobs) j.denormalMode = currentDenormalMode();
+      for (Job& j : jobs)
+        j.result = computeIr(*tracer, *materials, j.source, listener, j.settings, *mPool, binauralReceiver,
+                             ambisonicReceiver);
+    }
+    for (Job& j : jobs) {
+      Slot& slot = *mSlots[j.slot];
+      auto& r = *j.result;
+      if (!r.isOk()) return Status(r.status().code(), "source " + std::to_string(j.slot) + ": " + r.status().message());
+      stats.traceMs += r->timings.traceMs + r->timings.imageSourcesMs;
+      stats.synthesisMs += r->timings.synthesisMs;
+      const auto tPrepare = std::chrono::steady_clock::now();
+      AudioBuffer& ir = r->ir;
+      cutIr(ir, maxFrames, mSettings.sampleRateHz);
+      const bool partial = j.settings.ambisonicPartialFrames > 0;
+      const DirectPath direct = r->direct;
+      AudioBuffer own;
+      const AudioBuffer* convolved = &ir;
+      bool hasTail = false;
+      if (mTailMixer) {
+        const size_t ownFrames = std::min(ir.frameCount(), tailSplit + tailFade);
+        own = AudioBuffer(ir.channelCount(), ownFrames, ir.sampleRateHz);
+        for (size_t c = 0; c < ir.channelCount(); ++c)
+          for (size_t i = 0; i < ownFrames; ++i) own.channels[c][i] = ir.channels[c][i] * (1.0f - tailWeight(i));
+        const double energy = tailEnergy(ir);  // W whole also when in part
+        slot.tailGain.store(std::sqrt(energy));
+        hasTail = energy > 0;
+        if (!partial && hasTail) sharedTail = normalisedTail(ir, energy);
+        convolved = &own;
       }
+      auto prepared = PreparedIr::create(*convolved, mMixer->layout(), mPool.get());
+      if (!prepared.isOk()) return prepared.status();
+      EARSHOT_RETURN_IF_ERROR(mMixer->setIr(j.slot, *prepared));
+      {
+        // Kept for sourceIr(), unless the slot was released or reused
+        // meanwhile: the IR, or what sourceIr() makes it from.
+        std::shared_ptr<const AudioBuffer> kept;
+        std::shared_ptr<const Slot::WholeIr> inputs;
+        if (partial) {
+          auto w = std::make_shared<Slot::WholeIr>();
+          r->ir = AudioBuffer();
+          w->result = std::move(*r);
+          w->settings = j.settings;
+          w->settings.ambisonicPartialFrames = 0;
+          w->source = j.source;
+          w->listener = listener;
+          w->ambisonic = ambisonic;
+          w->maxFrames = maxFrames;
+          w->denormalMode = j.denormalMode;
+          inputs = std::move(w);
+          if (hasTail) tailFallback = inputs;
+        } else {
+          kept = std::make_shared<const AudioBuffer>(std::move(ir));
+        }
+        std::lock_guard<std::mutex> lock(mIrMutex);
+        if (slot.generation.load() == j.generation) {
+          slot.lastIrPosed = tGroup;  // the poses were read just after tGroup
+          slot.lastIr = std::move(kept);
+          slot.lastIrInputs = std::move(inputs);
+          slot.lastIrIncludesDirect = j.settings.includeDirect;
+          ++slot.irCount;
+        }
+      }
+      // Transmission through occluders: the direct path's band gains without
+      // air, by the source's occlusion mode (kOff is applied per block).
+      const DirectPath& d = direct;
+      const bool transmissionOn = slot.transmissionOn.load();
+      BandArrayD transmission = filledBands(1.0);
+      if (OcclusionMode(slot.occlusion.load()) == OcclusionMode::kVolumetric) {
+        transmission = volumetricTransmission(*tracer, *materials, j.source, listener, slot.radius.load(),
+                                              transmissionOn);
+      } else {
+        const BandArrayD air = j.settings.air.enabled ? airAttenuationDbPerMeter(j.settings.air) : filledBands(0.0);
+        for (int b = 0; b < kNumBands; ++b) {
+          const double airGain = std::pow(10.0, -air[b] * d.distanceMeters / 20.0);
+          transmission[b] = airGain > 0 ? d.bandGain[b] / airGain : 0.0;
+          if (!transmissionOn && d.surfacesCrossed > 0) transmission[b] = 0.0;
+        }
+      }
+      bool audible = false;
+      for (int b = 0; b < kNumBands; ++b) {
+        slot.transmission[b].store(transmission[b]);
+        audible = audible || transmission[b] > 0;
+      }
+      slot.audible.store(audible);
+      slot.simulatedGeneration.store(j.generation);
+      stats.prepareMs += msSince(tPrepare);
+      ++stats.sourcesSimulated;
     }
-    bool audible = false;
-    for (int b = 0; b < kNumBands; ++b) {
-      slot.transmission[b].store(transmission[b]);
-      audible = audible || transmission[b] > 0;
-    }
-    slot.audible.store(audible);
-    slot.simulatedGeneration.store(j.generation);
-    stats.prepareMs += msSince(tPrepare);
-    ++stats.sourcesSimulated;
   }
   if (mTailMixer && !sharedTail && tailFallback) {
     // The last source has no tail: the last one that has gives it, made

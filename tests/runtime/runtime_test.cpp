@@ -465,6 +465,69 @@ TEST(Engine, SourceSlotsPastTheMemoryLimitAreRefusedBeforeTheyAllocate) {
   EXPECT_FALSE(e.addSource({}).isOk()) << "a seventh slot";
 }
 
+// Under a memory limit that leaves room for few sources' IRs in the making,
+// a simulation goes through its sources in groups (each group's results
+// are held at once): the same IRs, bit for bit, as in one group, the whole
+// IRs of sources synthesised in part and the shared tail heard in the
+// output too. Five sources, the trace mode auto: shared for the whole
+// simulation, not per source for a group of two.
+TEST(Engine, SourcesSimulatedInGroupsUnderTheMemoryLimitGiveTheSameIrs) {
+  auto model = test::ku100();
+  ASSERT_TRUE(model);
+  test::Room room;
+  struct Run {
+    std::vector<std::vector<float>> irs;
+    std::vector<float> out;
+    uint32_t groups = 0;
+  };
+  auto run = [&](uint64_t limit) {
+    MemoryLimitFor scoped(limit);
+    Run out;
+    EngineSettings es = test::fastSettings();  // ambisonic reflections with a shared tail
+    es.maxSources = 6;
+    auto engine = Engine::create(es, model);
+    EXPECT_TRUE(engine.isOk()) << engine.status().message();
+    if (!engine.isOk()) return out;
+    Engine& e = **engine;
+    e.setScene(room.tracer, room.materials);
+    EXPECT_TRUE(e.setListener({7, 3.5, 1.5}, {{-1, 0, 0}, {0, 0, 1}}).isOk());
+    std::vector<uint32_t> ids;
+    for (int i = 0; i < 5; ++i) {
+      auto id = e.addSource({});
+      EXPECT_TRUE(id.isOk()) << id.status().message();
+      if (!id.isOk()) return out;
+      ids.push_back(*id);
+      EXPECT_TRUE(e.setSourcePosition(*id, {1.5 + i, 2.0 + 0.5 * i, 1.2}).isOk());
+    }
+    const Status simulated = e.simulate();
+    EXPECT_TRUE(simulated.isOk()) << simulated.message();
+    out.groups = e.lastSimulation().groups;
+    for (uint32_t id : ids) {
+      auto ir = e.sourceIr(id).ir;
+      EXPECT_TRUE(ir);
+      if (!ir) return out;
+      for (const auto& ch : ir->channels) out.irs.push_back(ch);
+    }
+    Pcg32 rng(3, 4);
+    std::vector<float> in(256), l(256), r(256);
+    std::vector<const float*> inputs(es.maxSources, nullptr);
+    for (uint32_t id : ids) inputs[id] = in.data();
+    for (int b = 0; b < 40; ++b) {
+      for (float& x : in) x = rng.uniform() - 0.5f;
+      e.process(inputs.data(), l.data(), r.data(), 256);
+      out.out.insert(out.out.end(), l.begin(), l.end());
+      out.out.insert(out.out.end(), r.begin(), r.end());
+    }
+    return out;
+  };
+  const Run one = run(0), parted = run(uint64_t(48) << 20);
+  EXPECT_EQ(one.groups, 1u);
+  EXPECT_GE(parted.groups, 2u) << "48 MiB leaves room for a few sources' IRs in the making";
+  ASSERT_EQ(one.irs.size(), parted.irs.size());
+  for (size_t c = 0; c < one.irs.size(); ++c) EXPECT_TRUE(one.irs[c] == parted.irs[c]) << "IR channel " << c;
+  EXPECT_TRUE(one.out == parted.out) << "the output, the shared tail's included";
+}
+
 // sourceSlotBytes() is from above: what two more simulated sources hold
 // (glibc's heap count: an engine with three sources against one with one,
 // each after two rounds of IRs with audio between, so that the convolver

@@ -199,6 +199,9 @@ struct SimulationStats {
   uint32_t sourcesSimulated = 0;
   double traceMs = 0, synthesisMs = 0, prepareMs = 0, totalMs = 0;
   bool pathsReused = false;  ///< a shared trace that reused the listener's kept paths (no ray traced)
+  /** Groups the sources went through, each group's IRs in the making held
+   *  at once: 1 unless the memory limit parted them (the same IRs). */
+  uint32_t groups = 0;
 };
 
 /** What the audio path contained (Engine::containment()). */
@@ -337,6 +340,9 @@ class Engine {
   Engine() = default;
   bool validSource(uint32_t s) const;
   Status simulateLocked(const std::vector<uint32_t>& sources);
+  // Sources simulated together (their IRs in the making held at once)
+  // within the memory limit; at least 1.
+  size_t simulationGroupSize() const;
   Status createDecoder(const BinauralModel& model);  // under mAddMutex
   // Audio thread: the bus (mInputs convolved) rotated to the head and decoded into ears[0..1].
   // With OutputFormat::kAmbisonic, `ears` are the output's channels and the bus is not decoded.
