@@ -162,7 +162,6 @@ struct ConvolutionMixer::Impl {
     retiredTail.store(tail, std::memory_order_release);
   }
 
-  // Control side, controlMutex held: the source's state, allocated once.
   // What reserve() allocates for a source: its input history and each
   // level's spectra of past input blocks.
   size_t sourceStateBytes() const {
@@ -171,6 +170,7 @@ struct ConvolutionMixer::Impl {
     return values * sizeof(float) + sizeof(Source) + levels.size() * sizeof(SourceLevel);
   }
 
+  // Control side, controlMutex held: the source's state, allocated once.
   void reserve(size_t si) {
     if (owned[si]) return;
     auto src = std::make_unique<Source>();

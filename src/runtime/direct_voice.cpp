@@ -172,10 +172,6 @@ double ratioDb(double num, double den) {
   return gainToDb(std::max(num / den, 1e-6));
 }
 
-}  // namespace
-
-namespace {
-
 double maxDelayFrames(const DirectVoiceSettings& s) {
   return s.maxDelaySeconds * s.sampleRateHz + double(s.extraDelayFrames);
 }

@@ -690,15 +690,15 @@ size_t Engine::simulationGroupSize() const {
   // A source's IR in the making, from above: its synthesised IR (the set
   // length, else the automatic one's cap), only W whole with a shared tail,
   // and its completed histogram.
-  const double seconds =
+  const double irSeconds =
       (s.simulation.lengthSeconds > 0
            ? s.simulation.lengthSeconds
            : std::max(TailCompletionSettings{}.maxAutoSeconds, reflectionSettingsOf(s.simulation).maxTimeSeconds)) +
       0.05;
-  const double frames = std::ceil(seconds * s.sampleRateHz);
+  const double frames = std::ceil(irSeconds * s.sampleRateHz);
   const double channels = double(mMixer->settings().channels);
   const double perSource = frames * (mTailMixer ? 1.0 : channels) * sizeof(float) +
-                           std::ceil(seconds / s.simulation.binSeconds) * EnergyHistogram::kStride * sizeof(double);
+                           std::ceil(irSeconds / s.simulation.binSeconds) * EnergyHistogram::kStride * sizeof(double);
   // What the limit leaves beside the slots in use and the last source's IR
   // (whole in every channel).
   const double left = double(defaultInputLimits().maxMemoryBytes) -
