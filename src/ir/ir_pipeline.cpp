@@ -94,6 +94,14 @@ Result<OmniIrResult> computeOmniIr(const RayTracer& tracer, const MaterialTable&
   return computeIr(tracer, materials, source, listener, s, pool, nullptr);
 }
 
+namespace {
+// The explicit length, within the cap (0: automatic).
+double lengthOf(const OmniIrSettings& s) {
+  return s.maxLengthSeconds > 0 && s.lengthSeconds > 0 ? std::min(s.lengthSeconds, s.maxLengthSeconds)
+                                                       : s.lengthSeconds;
+}
+}  // namespace
+
 ReflectionSettings reflectionSettingsOf(const OmniIrSettings& s) {
   ReflectionSettings rs;
   rs.directivity = s.directivity;
@@ -109,7 +117,10 @@ ReflectionSettings reflectionSettingsOf(const OmniIrSettings& s) {
   rs.flutterCones = s.flutterCones;
   rs.sharedShadowRoulette = s.sharedShadowRoulette;
   rs.convergenceDb = s.convergenceDb;
-  if (s.lengthSeconds > 0) rs.maxTimeSeconds = s.lengthSeconds;
+  if (lengthOf(s) > 0)
+    rs.maxTimeSeconds = lengthOf(s);
+  else if (s.maxLengthSeconds > 0)
+    rs.maxTimeSeconds = std::min(rs.maxTimeSeconds, s.maxLengthSeconds);
   return rs;
 }
 
@@ -138,7 +149,7 @@ ImageSourceSettings imageSourceSettingsOf(const OmniIrSettings& s) {
 IrSynthesisSettings synthesisSettingsOf(const OmniIrSettings& s, const Vec3d& source, const Vec3d& listener) {
   IrSynthesisSettings synth;
   synth.sampleRateHz = s.sampleRateHz;
-  synth.lengthSeconds = s.lengthSeconds;
+  synth.lengthSeconds = lengthOf(s);
   synth.seed = s.seed;
   synth.noiseKey = noiseKeyOf(source, listener);
   synth.bandShiftOctaves = s.air.bandShiftOctaves;
@@ -164,6 +175,8 @@ Status prepareIr(const RayTracer& tracer, const MaterialTable& materials, const 
   if (!isFinite(source) || !isFinite(listener)) return invalidArgument("source or listener position is not finite");
   if (!withinCoordinateRange(source) || !withinCoordinateRange(listener))
     return outOfRange("source or listener position is farther than 1e6 m from the origin on some axis");
+  if (!(s.maxLengthSeconds >= 0 && s.maxLengthSeconds <= 600))
+    return invalidArgument("IR length cap " + std::to_string(s.maxLengthSeconds) + " s is outside [0, 600]");
   OmniIrResult& out = job.out;
   IrSynthesisSettings& synth = job.synth;
   synth = synthesisSettingsOf(s, source, listener);
@@ -244,7 +257,8 @@ ReflectionSettings reflectionSettingsOf(const OmniIrSettings& s, const IrJob& jo
 // The tail completion's settings (calibrationStartSeconds: after the image sources, per IR).
 TailCompletionSettings tailSettingsOf(const OmniIrSettings& s) {
   TailCompletionSettings ts;
-  ts.lengthSeconds = s.lengthSeconds;
+  ts.lengthSeconds = lengthOf(s);
+  if (s.maxLengthSeconds > 0) ts.maxAutoSeconds = std::min(ts.maxAutoSeconds, s.maxLengthSeconds);
   ts.speedOfSound = s.speedOfSound;
   ts.air = s.air;
   return ts;

@@ -19,10 +19,10 @@ namespace {
 struct Room {
   MaterialTable materials;
   std::unique_ptr<RayTracer> tracer;
-  Room() {
+  explicit Room(float absorption = 0.3f) {
     Material m;
     m.name = "wall";
-    m.absorption = filledBands(0.3f);
+    m.absorption = filledBands(absorption);
     m.scattering = filledBands(0.4f);
     m.transmission = filledBands(0.0f);
     TriangleMesh mesh = makeBox({0, 0, 0}, {10, 7, 3}, materials.add(m));
@@ -212,6 +212,52 @@ TEST(ComputeIrs, AutoSharesFromThreeSources) {
   }
   EXPECT_EQ(toString(TraceMode::kAuto), std::string("auto"));
   EXPECT_FALSE(traceModeFromString("both").isOk());
+}
+
+// OmniIrSettings::maxLengthSeconds (the runtime's cut): in a reverberant
+// room (absorption 0.01, T60 ~14 s) the automatic length runs to 30 s; a
+// cap of 1 s ends the trace's histogram, the tail and so the IR there
+// (the IR then 50 ms longer, as an automatic length is), and cuts an
+// explicit length. Before the cap the IR is the uncapped one's within the
+// noise of the tail's rates (which see the shorter trace). Bad caps are
+// refused.
+TEST(ComputeIr, ALengthCapEndsTheReflectionsThere) {
+  Room room(0.01f);
+  OmniIrSettings s;
+  s.sampleRateHz = 8000;
+  s.rays = 2000;
+  s.bounces = 8;
+  s.imageSourceOrder = 1;
+  const Vec3d source{2.0, 3.0, 1.2}, listener{7.2, 2.6, 1.6};
+  ThreadPool pool(2);
+  auto whole = computeIr(*room.tracer, room.materials, source, listener, s, pool, nullptr);
+  ASSERT_TRUE(whole.isOk()) << whole.status().message();
+  EXPECT_GT(whole->ir.frameCount(), size_t(5 * s.sampleRateHz)) << "the automatic length of a reverberant room";
+  s.maxLengthSeconds = 1.0;
+  auto capped = computeIr(*room.tracer, room.materials, source, listener, s, pool, nullptr);
+  ASSERT_TRUE(capped.isOk()) << capped.status().message();
+  EXPECT_LE(capped->late.binCount(), size_t(std::ceil(1.0 / s.binSeconds)) + 1);
+  EXPECT_GE(capped->ir.frameCount(), size_t(1.0 * s.sampleRateHz));
+  EXPECT_LE(capped->ir.frameCount(), size_t(1.06 * s.sampleRateHz));
+  // Energy of 0.1-0.9 s, in 0.2 s windows: the same room either way.
+  for (size_t w = 0; w < 4; ++w) {
+    double a = 0, b = 0;
+    for (size_t i = size_t((0.1 + 0.2 * double(w)) * s.sampleRateHz); i < size_t((0.3 + 0.2 * double(w)) * s.sampleRateHz); ++i) {
+      a += double(whole->ir.channels[0][i]) * whole->ir.channels[0][i];
+      b += double(capped->ir.channels[0][i]) * capped->ir.channels[0][i];
+    }
+    EXPECT_NEAR(10 * std::log10(b / a), 0.0, 0.5) << "window " << w;
+  }
+  s.lengthSeconds = 5.0;
+  auto cut = computeIr(*room.tracer, room.materials, source, listener, s, pool, nullptr);
+  ASSERT_TRUE(cut.isOk()) << cut.status().message();
+  EXPECT_EQ(cut->ir.frameCount(), size_t(1.0 * s.sampleRateHz)) << "an explicit length cut to the cap";
+  for (double bad : {-1.0, 601.0, std::nan("")}) {
+    s.maxLengthSeconds = bad;
+    auto refused = computeIr(*room.tracer, room.materials, source, listener, s, pool, nullptr);
+    ASSERT_FALSE(refused.isOk()) << bad;
+    EXPECT_NE(refused.status().message().find("IR length cap"), std::string::npos) << refused.status().message();
+  }
 }
 
 }  // namespace earshot

@@ -30,6 +30,13 @@ struct OmniIrSettings {
   Directivity directivity;
   double sampleRateHz = 48000.0;
   double lengthSeconds = 0.0;      ///< 0: automatic (from the decay)
+  /** > 0: the reflections end here at the latest: the trace's histogram
+   *  (ReflectionSettings::maxTimeSeconds), the automatic length's cap
+   *  (TailCompletionSettings::maxAutoSeconds, else 30 s) and an explicit
+   *  lengthSeconds are cut to it. For a caller that cuts its IRs there
+   *  anyway (the runtime: EngineSettings::maxIrSeconds), what it would cut
+   *  is neither traced, kept nor synthesised. 0: no cap. [0, 600] */
+  double maxLengthSeconds = 0.0;
   uint32_t rays = 16384;
   uint32_t bounces = 12;
   uint32_t imageSourceOrder = 3;   ///< 0: no image sources (all reflections stochastic)
