@@ -361,7 +361,7 @@ EARSHOT_API earshot_status earshot_hrtf_default_path(char* buffer, size_t capaci
 /** The process's memory limit (bytes; default 1 GiB, the CLI's --max-memory):
  *  what an input file, a ray count (a trace's state, ~150 bytes a ray), an
  *  IR's length and channels (its synthesis) or a context's sources (each
- *  slot in use with the IRs it may hold: 0.85 MB at the defaults, 64 bytes
+ *  slot in use with the IRs it may hold: 1.2 MB at the defaults, 64 bytes
  *  per frame of max_ir_seconds with binaural reflections, ambisonic_order
  *  0: 185 MB for 60 s at 48 kHz) may make earshot
  *  allocate, estimated before allocating and refused past it

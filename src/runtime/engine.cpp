@@ -29,12 +29,15 @@ constexpr double kIrFadeSeconds = 0.010;
 constexpr double kTailFadeSeconds = 0.010;
 
 // An IR longer than maxFrames is cut there with a short fade rather than a
-// step.
+// step, and the samples cut are released (a slot may keep the IR: without
+// shrink_to_fit it kept the capacity of the whole, e.g. 30 s of an
+// automatic length instead of the 3 s convolved).
 void cutIr(AudioBuffer& ir, size_t maxFrames, double sampleRateHz) {
   if (ir.frameCount() <= maxFrames) return;
   const size_t fade = std::min(maxFrames, size_t(kIrFadeSeconds * sampleRateHz));
   for (auto& ch : ir.channels) {
     ch.resize(maxFrames);
+    ch.shrink_to_fit();
     for (size_t k = 0; k < fade; ++k) ch[maxFrames - 1 - k] *= float(k) / float(fade);
   }
 }
@@ -154,11 +157,38 @@ DirectVoiceSettings voiceSettingsOf(const EngineSettings& s, size_t latencyFrame
   return ds;
 }
 
+// What the engine simulates with: the settings' simulation at the engine's
+// rate, its reflections ending where the IRs are cut (maxIrSeconds and the
+// cut's fade): an automatic length of up to 30 s in a reverberant room was
+// traced, kept and synthesised, then cut.
+OmniIrSettings simulationSettingsOf(const EngineSettings& s) {
+  OmniIrSettings o = s.simulation;
+  o.sampleRateHz = s.sampleRateHz;
+  const double cut = s.maxIrSeconds + kIrFadeSeconds;
+  o.maxLengthSeconds = o.maxLengthSeconds > 0 ? std::min(o.maxLengthSeconds, cut) : cut;
+  return o;
+}
+
+// The longest histogram and IR a simulation of these settings makes (the
+// set length, else the automatic one's cap; within maxLengthSeconds).
+double simulatedSeconds(const OmniIrSettings& o) {
+  double seconds = o.lengthSeconds > 0 ? o.lengthSeconds
+                                       : std::max(TailCompletionSettings{}.maxAutoSeconds,
+                                                  reflectionSettingsOf(o).maxTimeSeconds);
+  if (o.maxLengthSeconds > 0) seconds = std::min(seconds, o.maxLengthSeconds);
+  return seconds;
+}
+
 // Engine::sourceSlotBytes for the engine's convolver `mixer` and latency.
+// A slot keeps for sourceIr() its IR, or with a shared tail what the IR is
+// made from (its completed histogram; its few early paths not counted).
 size_t slotBytesOf(const EngineSettings& s, const ConvolutionMixer& mixer, size_t latencyFrames) {
   const size_t channels = mixer.settings().channels;
+  const OmniIrSettings sim = simulationSettingsOf(s);
   const size_t kept =
-      hasSharedTail(s) ? 0 : size_t(std::ceil(s.maxIrSeconds * s.sampleRateHz)) * channels * sizeof(float);
+      hasSharedTail(s)
+          ? (size_t(std::ceil(simulatedSeconds(sim) / sim.binSeconds)) + 1) * EnergyHistogram::kStride * sizeof(double)
+          : size_t(std::ceil(s.maxIrSeconds * s.sampleRateHz)) * channels * sizeof(float);
   return DirectVoice::stateBytes(voiceSettingsOf(s, latencyFrames)) + mixer.sourceStateBytes() +
          3 * PreparedIr::bytesFor(mixer.layout(), channels) + kept;
 }
@@ -406,7 +436,7 @@ Result<std::unique_ptr<Engine>> Engine::create(const EngineSettings& s, Binaural
     return invalidArgument("engine: maxDistanceMeters " + std::to_string(s.maxDistanceMeters) + " is outside (0, 20000]");
   std::unique_ptr<Engine> e(new Engine());
   e->mSettings = s;
-  e->mSettings.simulation.sampleRateHz = s.sampleRateHz;
+  e->mSettings.simulation = simulationSettingsOf(s);
   e->mModel = std::move(model);
 
   if (s.ambisonicOrder < 0 || s.ambisonicOrder > kMaxAmbisonicOrder)
@@ -459,7 +489,7 @@ Result<std::unique_ptr<Engine>> Engine::create(const EngineSettings& s, Binaural
     // one on every worker, or one per worker side by side (one per source,
     // at most). Refused here rather than by every simulate(); invalid
     // settings are left to it.
-    const ReflectionSettings traced = reflectionSettingsOf(s.simulation);
+    const ReflectionSettings traced = reflectionSettingsOf(e->mSettings.simulation);
     if (validate(traced).isOk())
       EARSHOT_RETURN_IF_ERROR(checkMemoryEstimate(
           std::max(traceMemoryBytes(traced, 1, threads),
@@ -623,10 +653,14 @@ SourceIr Engine::sourceIr(uint32_t source) const {
     out.posed = slot.lastIrPosed;
     if (out.ir || !slot.lastIrInputs) return out;
     inputs = slot.lastIrInputs;
+    if (mMadeIrFrom.lock() == inputs) {
+      out.ir = mMadeIr;
+      return out;
+    }
   }
   // Synthesised in part (a shared tail): made whole now, outside the lock,
-  // in the denormal mode of its simulation (the same bits), and kept if no
-  // later IR replaced it meanwhile.
+  // in the denormal mode of its simulation (the same bits), and kept as the
+  // engine's last made if no later IR replaced it meanwhile.
   const BinauralReceiver* binaural = nullptr;
   auto ir = [&] {
     ScopedDenormalMode mode(inputs->denormalMode);
@@ -637,7 +671,10 @@ SourceIr Engine::sourceIr(uint32_t source) const {
   cutIr(*ir, inputs->maxFrames, mSettings.sampleRateHz);
   out.ir = std::make_shared<const AudioBuffer>(std::move(ir.value()));
   std::lock_guard<std::mutex> lock(mIrMutex);
-  if (slot.lastIrInputs == inputs) slot.lastIr = out.ir;
+  if (slot.lastIrInputs == inputs) {
+    mMadeIr = out.ir;
+    mMadeIrFrom = inputs;
+  }
   return out;
 }
 
@@ -687,22 +724,19 @@ Status Engine::simulate(const std::vector<uint32_t>& sources) {
 
 size_t Engine::simulationGroupSize() const {
   const EngineSettings& s = mSettings;
-  // A source's IR in the making, from above: its synthesised IR (the set
-  // length, else the automatic one's cap), only W whole with a shared tail,
-  // and its completed histogram.
-  const double irSeconds =
-      (s.simulation.lengthSeconds > 0
-           ? s.simulation.lengthSeconds
-           : std::max(TailCompletionSettings{}.maxAutoSeconds, reflectionSettingsOf(s.simulation).maxTimeSeconds)) +
-      0.05;
+  // A source's IR in the making, from above: its synthesised IR (as long
+  // as its histogram, and 50 ms more), only W whole with a shared tail, and
+  // its completed histogram.
+  const double irSeconds = simulatedSeconds(s.simulation) + 0.05;
   const double frames = std::ceil(irSeconds * s.sampleRateHz);
   const double channels = double(mMixer->settings().channels);
   const double perSource = frames * (mTailMixer ? 1.0 : channels) * sizeof(float) +
                            std::ceil(irSeconds / s.simulation.binSeconds) * EnergyHistogram::kStride * sizeof(double);
-  // What the limit leaves beside the slots in use and the last source's IR
-  // (whole in every channel).
+  // What the limit leaves beside the slots in use and two whole IRs (in
+  // every channel): the last source's, and the one sourceIr() made last.
   const double left = double(defaultInputLimits().maxMemoryBytes) -
-                      double(mMixer->reservedSources()) * double(sourceSlotBytes()) - frames * channels * sizeof(float);
+                      double(mMixer->reservedSources()) * double(sourceSlotBytes()) -
+                      2 * frames * channels * sizeof(float);
   return size_t(std::clamp(std::floor(left / perSource), 1.0, 4096.0));
 }
 
@@ -869,11 +903,15 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& order) {
       EARSHOT_RETURN_IF_ERROR(mMixer->setIr(j.slot, *prepared));
       {
         // Kept for sourceIr(), unless the slot was released or reused
-        // meanwhile: the IR, or what sourceIr() makes it from.
+        // meanwhile: the IR, or with a shared tail what sourceIr() makes it
+        // from (a slot holds no whole IR then, whichever source was last
+        // in its simulation: the last source's whole IR is the engine's one
+        // made, until sourceIr() makes another).
         std::shared_ptr<const AudioBuffer> kept;
         std::shared_ptr<const Slot::WholeIr> inputs;
-        if (partial) {
+        if (mTailMixer) {
           auto w = std::make_shared<Slot::WholeIr>();
+          if (!partial) kept = std::make_shared<const AudioBuffer>(std::move(ir));
           r->ir = AudioBuffer();
           w->result = std::move(*r);
           w->settings = j.settings;
@@ -884,13 +922,17 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& order) {
           w->maxFrames = maxFrames;
           w->denormalMode = j.denormalMode;
           inputs = std::move(w);
-          if (hasTail) tailFallback = inputs;
+          if (partial && hasTail) tailFallback = inputs;
         } else {
           kept = std::make_shared<const AudioBuffer>(std::move(ir));
         }
         std::lock_guard<std::mutex> lock(mIrMutex);
         if (slot.generation.load() == j.generation) {
           slot.lastIrPosed = tGroup;  // the poses were read just after tGroup
+          if (inputs && kept) {
+            mMadeIr = std::move(kept);
+            mMadeIrFrom = inputs;
+          }
           slot.lastIr = std::move(kept);
           slot.lastIrInputs = std::move(inputs);
           slot.lastIrIncludesDirect = j.settings.includeDirect;

@@ -170,8 +170,9 @@ TEST(EngineAmbisonic, AmbisonicOutputEncodesTheDirectSoundInTheListenersFrame) {
 // With a shared tail, every source of a simulation but the last is
 // synthesised up to the crossfade only (W whole, for its tail's level).
 // sourceIr() then makes its whole IR: the same bits as the source gets when
-// it is simulated last (its IR does not depend on the others), and kept;
-// sourceIrInfo() never synthesises. Shared and per-source traces.
+// it is simulated last (its IR does not depend on the others), and again
+// when made again; the engine keeps the last one made (one, not one a
+// source); sourceIrInfo() never synthesises. Shared and per-source traces.
 TEST(EngineAmbisonic, SourcesSynthesisedInPartGiveTheirWholeIrs) {
   test::Room room(0.3f);
   for (TraceMode mode : {TraceMode::kShared, TraceMode::kPerSource}) {
@@ -194,7 +195,10 @@ TEST(EngineAmbisonic, SourcesSynthesisedInPartGiveTheirWholeIrs) {
       EXPECT_EQ(info.simulations, 1u);
       const SourceIr ra = engine.sourceIr(*a), rb = engine.sourceIr(*b);
       EXPECT_TRUE(ra.ir && rb.ir);
-      EXPECT_EQ(engine.sourceIr(first).ir, aFirst ? ra.ir : rb.ir) << "made once, then kept";
+      EXPECT_EQ(engine.sourceIr(*b).ir, rb.ir) << "the last one made is kept";
+      const auto again = engine.sourceIr(*a).ir;
+      EXPECT_NE(again, ra.ir) << "made again: one kept for the engine";
+      EXPECT_TRUE(again && again->channels == ra.ir->channels) << "made again, the same bits";
       return std::make_pair(ra.ir, rb.ir);
     };
     const auto abOrder = irs(true), baOrder = irs(false);

@@ -59,7 +59,10 @@ struct EngineSettings {
    *  output lags the input by exactly this. Host blocks may be any size. */
   size_t blockFrames = 256;
   size_t maxSources = 32;         ///< [1, 4096] source slots, allocated up front
-  double maxIrSeconds = 3.0;      ///< IRs are cut here with a 10 ms fade, (0, 60]
+  /** IRs are cut here with a 10 ms fade, and simulated no further (the
+   *  simulation's OmniIrSettings::maxLengthSeconds: the trace's histogram,
+   *  the tail and the synthesis end at the cut). (0, 60] */
+  double maxIrSeconds = 3.0;
   size_t fadeFrames = 0;          ///< IR crossfade (frames); 0: one block
   /** Largest convolution partition (frames; 0: the convolver's automatic
    *  choice). Every source's partitions of one size fall due on the same
@@ -277,10 +280,12 @@ class Engine {
   Result<uint32_t> addSource(const SourceSettings& settings);
   /** What one source slot may hold, from above: its direct voice, its
    *  convolution state, the three IRs the convolver may hold for it at
-   *  once (the one playing, the one it fades from, one waiting) and,
-   *  without a shared tail, the IR kept for sourceIr(). Not counted: the
-   *  whole IRs sourceIr() makes and keeps for sources with a shared tail,
-   *  and the shared state (the decoder, the shared tail). */
+   *  once (the one playing, the one it fades from, one waiting) and what
+   *  it keeps for sourceIr(): its IR, or with a shared tail
+   *  the histogram the IR is made from (up to the cut, maxIrSeconds). Not
+   *  counted: a shared-tail source's few early paths, and the shared state
+   *  (the decoder, the shared tail, the one whole IR sourceIr() made last;
+   *  a simulation leaves room beside the slots for it). */
   size_t sourceSlotBytes() const;
   /** The same for an engine of these settings, before one is made (e.g.
    *  to refuse a scene's sources before loading it). Error: settings the
@@ -315,8 +320,10 @@ class Engine {
   /** The source's latest IR (a shared copy of what is being convolved;
    *  with a shared tail, the source's whole IR, whose tail the shared one
    *  stands for). A source whose tail another's stood for in its
-   *  simulation was synthesised in part: its whole IR is made on the first
-   *  call (the same bits; milliseconds) and kept.
+   *  simulation was synthesised in part: its whole IR is made when asked
+   *  (the same bits; milliseconds). The engine keeps the last one made
+   *  (one, not one a source: asking again for the same source's IR costs
+   *  nothing until its next simulation).
    *  Game or simulation thread; never the audio thread (takes a lock). */
   SourceIr sourceIr(uint32_t source) const;
   /** sourceIr() without the IR (`ir` null): its count and when it was
@@ -378,7 +385,12 @@ class Engine {
   std::shared_ptr<const RayTracer> mEmptyTracer;
   std::mutex mSimulationMutex;  // serialises simulate()
   std::unique_ptr<ListenerCache> mListenerCache;  // under mSimulationMutex: what the last shared simulation kept
-  mutable std::mutex mIrMutex;  // Slot::lastIr (game and simulation threads only)
+  mutable std::mutex mIrMutex;  // Slot::lastIr, mMadeIr (game and simulation threads only)
+  // The whole IR sourceIr() made last for a source synthesised in part, and
+  // what it was made from (that source's latest): one for the engine, not
+  // one a slot.
+  mutable std::shared_ptr<const AudioBuffer> mMadeIr;
+  mutable std::weak_ptr<const void> mMadeIrFrom;
   uint32_t mNextRoundRobin = 0;
   SimulationStats mStats;
   std::atomic<uint64_t> mMutedSourceChunks{0}, mClearedOutputChunks{0};  // written by the audio thread
