@@ -99,6 +99,7 @@ Result<RenderResult> renderScene(const SceneDescription& scene, const RenderOpti
   es.sampleRateHz = fs;
   es.maxSources = scene.sources.size();
   es.maxIrSeconds = kMaxIrSeconds;
+  es.keepSourceIrs = false;  // a render never asks for a source's IR: its slots hold less
   // Offline nothing plays in real time: every core simulates (the engine's
   // own default keeps one for an audio thread), at normal priority.
   es.threads = options.threads > 0 ? options.threads : std::max(1u, std::thread::hardware_concurrency());

@@ -186,7 +186,8 @@ size_t slotBytesOf(const EngineSettings& s, const ConvolutionMixer& mixer, size_
   const size_t channels = mixer.settings().channels;
   const OmniIrSettings sim = simulationSettingsOf(s);
   const size_t kept =
-      hasSharedTail(s)
+      !s.keepSourceIrs ? 0
+      : hasSharedTail(s)
           ? (size_t(std::ceil(simulatedSeconds(sim) / sim.binSeconds)) + 1) * EnergyHistogram::kStride * sizeof(double)
           : size_t(std::ceil(s.maxIrSeconds * s.sampleRateHz)) * channels * sizeof(float);
   return DirectVoice::stateBytes(voiceSettingsOf(s, latencyFrames)) + mixer.sourceStateBytes() +
@@ -925,6 +926,10 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& order) {
           if (partial && hasTail) tailFallback = inputs;
         } else {
           kept = std::make_shared<const AudioBuffer>(std::move(ir));
+        }
+        if (!mSettings.keepSourceIrs) {
+          kept.reset();
+          inputs.reset();
         }
         std::lock_guard<std::mutex> lock(mIrMutex);
         if (slot.generation.load() == j.generation) {

@@ -332,10 +332,10 @@ def cases(src):
         settings={"quality": "draft", "duration": 86400})}),
         ["render", "{dir}/scene.json", "-o", "{dir}/out.wav", "--quiet"], "error", contains="WAV",
         outputs=["out.wav"]))
-    # 4000 sources: their slots with the IRs they may hold (0.85 MB each with
-    # the defaults' shared tail) pass 1 GiB; refused before anything is
-    # loaded. (1000 render within the limit: 0.73 GB peak, their
-    # simulations in groups.)
+    # 4000 sources: their slots with the IRs they may hold (0.9 MB each with
+    # the defaults' shared tail, nothing kept for sourceIr()) pass 1 GiB;
+    # refused before anything is loaded. (1000 render within the limit:
+    # 0.72 GB peak, their simulations in groups.)
     c.append(Case("render 4000 sources", dict(scene_files, **{"scene.json": scene_json(sources=[
         {"name": "s%d" % i, "audio": "dry.wav", "position": [2, 3.5, 1.5]} for i in range(4000)])}),
         ["render", "{dir}/scene.json", "-o", "{dir}/out.wav", "--quiet"], "error", contains="4000 sources need about",

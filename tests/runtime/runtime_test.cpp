@@ -465,6 +465,60 @@ TEST(Engine, SourceSlotsPastTheMemoryLimitAreRefusedBeforeTheyAllocate) {
   EXPECT_FALSE(e.addSource({}).isOk()) << "a seventh slot";
 }
 
+// EngineSettings::keepSourceIrs false (earshot render's): a slot keeps
+// nothing for sourceIr(), its estimate is the kept IR's samples less
+// (binaural), or the kept histogram's (shared tail); sourceIr() gives no
+// IR, sourceIrInfo() still counts, and the source's reflections play.
+TEST(Engine, WithoutKeptIrsASlotHoldsLessAndSourceIrGivesNone) {
+  auto model = test::ku100();
+  ASSERT_TRUE(model);
+  EngineSettings keep = slotTestSettings(), none = keep;
+  none.keepSourceIrs = false;
+  auto slotOf = [](const EngineSettings& es) {
+    auto b = Engine::sourceSlotBytes(es);
+    EXPECT_TRUE(b.isOk());
+    return b.isOk() ? *b : size_t(0);
+  };
+  EXPECT_EQ(slotOf(keep) - slotOf(none), size_t(2 * kFs) * 2 * sizeof(float)) << "a binaural IR of 2 s";
+  EngineSettings keepTail = test::fastSettings(), noneTail = keepTail;
+  noneTail.keepSourceIrs = false;
+  EXPECT_GT(slotOf(keepTail), slotOf(noneTail)) << "the histogram a shared-tail IR is made from";
+
+  test::Room room;
+  for (const EngineSettings& es : {none, noneTail}) {
+    auto engine = Engine::create(es, model);
+    ASSERT_TRUE(engine.isOk()) << engine.status().message();
+    Engine& e = **engine;
+    e.setScene(room.tracer, room.materials);
+    std::vector<uint32_t> ids;
+    for (int i = 0; i < 2; ++i) {
+      auto id = e.addSource({});
+      ASSERT_TRUE(id.isOk());
+      ids.push_back(*id);
+      ASSERT_TRUE(e.setSourcePosition(*id, {2.0 + i, 3, 1.5}).isOk());
+    }
+    ASSERT_TRUE(e.setListener({7, 4, 1.6}, {}).isOk());
+    ASSERT_TRUE(e.simulate().isOk());
+    for (uint32_t id : ids) {
+      EXPECT_FALSE(e.sourceIr(id).ir) << "nothing kept";
+      EXPECT_EQ(e.sourceIrInfo(id).simulations, 1u);
+    }
+    // An impulse through the first source: its reflections arrive after
+    // the direct sound's ~5 m (15 ms) and the latency.
+    std::vector<float> in(256, 0.0f), silent(256, 0.0f), l(256), r(256);
+    std::vector<const float*> inputs(es.maxSources, nullptr);
+    inputs[ids[0]] = in.data();
+    double late = 0;
+    for (int b = 0; b < 100; ++b) {
+      in[0] = b == 0 ? 1.0f : 0.0f;
+      e.process(inputs.data(), l.data(), r.data(), 256);
+      if (b * 256 > int(0.1 * kFs) + int(e.latencyFrames()))
+        for (float v : l) late += double(v) * v;
+    }
+    EXPECT_GT(late, 1e-8) << "the reflections play (ambisonic order " << es.ambisonicOrder << ")";
+  }
+}
+
 // Under a memory limit that leaves room for few sources' IRs in the making,
 // a simulation goes through its sources in groups (each group's results
 // are held at once): the same IRs, bit for bit, as in one group, the whole

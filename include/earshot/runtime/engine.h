@@ -63,6 +63,12 @@ struct EngineSettings {
    *  simulation's OmniIrSettings::maxLengthSeconds: the trace's histogram,
    *  the tail and the synthesis end at the cut). (0, 60] */
   double maxIrSeconds = 3.0;
+  /** Each slot keeps its latest IR for sourceIr() (with a shared tail, what
+   *  the IR is made from: its histogram and paths). false: nothing is kept
+   *  and sourceIr() gives no IR (sourceIrInfo() still counts); a slot then
+   *  holds less (sourceSlotBytes(): e.g. `earshot render`, which never
+   *  asks, renders twice the sources within the memory limit). */
+  bool keepSourceIrs = true;
   size_t fadeFrames = 0;          ///< IR crossfade (frames); 0: one block
   /** Largest convolution partition (frames; 0: the convolver's automatic
    *  choice). Every source's partitions of one size fall due on the same
@@ -281,7 +287,7 @@ class Engine {
   /** What one source slot may hold, from above: its direct voice, its
    *  convolution state, the three IRs the convolver may hold for it at
    *  once (the one playing, the one it fades from, one waiting) and what
-   *  it keeps for sourceIr(): its IR, or with a shared tail
+   *  it keeps for sourceIr() (keepSourceIrs): its IR, or with a shared tail
    *  the histogram the IR is made from (up to the cut, maxIrSeconds). Not
    *  counted: a shared-tail source's few early paths, and the shared state
    *  (the decoder, the shared tail, the one whole IR sourceIr() made last;
