@@ -703,8 +703,11 @@ typedef struct earshot_ir_info {
  *  y = world -X, z = world +Y, the glTF default listener's). With
  *  EARSHOT_DIRECT_IN_IMPULSE_RESPONSE it holds the
  *  direct sound (then, with ambisonic_order 0, it is the IR `earshot ir`
- *  computes for the same positions and settings), with EARSHOT_DIRECT_PER_BLOCK the reflections
- *  only; cut at max_ir_seconds with a 10 ms fade. With a shared tail the
+ *  computes for the same positions and settings, if that IR ends within
+ *  max_ir_seconds), with EARSHOT_DIRECT_PER_BLOCK the reflections
+ *  only; cut at max_ir_seconds with a 10 ms fade (the engine simulates no
+ *  further: a longer IR is the same room's energies up to the cut, another
+ *  realisation of the noise than `earshot ir`'s). With a shared tail the
  *  engine may have synthesised only the start of it (the tail of another
  *  source stood for its own): the first call then makes the whole IR (a few
  *  milliseconds; the same bits). *out holds one reference.

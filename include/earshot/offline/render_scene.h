@@ -12,7 +12,8 @@
  *  A source that does not move, heard by a listener that does not move, is
  *  simulated once, with the direct sound inside its IR: its output is then
  *  exactly its dry signal convolved with the IR `earshot ir` computes for the
- *  same positions and settings.
+ *  same positions and settings (an IR that ends within the render's 10 s
+ *  cut; a longer one is simulated only up to it).
  *
  *  Directivity: a cardioid source is the engine's power-normalised cardioid
  *  about its trajectory's forward vector (runtime SourceSettings): the

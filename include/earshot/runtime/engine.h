@@ -14,7 +14,9 @@
  *  or, for a source marked DirectMode::kInImpulseResponse (a static source),
  *  the complete IR including the direct sound, convolved exactly: the output
  *  is then the dry signal convolved with the IR `earshot ir` computes for the
- *  same poses and settings, delayed by latencyFrames().
+ *  same poses and settings, delayed by latencyFrames() (an IR that ends
+ *  within maxIrSeconds; a longer one is simulated only up to that cut:
+ *  the same room's energies, another realisation of the noise).
  *
  *  Threads (docs/design.md): the game thread (sources, listener, scene: the
  *  set, add and remove calls), one simulation thread at a time (simulate()),
