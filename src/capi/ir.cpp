@@ -97,6 +97,7 @@ earshot_status earshot_context_compute_ir(earshot_context* c, const earshot_ir_r
     const runtime::EngineSettings& es = c->engine->settings();
     OmniIrSettings settings = es.simulation;
     settings.sampleRateHz = es.sampleRateHz;
+    settings.maxLengthSeconds = 0;  // the complete IR: not the engine's cut (max_ir_seconds)
     settings.includeDirect = true;
     if (request->seed != 0) settings.seed = request->seed;
     BinauralReceiver binaural;

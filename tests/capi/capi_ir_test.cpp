@@ -43,10 +43,12 @@ struct Shoebox {
   earshot_context* context = nullptr;
   earshot_scene* scene = nullptr;
 
-  explicit Shoebox(uint64_t seed = 1, uint32_t ambisonicOrder = 0, earshot_trace_mode trace = EARSHOT_TRACE_AUTO) {
+  explicit Shoebox(uint64_t seed = 1, uint32_t ambisonicOrder = 0, earshot_trace_mode trace = EARSHOT_TRACE_AUTO,
+                   double maxIrSeconds = 3.0) {
     earshot_context_settings cs;
     earshot_context_settings_init(&cs);  // the balanced defaults, as `earshot ir`
     cs.max_sources = 2;
+    cs.max_ir_seconds = maxIrSeconds;
     cs.seed = seed;
     cs.trace_mode = trace;
     cs.ambisonic_order = ambisonicOrder;  // 0: binaural source IRs, as `earshot ir --receiver binaural`
@@ -156,8 +158,10 @@ TEST(CapiIr, TraceModeSelectsTheTrace) {
   EXPECT_NE(std::string(earshot_last_error_message()).find("trace_mode"), std::string::npos);
 }
 
+// The complete IR, not cut where the context cuts its sources' IRs
+// (max_ir_seconds 0.3 s here: the shoebox's IR is longer).
 TEST(CapiIr, ComputedIrIsEarshotIrsOmniAndBinaural) {
-  Shoebox box(7);
+  Shoebox box(7, 0, EARSHOT_TRACE_AUTO, 0.3);
   earshot_ir_request req;
   ASSERT_EQ(earshot_ir_request_init(&req), EARSHOT_OK);
   req.source = {2, 3.5f, 1.5f};
