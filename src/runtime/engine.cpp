@@ -179,6 +179,13 @@ double simulatedSeconds(const OmniIrSettings& o) {
   return seconds;
 }
 
+// A completed histogram of this many seconds, from above (a bin out of its
+// range, which simulate() refuses, counted as the smallest valid one).
+double histogramBytes(double seconds, double binSeconds) {
+  const double bin = binSeconds >= 1e-5 ? binSeconds : 1e-5;
+  return (std::ceil(seconds / bin) + 1) * EnergyHistogram::kStride * sizeof(double);
+}
+
 // Engine::sourceSlotBytes for the engine's convolver `mixer` and latency.
 // A slot keeps for sourceIr() its IR, or with a shared tail what the IR is
 // made from (its completed histogram; its few early paths not counted).
@@ -188,7 +195,7 @@ size_t slotBytesOf(const EngineSettings& s, const ConvolutionMixer& mixer, size_
   const size_t kept =
       !s.keepSourceIrs ? 0
       : hasSharedTail(s)
-          ? (size_t(std::ceil(simulatedSeconds(sim) / sim.binSeconds)) + 1) * EnergyHistogram::kStride * sizeof(double)
+          ? size_t(histogramBytes(simulatedSeconds(sim), sim.binSeconds))
           : size_t(std::ceil(s.maxIrSeconds * s.sampleRateHz)) * channels * sizeof(float);
   return DirectVoice::stateBytes(voiceSettingsOf(s, latencyFrames)) + mixer.sourceStateBytes() +
          3 * PreparedIr::bytesFor(mixer.layout(), channels) + kept;
@@ -433,6 +440,9 @@ Result<std::unique_ptr<Engine>> Engine::create(const EngineSettings& s, Binaural
     return invalidArgument("engine: maxSources " + std::to_string(s.maxSources) + " is outside [1, 4096]");
   if (!(s.maxIrSeconds > 0 && s.maxIrSeconds <= 60))
     return invalidArgument("engine: maxIrSeconds " + std::to_string(s.maxIrSeconds) + " is outside (0, 60]");
+  if (!(s.simulation.maxLengthSeconds >= 0 && s.simulation.maxLengthSeconds <= 600))
+    return invalidArgument("engine: simulation.maxLengthSeconds " + std::to_string(s.simulation.maxLengthSeconds) +
+                           " is outside [0, 600]");
   if (!(s.maxDistanceMeters > 0 && s.maxDistanceMeters <= 20000))
     return invalidArgument("engine: maxDistanceMeters " + std::to_string(s.maxDistanceMeters) + " is outside (0, 20000]");
   std::unique_ptr<Engine> e(new Engine());
@@ -732,7 +742,7 @@ size_t Engine::simulationGroupSize() const {
   const double frames = std::ceil(irSeconds * s.sampleRateHz);
   const double channels = double(mMixer->settings().channels);
   const double perSource = frames * (mTailMixer ? 1.0 : channels) * sizeof(float) +
-                           std::ceil(irSeconds / s.simulation.binSeconds) * EnergyHistogram::kStride * sizeof(double);
+                           histogramBytes(irSeconds, s.simulation.binSeconds);
   // What the limit leaves beside the slots in use and two whole IRs (in
   // every channel): the last source's, and the one sourceIr() made last.
   const double left = double(defaultInputLimits().maxMemoryBytes) -

@@ -387,6 +387,22 @@ TEST(Engine, BadArgumentsAreErrors) {
   EXPECT_EQ(many.status().code(), StatusCode::kOutOfRange);
   EXPECT_NE(many.status().message().find("simulation.rays 100000000"), std::string::npos) << many.status().message();
   EXPECT_NE(many.status().message().find("--max-memory"), std::string::npos) << many.status().message();
+  for (double cap : {-1.0, 601.0, std::nan("")}) {
+    es = test::fastSettings();
+    es.simulation.maxLengthSeconds = cap;  // not replaced by the engine's own cut: an error
+    auto capped = Engine::create(es, model);
+    ASSERT_FALSE(capped.isOk()) << cap;
+    EXPECT_NE(capped.status().message().find("maxLengthSeconds"), std::string::npos) << capped.status().message();
+  }
+  es = test::fastSettings();
+  es.simulation.maxLengthSeconds = 0.5;  // below the cut (1.5 s): kept
+  auto shorter = Engine::create(es, model);
+  ASSERT_TRUE(shorter.isOk());
+  EXPECT_EQ((*shorter)->settings().simulation.maxLengthSeconds, 0.5);
+  es.simulation.maxLengthSeconds = 0;  // none: the cut and its fade
+  auto cut = Engine::create(es, model);
+  ASSERT_TRUE(cut.isOk());
+  EXPECT_DOUBLE_EQ((*cut)->settings().simulation.maxLengthSeconds, 1.51);
   es = test::fastSettings();
   es.maxSources = 2;
   auto engine = Engine::create(es, model);
