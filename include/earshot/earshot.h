@@ -709,8 +709,9 @@ typedef struct earshot_ir_info {
  *  further: a longer IR is the same room's energies up to the cut, another
  *  realisation of the noise than `earshot ir`'s). With a shared tail the
  *  engine may have synthesised only the start of it (the tail of another
- *  source stood for its own): the first call then makes the whole IR (a few
- *  milliseconds; the same bits). *out holds one reference.
+ *  source stood for its own): a call then makes the whole IR (a few
+ *  milliseconds; the same bits), and the context keeps the last one made
+ *  (one, not one a source). *out holds one reference.
  *  Errors: NOT_FOUND (the source has not been simulated yet). Game thread or
  *  any thread but the audio thread (takes a lock the simulation also takes,
  *  briefly). */

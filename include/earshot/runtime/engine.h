@@ -330,8 +330,8 @@ class Engine {
    *  stands for). A source whose tail another's stood for in its
    *  simulation was synthesised in part: its whole IR is made when asked
    *  (the same bits; milliseconds). The engine keeps the last one made
-   *  (one, not one a source: asking again for the same source's IR costs
-   *  nothing until its next simulation).
+   *  (one, not one a source: the same source asked again, before another
+   *  source's IR is made or its next simulation, costs nothing).
    *  Game or simulation thread; never the audio thread (takes a lock). */
   SourceIr sourceIr(uint32_t source) const;
   /** sourceIr() without the IR (`ir` null): its count and when it was
