@@ -362,7 +362,12 @@ class Scene:
         with seed + the index of the group's first pair; pair k then equals
         ir(source_k, listener, seed=that seed, trace='shared'). trace='auto':
         shared for listeners with 3 pairs or more, the others per source.
-        Each IR's params['trace'] says which it got."""
+        Each IR's params['trace'] says which it got.
+
+        IRs made side by side share the memory limit (set_memory_limit):
+        with T at once each is checked against the limit / T; one refused
+        by its share alone is made again afterwards, alone, under the whole
+        limit (the same bits; its warnings say so)."""
         kw = self._kwargs(**options)
         if isinstance(pairs, _np.ndarray):
             if pairs.ndim != 3 or pairs.shape[1:] != (2, 3):

@@ -432,15 +432,37 @@ py::list irBatch(SceneData& scene, const std::vector<std::pair<P3, P3>>& pairs, 
     ThreadPool pool(threads);
     IrOptions perSource = q;
     perSource.trace = TraceMode::kPerSource;
-    if (single.size() == 1 || pool.threadCount() == 1) {
+    if (single.size() <= 1 || pool.threadCount() == 1) {
       for (size_t k : single)
         outs[k] = computeOne(scene, perSource, pairs[k].first, pairs[k].second, q.settings.seed + k, pool);
     } else {
+      // IRs side by side share the memory limit: each is checked against
+      // the limit / the IRs at once. One refused by its share alone is made
+      // again afterwards, one at a time under the whole limit, on every
+      // thread or, if that passes the limit (a trace's state grows with
+      // its threads), on one (the same bits: an IR does not depend on the
+      // thread count).
+      const size_t atOnce = std::min<size_t>(pool.threadCount(), single.size());
+      const uint64_t share = defaultInputLimits().maxMemoryBytes / atOnce;
+      std::vector<uint8_t> again(pairs.size(), 0);
       pool.parallelFor(single.size(), [&](size_t j, unsigned) {
         ThreadPool one(1);
         const size_t k = single[j];
+        MemoryLimitShare mine(share);
         outs[k] = computeOne(scene, perSource, pairs[k].first, pairs[k].second, q.settings.seed + k, one);
+        again[k] = !outs[k].status.isOk() && mine.refusedWithinTheLimit();
       });
+      ThreadPool one(1);
+      for (size_t k : single)
+        if (again[k]) {
+          outs[k] = computeOne(scene, perSource, pairs[k].first, pairs[k].second, q.settings.seed + k, pool);
+          if (!outs[k].status.isOk())
+            outs[k] = computeOne(scene, perSource, pairs[k].first, pairs[k].second, q.settings.seed + k, one);
+          outs[k].warnings.push_back("made alone after the batch: with " + std::to_string(atOnce) +
+                                     " IRs at once its share of the memory limit (" + formatBytes(share) +
+                                     ") was too small; a higher limit (set_memory_limit) or fewer threads "
+                                     "avoids the second run");
+        }
     }
     for (const auto& g : groups) {
       std::vector<P3> sources;

@@ -256,6 +256,51 @@ def test_memory_limit_refuses_a_trace_past_it_until_raised(shoebox):
         earshot.set_memory_limit("1G")
 
 
+def _bytes_in(message):
+    """The bytes of "needs about 12.3 MiB" in an error message, from above."""
+    import re
+    m = re.search(r"needs about ([0-9.]+) (MiB|GiB|bytes)", message)
+    assert m, message
+    scale = {"bytes": 1, "MiB": 1 << 20, "GiB": 1 << 30}[m.group(2)]
+    return int((float(m.group(1)) + (0.05 if scale > 1 else 0)) * scale) + 1
+
+
+def test_batch_ir_side_by_side_share_the_memory_limit(shoebox):
+    """ir_batch on T threads checks each IR against the limit / T, so that
+    the IRs at once stay within the limit; one over its share is made again
+    alone, under the whole limit: nothing is lost, the same bits."""
+    kw = dict(receiver="binaural", quality="draft", length=1.5)
+    pairs = [(SRC, LIS), ((3.0, 2.0, 1.2), LIS)]
+    alone = [shoebox.ir(s, l, seed=3 + i, threads=1, **kw) for i, (s, l) in enumerate(pairs)]  # HRTF loaded
+    try:
+        # The least limit one IR passes: raised to what each refusal names.
+        limit = 1 << 20
+        for _ in range(20):
+            earshot.set_memory_limit(limit)
+            try:
+                shoebox.ir(*pairs[0], seed=3, threads=1, **kw)
+                break
+            except ValueError as e:
+                assert "over the memory limit" in str(e)
+                limit = max(_bytes_in(str(e)), limit + 1)
+        else:
+            pytest.fail("no limit found")
+        batch = shoebox.ir_batch(pairs, seed=3, threads=2, trace="per-source", **kw)
+        for i, one in enumerate(alone):
+            assert np.array_equal(batch[i].samples, one.samples), i
+            assert not one.warnings
+        # Pair 0 needs the whole limit, so it was refused by its half of it
+        # and made alone.
+        assert any("made alone" in w and "2 IRs at once" in w for w in batch[0].warnings), batch[0].warnings
+        # With room for both, nothing is made twice.
+        earshot.set_memory_limit(4 * limit)
+        again = shoebox.ir_batch(pairs, seed=3, threads=2, trace="per-source", **kw)
+        assert all(not r.warnings for r in again)
+        assert np.array_equal(again[0].samples, batch[0].samples)
+    finally:
+        earshot.set_memory_limit(None)
+
+
 def test_bad_scenes_raise(tmp_path):
     with pytest.raises(FileNotFoundError):
         earshot.Scene(tmp_path / "missing.gltf")

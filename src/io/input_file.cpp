@@ -56,12 +56,37 @@ void setDefaultMaxMemoryBytes(uint64_t bytes) {
   gDefaults.maxMemoryBytes = bytes > 0 ? bytes : kDefaultMaxMemoryBytes;
 }
 
+namespace {
+// This thread's MemoryLimitShare (0: none), and whether it refused a check
+// the process's limit allows.
+thread_local uint64_t tShare = 0;
+thread_local bool tRefusedByShare = false;
+}  // namespace
+
 Status checkMemoryEstimate(double bytes, const std::string& what) {
   const uint64_t limit = defaultInputLimits().maxMemoryBytes;
-  if (bytes <= double(limit)) return Status::ok();
-  return outOfRange(what + " needs about " + formatBytes(uint64_t(std::min(bytes, 1.8e19))) +
-                    ", over the memory limit of " + formatBytes(limit) + " (--max-memory)");
+  const std::string needs = what + " needs about " + formatBytes(uint64_t(std::min(bytes, 1.8e19)));
+  if (!(bytes <= double(limit)))
+    return outOfRange(needs + ", over the memory limit of " + formatBytes(limit) + " (--max-memory)");
+  if (tShare > 0 && tShare < limit && bytes > double(tShare)) {
+    tRefusedByShare = true;
+    return outOfRange(needs + ", over this thread's share (" + formatBytes(tShare) + ") of the memory limit of " +
+                      formatBytes(limit) + " (--max-memory) for work run side by side");
+  }
+  return Status::ok();
 }
+
+MemoryLimitShare::MemoryLimitShare(uint64_t bytes) : mOuterShare(tShare), mOuterRefused(tRefusedByShare) {
+  tShare = std::max<uint64_t>(bytes, 1);
+  tRefusedByShare = false;
+}
+
+MemoryLimitShare::~MemoryLimitShare() {
+  tShare = mOuterShare;
+  tRefusedByShare = mOuterRefused || tRefusedByShare;
+}
+
+bool MemoryLimitShare::refusedWithinTheLimit() const { return tRefusedByShare; }
 
 Result<uint64_t> parseByteSize(const std::string& text) {
   if (text.empty()) return invalidArgument("empty size (expected bytes, or a number with K, M, G or T)");

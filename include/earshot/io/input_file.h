@@ -54,6 +54,28 @@ void setDefaultMaxMemoryBytes(uint64_t bytes);
  *  limit (before allocating it); ok otherwise. */
 Status checkMemoryEstimate(double bytes, const std::string& what);
 
+/** While alive, this thread's checkMemoryEstimate compares with `bytes`
+ *  (its share of the limit) where that is below the process's limit: work
+ *  run side by side on T threads (Python's ir_batch) gives each the limit
+ *  / T, so together they stay within it. A check refused by the share alone
+ *  (within the whole limit) is remembered: that work may be run again
+ *  alone, under the whole limit. Shares nest (the innermost one counts);
+ *  one lives and dies on one thread. */
+class MemoryLimitShare {
+ public:
+  explicit MemoryLimitShare(uint64_t bytes);
+  ~MemoryLimitShare();
+  MemoryLimitShare(const MemoryLimitShare&) = delete;
+  MemoryLimitShare& operator=(const MemoryLimitShare&) = delete;
+  /** A check on this thread, while this share lived, was refused by the
+   *  share and would have passed the process's limit. */
+  bool refusedWithinTheLimit() const;
+
+ private:
+  uint64_t mOuterShare;
+  bool mOuterRefused;
+};
+
 /** Parses a byte count: "512M", "2G", "1073741824", "64K" (powers of 1024). */
 Result<uint64_t> parseByteSize(const std::string& text);
 /** "1.0 GiB", "512 MiB": for messages. */
