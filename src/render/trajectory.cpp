@@ -138,6 +138,9 @@ Result<Trajectory> Trajectory::fromKeyframes(std::vector<Keyframe> keyframes, co
     if (i > 0 && !(k.t > keyframes[i - 1].t))
       return invalidArgument(ki + ".t: " + fmt(k.t) + " is not after " + name + "[" + std::to_string(i - 1) +
                              "].t = " + fmt(keyframes[i - 1].t) + " (keyframe times must increase strictly)");
+    if (i > 0 && !(k.t - keyframes[i - 1].t >= kMinKeyframeSpacingSeconds))
+      return invalidArgument(ki + ".t: " + fmt(k.t) + " is less than 1 us after " + name + "[" + std::to_string(i - 1) +
+                             "].t = " + fmt(keyframes[i - 1].t) + " (a jump takes two keyframes at least 1 us apart)");
     EARSHOT_RETURN_IF_ERROR(checkPose(k.position, k.forward, k.up, ki));
   }
   Trajectory tr;

@@ -135,6 +135,16 @@ TEST(Trajectory, BadKeyframesAreNamedErrors) {
   EXPECT_NE(err({{0.0, {0, 0, INFINITY}}}).find("sources[0].path[0].position: not finite"), std::string::npos);
   EXPECT_NE(err({{0.0, {2e6, 0, 0}}}).find("sources[0].path[0].position: [2e+06, 0, 0] is farther"),
             std::string::npos);
+  // Keyframes closer than 1 us: a jump of 5 m in 9e-315 s (found by
+  // fuzz_scene_json) had an infinite velocity.
+  EXPECT_NE(err({{0.0, {5, 0, 0}}, {9e-315, {0, 0, 0}}}).find("sources[0].path[1].t: 9e-315 is less than 1 us after"),
+            std::string::npos);
+  EXPECT_NE(err({{2.0, {0, 0, 0}}, {2.0 + 0.9e-6, {1, 0, 0}}}).find("less than 1 us after"), std::string::npos);
+  auto jump = Trajectory::fromKeyframes({{2.0, {-1e6, -1e6, -1e6}}, {2.0 + 1e-6, {1e6, 1e6, 1e6}}});
+  ASSERT_TRUE(jump.isOk()) << jump.status().message();
+  const Pose mid = jump->at(2.0 + 0.5e-6);
+  EXPECT_TRUE(isFinite(mid.position) && isFinite(mid.velocity));
+  EXPECT_GT(mid.velocity.x, 1e12);
   auto pose = Trajectory::fromPose({0, 0, 0}, {0, 0, 1}, {0, 0, 1}, "listener");
   ASSERT_FALSE(pose.isOk());
   EXPECT_EQ(pose.status().message().rfind("listener.up: ", 0), 0u) << pose.status().message();

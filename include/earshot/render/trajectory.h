@@ -18,6 +18,11 @@ constexpr Vec3d kDefaultUp{0.0, 1.0, 0.0};
 /** Latest keyframe time (and any other scene time) accepted, seconds. */
 constexpr double kMaxSceneSeconds = 86400.0;
 
+/** Least time between two keyframes, seconds: under a sample period at
+ *  every rate (2.6 us at 384 kHz), and enough for any jump within
+ *  kMaxCoordinateMeters to have a finite velocity. */
+constexpr double kMinKeyframeSpacingSeconds = 1e-6;
+
 /** A pose at one instant. forward and up are unit length and orthogonal. */
 struct Pose {
   Vec3d position;             ///< metres
@@ -58,7 +63,8 @@ class Trajectory {
   /** Keyframes (at least one). `name` (e.g. "sources[0].path") prefixes
    *  errors with the keyframe's index: "sources[0].path[3].t: 2 is not after
    *  path[2].t = 2 (times must increase strictly)". Checks as fromPose, and
-   *  every t finite, in [0, kMaxSceneSeconds], strictly increasing. */
+   *  every t finite, in [0, kMaxSceneSeconds], strictly increasing, each
+   *  at least kMinKeyframeSpacingSeconds after the one before. */
   static Result<Trajectory> fromKeyframes(std::vector<Keyframe> keyframes, const std::string& name = "path");
 
   /** The pose at time t (seconds; any finite value). O(log keyframes). */
