@@ -290,8 +290,9 @@ class MeasurementPreparer {
 
 // Changes with anything in load() that the fingerprint below does not see
 // (how delays are made from onsets, what is kept): a cached set of another
-// version is then prepared again.
-constexpr uint64_t kPreparationVersion = 1;
+// version is then prepared again. 2: Data.Delay checked (a set cached
+// before may hold delays from values now refused).
+constexpr uint64_t kPreparationVersion = 2;
 
 // The prepared-set cache's guard against stale numerics: a hash of what
 // MeasurementPreparer makes of a fixed test pair at this rate, from this
@@ -456,6 +457,14 @@ Result<std::shared_ptr<const HrtfSet>> HrtfSet::load(const std::string& sofaPath
     if (!std::isfinite(h->DataIR.values[k])) {
       return parseError(sofaPath + ": Data.IR of measurement " + std::to_string(k / (2 * n)) +
                         " has a non-finite value");
+    }
+  }
+  // Data.Delay (samples, I x R or M x R) becomes every arrival's ear delay:
+  // finite, and within a second (a NaN made every binaural IR NaN).
+  for (std::size_t k = 0; k < h->DataDelay.elements; ++k) {
+    if (!(std::fabs(double(h->DataDelay.values[k])) <= fsIn)) {
+      return parseError(sofaPath + ": Data.Delay value " + std::to_string(k) +
+                        " is not finite or longer than a second of samples");
     }
   }
   // Resampled length; the minimum-phase HRIR concentrates at least as much

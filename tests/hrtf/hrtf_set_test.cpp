@@ -477,6 +477,9 @@ TEST(HrtfSet, ErrorsNameTheFileAndTheProblem) {
   expectErrorNaming(kDataDir + "not_sofa.sofa", StatusCode::kParseError, "not a readable SOFA file");
   expectErrorNaming(kDataDir + "pulse_truncated.sofa", StatusCode::kParseError, "not a readable SOFA file");
   expectErrorNaming(kDataDir + "pulse_convention_hrtf.sofa", StatusCode::kUnsupported, "SimpleFreeFieldHRTF");
+  // A NaN Data.Delay made every binaural IR NaN.
+  expectErrorNaming(kDataDir + "pulse_delay_nan.sofa", StatusCode::kParseError,
+                    "Data.Delay value 0 is not finite or longer than a second");
   auto r = HrtfSet::load(kPulse, 4000.0);
   ASSERT_FALSE(r.isOk());
   EXPECT_EQ(r.status().code(), StatusCode::kInvalidArgument);
