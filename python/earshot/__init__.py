@@ -114,6 +114,17 @@ def _read_json_file(path, what):
         raise ValueError(f"{path}: the {what} is not valid JSON ({type(e).__name__})") from None
 
 
+def _json_text(doc, what):
+    """JSON text of a dict the engine reads; a NaN or infinity is named here
+    (json.dumps would write NaN, which JSON does not have)."""
+    try:
+        return _json.dumps(doc, allow_nan=False)
+    except ValueError:
+        raise ValueError(f"{what}: every number must be finite (a NaN or infinity was given)") from None
+    except TypeError as e:
+        raise TypeError(f"{what}: not JSON-serialisable: {e}") from None
+
+
 def _materials_args(materials):
     """(path, json text) for the engine from a path, a dict or None."""
     if materials is None:
@@ -124,10 +135,7 @@ def _materials_args(materials):
     if isinstance(materials, dict):
         if "materials" not in materials:  # a bare {name: material} object
             materials = {"bands_hz": list(BANDS_HZ), "materials": materials}
-        try:
-            return None, _json.dumps(materials)
-        except (TypeError, ValueError) as e:
-            raise TypeError(f"materials: not JSON-serialisable: {e}") from None
+        return None, _json_text(materials, "materials")
     raise TypeError("materials: expected a path, a dict or None")
 
 
@@ -216,12 +224,18 @@ class Scene:
         {name: material} (or a whole materials-file dict), or a materials
         file; index k is the k-th material listed."""
         v = _np.asarray(vertices)
+        if v.size == 0:
+            v = v.astype(_np.float64).reshape(0, 3)
         if v.dtype.kind not in "fiu" or v.dtype == _np.bool_:
             raise TypeError(f"vertices: expected real numbers, got dtype {v.dtype}")
         t = _np.asarray(triangles)
+        if t.size == 0:  # [] is float64, of shape (0,), to numpy
+            t = t.astype(_np.int64).reshape(0, 3)
         if t.dtype.kind not in "iu":
             raise TypeError(f"triangles: expected integer vertex indices, got dtype {t.dtype}")
         ids = _np.asarray(material_ids)
+        if ids.size == 0:
+            ids = ids.astype(_np.int64)
         if ids.dtype.kind not in "iu":
             raise TypeError(f"material_ids: expected integers, got dtype {ids.dtype}")
         if t.size and t.max() > _np.iinfo(_np.int64).max:
@@ -504,7 +518,7 @@ def render(scene, *, base_dir=None, quality=None, seed=None, threads=0, start=0.
     JSON text; files it names resolve against base_dir (default: the scene
     file's folder, or the current directory for a dict or text)."""
     if isinstance(scene, dict):
-        text, name = _json.dumps(scene), "scene"
+        text, name = _json_text(scene, "scene"), "scene"
         base = base_dir or _os.getcwd()
     elif _path(scene) is not None and (isinstance(scene, _os.PathLike) or not scene.lstrip().startswith("{")):
         p = _path(scene)

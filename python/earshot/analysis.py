@@ -127,7 +127,10 @@ def compare(test, reference, sample_rate, *, tolerance=1.0, bands=None, noise="l
     r = _rate(sample_rate)
     text, jnd_limit = None, 1.0
     if isinstance(tolerance, dict):
-        text = _json.dumps(tolerance)
+        try:
+            text = _json.dumps(tolerance, allow_nan=False)
+        except ValueError:
+            raise ValueError("tolerance: every number must be finite (a NaN or infinity was given)") from None
     elif isinstance(tolerance, (str, _os.PathLike)):
         p = _os.fspath(tolerance)
         if not _os.path.isfile(p):

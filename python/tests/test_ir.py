@@ -301,6 +301,18 @@ def test_batch_ir_side_by_side_share_the_memory_limit(shoebox):
         earshot.set_memory_limit(None)
 
 
+def test_empty_arrays_are_the_free_field():
+    """No triangles, given as empty lists (float64 of shape (0,) to numpy)."""
+    empty = earshot.Scene.from_arrays([], [], [], ["brick"])
+    assert empty.triangle_count == 0
+    a = empty.ir((0, 0, 0), (3, 0, 0), receiver="omni", quality="draft")
+    b = earshot.Scene(None).ir((0, 0, 0), (3, 0, 0), receiver="omni", quality="draft")
+    assert np.array_equal(a.samples, b.samples)
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float)
+    with pytest.raises(ValueError, match="materials: every number must be finite"):
+        earshot.Scene.from_arrays(v, [[0, 1, 2]], [0], {"x": {"absorption": [float("nan")] * 7}})
+
+
 def test_bad_scenes_raise(tmp_path):
     with pytest.raises(FileNotFoundError):
         earshot.Scene(tmp_path / "missing.gltf")

@@ -42,3 +42,9 @@ def test_render_errors(tmp_path):
         earshot.render(SCENE, start=1.0, end=0.5)
     with pytest.raises(TypeError):
         earshot.render(42)
+    # A NaN in a dict is named (json.dumps would write NaN, not JSON).
+    with open(SCENE) as f:
+        scene = json.load(f)
+    scene["listener"]["position"] = [float("nan"), 0, 0]
+    with pytest.raises(ValueError, match="scene: every number must be finite"):
+        earshot.render(scene, base_dir=os.path.dirname(SCENE))
