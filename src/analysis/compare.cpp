@@ -139,7 +139,7 @@ Result<ToleranceSpec> parseTolerance(const std::string& jsonText, const std::str
   json root;
   try {
     root = json::parse(jsonText);
-  } catch (const json::parse_error& e) {
+  } catch (const json::exception& e) {  // a parse error, or a number out of range (1e999)
     return parseError(sourceName + ": not valid JSON (" + jsonErrorWithoutContent(e.what()) + ")");
   }
   if (!root.is_object()) return parseError(sourceName + ": expected a JSON object");

@@ -196,6 +196,15 @@ std::string jsonErrorWithoutContent(std::string what) {
   }
   const size_t lastRead = what.find("; last read");
   if (lastRead != std::string::npos) what.erase(lastRead);
+  // Anything else quoted is the text's too ("number overflow parsing '1e999'").
+  std::string kept;
+  bool quoted = false;
+  for (char c : what) {
+    if (c == '\'') quoted = !quoted;
+    else if (!quoted) kept += c;
+  }
+  while (!kept.empty() && kept.back() == ' ') kept.pop_back();
+  what = std::move(kept);
   for (char& c : what)
     if (static_cast<unsigned char>(c) < 0x20 || static_cast<unsigned char>(c) >= 0x7f) c = '?';
   if (what.size() > 200) what = what.substr(0, 200) + "...";

@@ -110,6 +110,11 @@ TEST(Compare, ToleranceFileErrorsNameTheField) {
   ASSERT_FALSE(badBand.isOk());
   EXPECT_NE(badBand.status().message().find("300"), std::string::npos);
   EXPECT_FALSE(parseTolerance("{not json", "tol.json").isOk());
+  // A number past a double: an error, not an escaping exception, and without
+  // the file's text.
+  auto overflow = parseTolerance(R"({"metrics": {"T30": 1e999}})", "tol.json");
+  ASSERT_FALSE(overflow.isOk());
+  EXPECT_EQ(overflow.status().message(), "tol.json: not valid JSON (number overflow parsing)");
   EXPECT_FALSE(loadToleranceFile("/nonexistent/tol.json").isOk());
 }
 

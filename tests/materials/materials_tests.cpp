@@ -85,6 +85,10 @@ TEST(MaterialsParse, MalformedJsonIsOneLineErrorNamingTheFile) {
   EXPECT_EQ(r.status().code(), StatusCode::kParseError);
   EXPECT_EQ(r.status().message().rfind("broken.json: malformed JSON", 0), 0u) << r.status().message();
   EXPECT_EQ(r.status().message().find('\n'), std::string::npos);
+  // The parser quotes an overflowing number; the message does not.
+  auto big = parseMaterials(R"({"materials": {"x": {"absorption": [1e999]}}})", "big.json");
+  ASSERT_FALSE(big.isOk());
+  EXPECT_EQ(big.status().message(), "big.json: malformed JSON: number overflow parsing");
 }
 
 TEST(MaterialsLoad, MissingFileIsNotFoundNamingThePath) {
