@@ -65,15 +65,14 @@ thread_local bool tRefusedByShare = false;
 
 Status checkMemoryEstimate(double bytes, const std::string& what) {
   const uint64_t limit = defaultInputLimits().maxMemoryBytes;
+  const bool overShare = tShare > 0 && tShare < limit && bytes > double(tShare);
+  if (bytes <= double(limit) && !overShare) return Status::ok();
   const std::string needs = what + " needs about " + formatBytes(uint64_t(std::min(bytes, 1.8e19)));
   if (!(bytes <= double(limit)))
     return outOfRange(needs + ", over the memory limit of " + formatBytes(limit) + " (--max-memory)");
-  if (tShare > 0 && tShare < limit && bytes > double(tShare)) {
-    tRefusedByShare = true;
-    return outOfRange(needs + ", over this thread's share (" + formatBytes(tShare) + ") of the memory limit of " +
-                      formatBytes(limit) + " (--max-memory) for work run side by side");
-  }
-  return Status::ok();
+  tRefusedByShare = true;
+  return outOfRange(needs + ", over this thread's share (" + formatBytes(tShare) + ") of the memory limit of " +
+                    formatBytes(limit) + " (--max-memory) for work run side by side");
 }
 
 MemoryLimitShare::MemoryLimitShare(uint64_t bytes) : mOuterShare(tShare), mOuterRefused(tRefusedByShare) {
