@@ -27,6 +27,7 @@ import numpy as _np
 
 from . import _earshot
 from . import analysis  # noqa: F401  (earshot.analysis)
+from .analysis import _json_text
 
 __version__ = _earshot.__version__
 BANDS_HZ = tuple(_earshot.bands_hz)
@@ -112,17 +113,6 @@ def _read_json_file(path, what):
             return _json.loads(f.read())
     except (ValueError, RecursionError) as e:
         raise ValueError(f"{path}: the {what} is not valid JSON ({type(e).__name__})") from None
-
-
-def _json_text(doc, what):
-    """JSON text of a dict the engine reads; a NaN or infinity is named here
-    (json.dumps would write NaN, which JSON does not have)."""
-    try:
-        return _json.dumps(doc, allow_nan=False)
-    except ValueError:
-        raise ValueError(f"{what}: every number must be finite (a NaN or infinity was given)") from None
-    except TypeError as e:
-        raise TypeError(f"{what}: not JSON-serialisable: {e}") from None
 
 
 def _materials_args(materials):

@@ -21,6 +21,19 @@ import numpy as _np
 
 from . import _earshot
 
+
+def _json_text(doc, what):
+    """JSON text of a dict the engine reads (here and in earshot's Scene and
+    render); a NaN or infinity is named here: json.dumps would write NaN,
+    which JSON does not have."""
+    try:
+        return _json.dumps(doc, allow_nan=False)
+    except ValueError:
+        raise ValueError(f"{what}: every number must be finite (a NaN or infinity was given)") from None
+    except TypeError as e:
+        raise TypeError(f"{what}: not JSON-serialisable: {e}") from None
+
+
 METRICS = ("EDT", "T20", "T30", "C50", "C80", "D50", "Ts")
 BANDS_HZ = tuple(_earshot.bands_hz) + (0.0,)
 
@@ -127,10 +140,7 @@ def compare(test, reference, sample_rate, *, tolerance=1.0, bands=None, noise="l
     r = _rate(sample_rate)
     text, jnd_limit = None, 1.0
     if isinstance(tolerance, dict):
-        try:
-            text = _json.dumps(tolerance, allow_nan=False)
-        except ValueError:
-            raise ValueError("tolerance: every number must be finite (a NaN or infinity was given)") from None
+        text = _json_text(tolerance, "tolerance")
     elif isinstance(tolerance, (str, _os.PathLike)):
         p = _os.fspath(tolerance)
         if not _os.path.isfile(p):
