@@ -195,15 +195,14 @@ std::string jsonErrorWithoutContent(std::string what) {
   }
   const size_t lastRead = what.find("; last read");
   if (lastRead != std::string::npos) what.erase(lastRead);
-  // Anything else quoted is the text's too ("number overflow parsing '1e999'").
-  std::string kept;
-  bool quoted = false;
-  for (char c : what) {
-    if (c == '\'') quoted = !quoted;
-    else if (!quoted) kept += c;
+  // The number nlohmann could not hold is the text's too ("number overflow
+  // parsing '1e999'"); the tokens it names ("unexpected ','; expected
+  // ':'") are the grammar's, and stay.
+  const size_t token = what.find(" parsing '");
+  if (token != std::string::npos) {
+    const size_t close = what.find('\'', token + 10);
+    what.erase(token + 8, close == std::string::npos ? std::string::npos : close + 1 - (token + 8));
   }
-  while (!kept.empty() && kept.back() == ' ') kept.pop_back();
-  what = std::move(kept);
   for (char& c : what)
     if (static_cast<unsigned char>(c) < 0x20 || static_cast<unsigned char>(c) >= 0x7f) c = '?';
   if (what.size() > 200) what = what.substr(0, 200) + "...";

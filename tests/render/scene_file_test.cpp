@@ -297,7 +297,10 @@ TEST_F(SceneFileTest, NegativeAndDisorderedTimesAreRejected) {
              "scene.json: listener.path[1].t: 1 is not after listener.path[0].t = 2 (keyframe times must increase "
              "strictly)");
   EXPECT_HAS(error(keyed("1", "1")), "scene.json: listener.path[1].t: 1 is not after");
-  EXPECT_TRUE(parse(keyed("0", "1e-9")).isOk());
+  // Keyframes closer than 1 us are refused (a jump within 9e-315 s had an
+  // infinite velocity); 1 us apart is a jump.
+  EXPECT_HAS(error(keyed("0", "1e-9")), "scene.json: listener.path[1].t: 1e-09 is less than 1 us after");
+  EXPECT_TRUE(parse(keyed("0", "1e-6")).isOk());
 }
 
 TEST_F(SceneFileTest, HugeAndOverflowingNumbersAreRejected) {
