@@ -102,7 +102,7 @@ def test_compare_in_jnd():
     assert not diff["within_tolerance"]
     assert [r["verdict"] for r in diff["rows"] if r["metric"] == "C50"] == ["skipped"]
     with pytest.raises(ValueError, match="tolerance: every number must be finite"):
-        analysis.compare(c, a, 48000, tolerance={"jnd_limit": float("inf")})
+        analysis.compare(c, a, 48000, tolerance={"default_jnd": float("inf")})
     assert analysis.jnd("T30", 2.0) == pytest.approx(0.1)
     assert analysis.difference_in_jnd("C80", 3.0, 1.0) == pytest.approx(2.0)
 

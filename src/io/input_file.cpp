@@ -198,10 +198,11 @@ std::string jsonErrorWithoutContent(std::string what) {
   // The number nlohmann could not hold is the text's too ("number overflow
   // parsing '1e999'"); the tokens it names ("unexpected ','; expected
   // ':'") are the grammar's, and stay.
-  const size_t token = what.find(" parsing '");
-  if (token != std::string::npos) {
-    const size_t close = what.find('\'', token + 10);
-    what.erase(token + 8, close == std::string::npos ? std::string::npos : close + 1 - (token + 8));
+  const size_t parsing = what.find(" parsing '");
+  if (parsing != std::string::npos) {
+    const size_t from = what.find(" '", parsing + 1);  // the space before the number's quote
+    const size_t close = what.find('\'', from + 2);
+    what.erase(from, close == std::string::npos ? std::string::npos : close + 1 - from);
   }
   for (char& c : what)
     if (static_cast<unsigned char>(c) < 0x20 || static_cast<unsigned char>(c) >= 0x7f) c = '?';
