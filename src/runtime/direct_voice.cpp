@@ -86,7 +86,6 @@ struct DelayRamp {
   double d0[2], dd[2], g0, dg;
   size_t offset, total;
 };
-typedef int FirI8 __attribute__((vector_size(32)));
 static inline void sincProduct(const float* __restrict ring, size_t mask, const float* __restrict table,
                                double position, FirV8& product) {
   const double fl = std::floor(position);
@@ -118,10 +117,11 @@ void delayedReads(const float* __restrict ring, size_t mask, const float* __rest
     }
     sincProduct(ring, mask, table, now - (r.d0[1] + r.dd[1] * a), p1);
     // Both sums at once: halves side by side, then pairs, then neighbours.
-    FirV8 u = __builtin_shuffle(p0, p1, FirI8{0, 1, 2, 3, 8, 9, 10, 11}) +
-              __builtin_shuffle(p0, p1, FirI8{4, 5, 6, 7, 12, 13, 14, 15});
-    u += __builtin_shuffle(u, FirI8{2, 3, 0, 1, 6, 7, 4, 5});
-    u += __builtin_shuffle(u, FirI8{1, 0, 3, 2, 5, 4, 7, 6});
+    // (__builtin_shufflevector: GCC >= 12 and clang; __builtin_shuffle is GCC's only.)
+    FirV8 u = __builtin_shufflevector(p0, p1, 0, 1, 2, 3, 8, 9, 10, 11) +
+              __builtin_shufflevector(p0, p1, 4, 5, 6, 7, 12, 13, 14, 15);
+    u += __builtin_shufflevector(u, u, 2, 3, 0, 1, 6, 7, 4, 5);
+    u += __builtin_shufflevector(u, u, 1, 0, 3, 2, 5, 4, 7, 6);
     out0[i] = float(g * double(u[0]));
     out1[i] = float(g * double(u[4]));
   }
