@@ -92,8 +92,8 @@ Result<int> parseThirdOctaveBandName(const std::string& name) {
   if (broadband) return kNumThirdOctaveBands;
   for (int j = 0; j < kNumThirdOctaveBands; ++j)
     if (std::abs(hz - kThirdOctaveNominalHz[size_t(j)]) < 0.5) return j;
-  return invalidArgument("unknown third-octave band \"" + name.substr(0, 32) +
-                         "\" (expected a nominal centre 100, 125, 160 .. 10000 or broadband)");
+  return invalidArgument("unknown third-octave band " + quotedName(name) +
+                         " (expected a nominal centre 100, 125, 160 .. 10000 or broadband)");
 }
 
 std::string bandLabel(int band, size_t count) {
@@ -111,7 +111,7 @@ Result<int> parseBandName(const std::string& name) {
   if (broadband) return kBroadbandIndex;
   for (int b = 0; b < kNumBands; ++b)
     if (std::abs(hz - kBandCentersHz[size_t(b)]) < 0.5) return b;
-  return invalidArgument("unknown band \"" + name + "\" (expected 125, 250, 500, 1000, 2000, 4000, 8000 or broadband)");
+  return invalidArgument("unknown band " + quotedName(name) + " (expected 125, 250, 500, 1000, 2000, 4000, 8000 or broadband)");
 }
 
 namespace {
@@ -146,7 +146,7 @@ Result<ToleranceSpec> parseTolerance(const std::string& jsonText, const std::str
   ToleranceSpec spec(1.0);
   for (auto it = root.begin(); it != root.end(); ++it)
     if (it.key() != "default_jnd" && it.key() != "metrics")
-      return invalidArgument(sourceName + ": unknown key \"" + it.key() + "\" (expected default_jnd, metrics)");
+      return invalidArgument(sourceName + ": unknown key " + quotedName(it.key()) + " (expected default_jnd, metrics)");
   if (root.contains("default_jnd")) {
     const json& d = root["default_jnd"];
     if (!d.is_number() || !(d.get<double>() > 0.0) || !std::isfinite(d.get<double>()))
@@ -174,7 +174,7 @@ Result<ToleranceSpec> parseTolerance(const std::string& jsonText, const std::str
     }
     for (auto f = v.begin(); f != v.end(); ++f)
       if (f.key() != "jnd" && f.key() != "enabled" && f.key() != "bands")
-        return invalidArgument(where + ": unknown key \"" + f.key() + "\" (expected jnd, enabled, bands)");
+        return invalidArgument(where + ": unknown key " + quotedName(f.key()) + " (expected jnd, enabled, bands)");
     if (v.contains("jnd")) {
       double limit = 0.0;
       bool on = true;

@@ -409,7 +409,7 @@ Result<Metric> parseMetric(const std::string& name) {
     for (const char* p = metricName(m); *p; ++p) n.push_back(char(std::tolower(static_cast<unsigned char>(*p))));
     if (n == lower) return m;
   }
-  return invalidArgument("unknown metric \"" + name + "\" (expected EDT, T20, T30, C50, C80, D50 or Ts)");
+  return invalidArgument("unknown metric " + quotedName(name) + " (expected EDT, T20, T30, C50, C80, D50 or Ts)");
 }
 
 double BandMetrics::value(Metric metric) const {

@@ -35,7 +35,7 @@ AffineTransform fromRowMajor3x4(const float* m) {
 /** Material id of `name` in the scene's table, or NOT_FOUND naming it. */
 Result<uint32_t> materialId(const earshot_scene* s, const std::string& name) {
   auto id = s->materials->find(name);
-  if (!id) return notFound("material \"" + name + "\" is not one of the scene's materials");
+  if (!id) return notFound("material " + quotedName(name) + " is not one of the scene's materials");
   return *id;
 }
 
@@ -44,13 +44,13 @@ Status addToScene(earshot_scene* s, earshot_mesh* m) {
   TriangleMesh world = m->data;  // the handle keeps its copy for a later re-add
   if (!m->overrideMaterial.empty()) {
     auto id = materialId(s, m->overrideMaterial);
-    if (!id.isOk()) return Status(id.status().code(), "mesh \"" + m->name + "\": " + id.status().message());
+    if (!id.isOk()) return Status(id.status().code(), "mesh " + quotedName(m->name) + ": " + id.status().message());
     std::fill(world.materialIds.begin(), world.materialIds.end(), *id);
   } else {
     std::vector<uint32_t> ids;
     for (const std::string& name : m->materialNames) {
       auto id = materialId(s, name);
-      if (!id.isOk()) return Status(id.status().code(), "mesh \"" + m->name + "\": " + id.status().message());
+      if (!id.isOk()) return Status(id.status().code(), "mesh " + quotedName(m->name) + ": " + id.status().message());
       ids.push_back(*id);
     }
     for (uint32_t& id : world.materialIds) id = ids[id];
@@ -169,13 +169,13 @@ earshot_status earshot_scene_add_material(earshot_scene* s, const earshot_materi
       const float a = material->absorption[b], sc = material->scattering[b], t = material->transmission[b];
       const std::string band = "[" + std::to_string(b) + "]";
       if (!(a >= 0.0f && a <= 1.0f))
-        return argError(&s->env, kFn, "material \"" + m.name + "\": absorption" + band + " = " + describe(a) +
+        return argError(&s->env, kFn, "material " + quotedName(m.name) + ": absorption" + band + " = " + describe(a) +
                                           " is outside [0, 1]");
       if (!(sc >= 0.0f && sc <= 1.0f))
-        return argError(&s->env, kFn, "material \"" + m.name + "\": scattering" + band + " = " + describe(sc) +
+        return argError(&s->env, kFn, "material " + quotedName(m.name) + ": scattering" + band + " = " + describe(sc) +
                                           " is outside [0, 1]");
       if (!(t >= 0.0f && t <= a))
-        return argError(&s->env, kFn, "material \"" + m.name + "\": transmission" + band + " = " + describe(t) +
+        return argError(&s->env, kFn, "material " + quotedName(m.name) + ": transmission" + band + " = " + describe(t) +
                                           " is outside [0, absorption = " + describe(a) + "]");
       m.absorption[b] = a;
       m.scattering[b] = sc;
@@ -196,10 +196,10 @@ earshot_status earshot_scene_add_mesh(earshot_scene* s, earshot_mesh* m) {
   return guard(&s->env, kFn, [&]() -> earshot_status {
     if (m->scene)
       return fail(&s->env, kFn, EARSHOT_ERROR_INVALID_STATE,
-                  "mesh \"" + m->name + "\" is already in " + (m->scene == s ? "this" : "another") + " scene");
+                  "mesh " + quotedName(m->name) + " is already in " + (m->scene == s ? "this" : "another") + " scene");
     if (!m->hasData)
       return fail(&s->env, kFn, EARSHOT_ERROR_INVALID_STATE,
-                  "mesh \"" + m->name + "\" came from a glTF file and was removed; its triangles are not kept");
+                  "mesh " + quotedName(m->name) + " came from a glTF file and was removed; its triangles are not kept");
     s->meshes.reserve(s->meshes.size() + 1);
     const Status added = addToScene(s, m);
     if (!added.isOk()) return fromStatus(&s->env, kFn, added);
@@ -216,7 +216,7 @@ earshot_status earshot_scene_remove_mesh(earshot_scene* s, earshot_mesh* m) {
   if (!alive(m)) return argError(&s->env, kFn, "mesh is not a live earshot_mesh");
   return guard(&s->env, kFn, [&]() -> earshot_status {
     if (m->scene != s)
-      return fail(&s->env, kFn, EARSHOT_ERROR_INVALID_STATE, "mesh \"" + m->name + "\" is not in this scene");
+      return fail(&s->env, kFn, EARSHOT_ERROR_INVALID_STATE, "mesh " + quotedName(m->name) + " is not in this scene");
     const Status removed = s->dynamic->removeMesh(m->id);
     if (!removed.isOk()) return fromStatus(&s->env, kFn, removed);
     detach(s, m);
@@ -320,7 +320,7 @@ earshot_status earshot_scene_find_mesh(earshot_scene* s, const char* name, earsh
       *out = m;
       return EARSHOT_OK;
     }
-    return fail(&s->env, kFn, EARSHOT_ERROR_NOT_FOUND, std::string("no mesh named \"") + name + "\" in the scene");
+    return fail(&s->env, kFn, EARSHOT_ERROR_NOT_FOUND, "no mesh named " + quotedName(name) + " in the scene");
   });
 }
 
@@ -381,7 +381,7 @@ earshot_status earshot_mesh_create(earshot_context* c, const earshot_mesh_settin
     if (motion != EARSHOT_MESH_STATIC && motion != EARSHOT_MESH_MOVABLE)
       return argError(env, kFn, "settings->motion " + std::to_string(motion) + " is not an earshot_mesh_motion");
     const std::string name = s.name ? s.name : "";
-    const std::string prefix = "mesh \"" + name + "\": ";
+    const std::string prefix = "mesh " + quotedName(name) + ": ";
     AffineTransform transform;
     if (s.transform) {
       const std::string bad = checkMatrix(s.transform, 12, "settings->transform");

@@ -1,5 +1,7 @@
 #include "earshot/core/status.h"
 
+#include <cstdio>
+
 namespace earshot {
 
 const char* statusCodeName(StatusCode code) {
@@ -14,6 +16,38 @@ const char* statusCodeName(StatusCode code) {
     case StatusCode::kInternal: return "internal error";
   }
   return "unknown";
+}
+
+std::string quotedName(std::string_view name) {
+  size_t n = name.size();
+  const bool cut = n > kQuotedNameBytes;
+  if (cut) {
+    n = kQuotedNameBytes;
+    // Back to the first byte of a character (UTF-8 continuation bytes are 10xxxxxx).
+    while (n > 0 && (static_cast<unsigned char>(name[n]) & 0xC0u) == 0x80u) --n;
+  }
+  std::string out = "\"";
+  out.reserve(n + 8);
+  for (size_t i = 0; i < n; ++i) {
+    const unsigned char c = static_cast<unsigned char>(name[i]);
+    switch (c) {
+      case '"': out += "\\\""; break;
+      case '\\': out += "\\\\"; break;
+      case '\n': out += "\\n"; break;
+      case '\r': out += "\\r"; break;
+      case '\t': out += "\\t"; break;
+      default:
+        if (c < 0x20 || c == 0x7f) {
+          char hex[8];
+          std::snprintf(hex, sizeof hex, "\\u%04x", unsigned(c));
+          out += hex;
+        } else {
+          out += char(c);
+        }
+    }
+  }
+  out += cut ? "\"..." : "\"";
+  return out;
 }
 
 }  // namespace earshot

@@ -396,16 +396,16 @@ Result<std::shared_ptr<const HrtfSet>> HrtfSet::load(const std::string& sofaPath
   if (!h->DataSamplingRate.values) return parseError(sofaPath + ": Data.SamplingRate has no values");
   std::string conventions = attribute(h->attributes, "Conventions");
   if (conventions != "SOFA") {
-    return parseError(sofaPath + ": attribute Conventions is '" + conventions + "', expected 'SOFA'");
+    return parseError(sofaPath + ": attribute Conventions is " + quotedName(conventions) + ", expected \"SOFA\"");
   }
   std::string sofaConventions = attribute(h->attributes, "SOFAConventions");
   if (sofaConventions != "SimpleFreeFieldHRIR") {
-    return unsupported(sofaPath + ": SOFA convention '" + sofaConventions +
-                       "' is not supported (expected SimpleFreeFieldHRIR)");
+    return unsupported(sofaPath + ": SOFA convention " + quotedName(sofaConventions) +
+                       " is not supported (expected SimpleFreeFieldHRIR)");
   }
   std::string dataType = attribute(h->attributes, "DataType");
   if (dataType != "FIR") {
-    return unsupported(sofaPath + ": DataType '" + dataType + "' is not supported (expected FIR)");
+    return unsupported(sofaPath + ": DataType " + quotedName(dataType) + " is not supported (expected FIR)");
   }
   if (h->R != 2) {
     return unsupported(sofaPath + ": has " + std::to_string(h->R) + " receivers, expected 2 (left and right ear)");

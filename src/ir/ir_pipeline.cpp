@@ -33,7 +33,7 @@ const std::vector<QualityPreset>& qualityPresets() {
 Result<QualityPreset> qualityPreset(const std::string& name) {
   for (const auto& p : qualityPresets())
     if (p.name == name) return p;
-  return invalidArgument("quality '" + name + "' is not one of draft, balanced, high, reference");
+  return invalidArgument("quality " + quotedName(name) + " is not one of draft, balanced, high, reference");
 }
 
 void apply(const QualityPreset& p, OmniIrSettings& s) {
@@ -337,7 +337,7 @@ Result<TraceMode> traceModeFromString(const std::string& name) {
   if (name == "per-source") return TraceMode::kPerSource;
   if (name == "shared") return TraceMode::kShared;
   if (name == "auto") return TraceMode::kAuto;
-  return invalidArgument("trace mode '" + name.substr(0, 32) + "' is not one of per-source, shared, auto");
+  return invalidArgument("trace mode " + quotedName(name) + " is not one of per-source, shared, auto");
 }
 
 const char* toString(TraceMode mode) {

@@ -27,8 +27,6 @@ std::string formatNumber(double v) {
   return s.str();
 }
 
-std::string quoted(const std::string& s) { return "\"" + s + "\""; }
-
 /** Reads a JSON number array, each value checked for finiteness and [lo, hi]. */
 Status readArray(const Json& j, const std::string& where, const std::string& key, std::vector<double>* out) {
   if (!j.is_array()) return parseError(where + key + " must be an array of numbers");
@@ -52,13 +50,13 @@ Status checkUnit(const std::string& where, const std::string& key, const std::ve
 
 Result<Material> parseMaterial(const std::string& name, const Json& j, const std::vector<double>& bandsHz,
                                const std::string& file) {
-  const std::string where = file + ": material " + quoted(name) + ": ";
+  const std::string where = file + ": material " + quotedName(name) + ": ";
   if (name.empty()) return parseError(file + ": a material has an empty name");
   if (!j.is_object()) return parseError(where + "must be an object");
   for (const auto& item : j.items()) {
     const std::string& k = item.key();
     if (k != "absorption" && k != "scattering" && k != "transmission" && k != "source" && k != "description")
-      return parseError(where + "unknown key " + quoted(k) +
+      return parseError(where + "unknown key " + quotedName(k) +
                         " (expected absorption, scattering, transmission, source, description)");
     if ((k == "source" || k == "description") && !item.value().is_string())
       return parseError(where + k + " must be a string");
@@ -167,7 +165,7 @@ Result<MaterialTable> parseMaterials(const std::string& jsonText, const std::str
       if (!item.value().is_string()) return parseError(file + ": " + k + " must be a string");
       continue;
     }
-    return parseError(file + ": unknown key " + quoted(k) +
+    return parseError(file + ": unknown key " + quotedName(k) +
                       " (expected bands_hz, materials, description, license, sources)");
   }
   if (!doc.contains("bands_hz")) return parseError(file + ": missing bands_hz");

@@ -58,7 +58,7 @@ MaterialTable MaterialTable::atBandShift(double octaves) const {
 
 Status MaterialTable::setDefault(const std::string& name) {
   const auto id = find(name);
-  if (!id) return notFound("material \"" + name + "\" is not in the table, cannot make it the default");
+  if (!id) return notFound("material " + quotedName(name) + " is not in the table, cannot make it the default");
   const auto old = mIndex.find(mMaterials[0].name);
   if (old != mIndex.end() && old->second == 0) mIndex.erase(old);
   mMaterials[0] = mMaterials[*id];

@@ -82,7 +82,7 @@ Result<size_t> renderOutputChannels(const SceneDescription& scene, const RenderO
     return invalidArgument("ambisonic order " + std::to_string(order) + " is outside [0, 3]");
   if (format == "binaural") return size_t(2);
   if (format != "ambisonic")
-    return invalidArgument("output format '" + format.substr(0, 32) + "' is not binaural or ambisonic");
+    return invalidArgument("output format " + quotedName(format) + " is not binaural or ambisonic");
   if (order == 0) return invalidArgument("ambisonic output needs an ambisonic order of 1-3 (settings.ambisonic_order)");
   return size_t(ambisonicChannels(order));
 }
@@ -214,7 +214,7 @@ Result<RenderResult> renderScene(const SceneDescription& scene, const RenderOpti
       out.log.push_back("warning: the listener starts outside the closed volume of " + scene.geometryPath);
     for (const SceneSource& src : scene.sources)
       if (enclosureOf(*sharedTracer, closed, src.trajectory.at(src.startSeconds).position) == Enclosure::kOutside)
-        out.log.push_back("warning: source \"" + src.name + "\" starts outside the closed volume of " +
+        out.log.push_back("warning: source " + quotedName(src.name) + " starts outside the closed volume of " +
                           scene.geometryPath);
   }
 
@@ -228,15 +228,15 @@ Result<RenderResult> renderScene(const SceneDescription& scene, const RenderOpti
     while (k < dryOf.size() && scene.sources[k].audioPath != src.audioPath) ++k;
     if (k < dryOf.size()) {
       dryOf.push_back(dryOf[k]);
-      out.log.push_back("source \"" + src.name + "\": the audio of source \"" + scene.sources[k].name + "\"");
+      out.log.push_back("source " + quotedName(src.name) + ": the audio of source " + quotedName(scene.sources[k].name));
     } else {
       std::string line;
       auto d = loadDryAudio(src.audioPath, fs, &line);
-      if (!d.isOk()) return Status(d.status().code(), "source \"" + src.name + "\": " + d.status().message());
-      out.log.push_back("source \"" + src.name + "\": " + line);
+      if (!d.isOk()) return Status(d.status().code(), "source " + quotedName(src.name) + ": " + d.status().message());
+      out.log.push_back("source " + quotedName(src.name) + ": " + line);
       heldBytes += double(d->samples.size()) * sizeof(float);
       if (heldBytes > double(budget))
-        return outOfRange("source \"" + src.name + "\": " + src.audioPath + ": the sources' dry audio and convolution "
+        return outOfRange("source " + quotedName(src.name) + ": " + src.audioPath + ": the sources' dry audio and convolution "
                           "state need over the memory limit of " + formatBytes(budget) + " (--max-memory)");
       dryOf.push_back(dry.size());
       dry.push_back(std::move(d.value()));
@@ -289,7 +289,7 @@ Result<RenderResult> renderScene(const SceneDescription& scene, const RenderOpti
     const bool still = (ambisonic ? scene.listener.trajectory.isStationary() : listenerStatic) &&
                        src.trajectory.isStatic();
     s.direct = still && !ambisonic ? runtime::DirectMode::kInImpulseResponse : runtime::DirectMode::kPerBlock;
-    out.log.push_back("source \"" + src.name + "\": " +
+    out.log.push_back("source " + quotedName(src.name) + ": " +
                       (still && !ambisonic ? "static: simulated once, direct sound inside its IR (exact convolution)"
                        : still ? "static: simulated once, direct sound rendered per block"
                                : "moving: direct sound rendered per block; reflections checked " +

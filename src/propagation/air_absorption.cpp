@@ -36,7 +36,7 @@ Result<AirConditions> parseAirConditions(const std::string& text) {
   char comma = 0, extra = 0;
   std::istringstream ss(text);
   if (!(ss >> t >> comma >> h) || comma != ',' || (ss >> extra))
-    return invalidArgument("air '" + text + "' is not TEMP_C,HUMIDITY_PCT or 'off'");
+    return invalidArgument("air " + quotedName(text) + " is not TEMP_C,HUMIDITY_PCT or 'off'");
   air.temperatureC = t;
   air.humidityPercent = h;
   EARSHOT_RETURN_IF_ERROR(validate(air));

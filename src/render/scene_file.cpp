@@ -516,14 +516,14 @@ Status SceneReader::readSettings(const json& v, SceneSettings& out) {
     auto f = text(v["output"], "settings.output", "\"binaural\" or \"ambisonic\"");
     if (!f) return f.status();
     if (*f != "binaural" && *f != "ambisonic")
-      return fail("settings.output", "'" + f->substr(0, 32) + "' is not \"binaural\" or \"ambisonic\"");
+      return fail("settings.output", quotedName(*f) + " is not \"binaural\" or \"ambisonic\"");
     out.output = *f;
   }
   if (v.contains("trace")) {
     auto f = text(v["trace"], "settings.trace", "\"auto\", \"shared\" or \"per-source\"");
     if (!f) return f.status();
     if (*f != "auto" && *f != "shared" && *f != "per-source")
-      return fail("settings.trace", "'" + f->substr(0, 32) + "' is not \"auto\", \"shared\" or \"per-source\"");
+      return fail("settings.trace", quotedName(*f) + " is not \"auto\", \"shared\" or \"per-source\"");
     out.trace = *f;
   }
   if (out.output == "ambisonic" && out.ambisonicOrder == 0)

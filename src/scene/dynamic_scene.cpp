@@ -115,7 +115,7 @@ AffineTransform inverse(const AffineTransform& a) {
 }
 
 std::string label(MeshId id, const std::string& name) {
-  return "mesh " + std::to_string(id) + (name.empty() ? "" : " \"" + name + "\"");
+  return "mesh " + std::to_string(id) + (name.empty() ? "" : " " + quotedName(name));
 }
 
 /** Finite, invertible, and every vertex (inside the box lo..hi) lands in
@@ -480,7 +480,7 @@ Result<GltfSceneMeshes> loadGltfIntoScene(const std::string& path, const Materia
     bool found = false;
     for (size_t i = 0; i < g.nodes.size(); ++i)
       if (g.nodes[i].name == name) isMovable[i] = 1, found = true;
-    if (!found) return notFound(path + ": no node named \"" + name + "\" with a mesh (asked to be movable)");
+    if (!found) return notFound(path + ": no node named " + quotedName(name) + " with a mesh (asked to be movable)");
   }
 
   GltfSceneMeshes out;
@@ -500,8 +500,8 @@ Result<GltfSceneMeshes> loadGltfIntoScene(const std::string& path, const Materia
     }
     const AffineTransform world = AffineTransform::fromColumnMajor(n.worldMatrix);
     if (!(std::fabs(world.determinant()) > 1e-12))
-      return invalidArgument(path + ": node " + std::to_string(n.node) + " \"" + n.name +
-                             "\": transform is not invertible, so it cannot be a movable mesh");
+      return invalidArgument(path + ": node " + std::to_string(n.node) + " " + quotedName(n.name) +
+                             ": transform is not invertible, so it cannot be a movable mesh");
     // Back to the node's frame: the loader gave world positions.
     const AffineTransform toLocal = inverse(world);
     pending.push_back({n.name, extract(g.mesh, n.firstTriangle, n.triangleCount, &toLocal), world});

@@ -166,7 +166,7 @@ class Loader {
     for (int r : roots) EARSHOT_RETURN_IF_ERROR(visit(r, onPath));
     for (size_t m = 0; m < mModel.meshes.size(); ++m)
       if (!mMeshUsed.count(static_cast<int>(m)))
-        warnOnce(mPath + ": mesh " + (mModel.meshes[m].name.empty() ? std::to_string(m) : "\"" + mModel.meshes[m].name + "\"") +
+        warnOnce(mPath + ": mesh " + (mModel.meshes[m].name.empty() ? std::to_string(m) : quotedName(mModel.meshes[m].name)) +
                  " is not placed by any node of the scene; ignored");
     if (mOut->mesh.triangles.empty())
       warnOnce(mPath + ": the scene has no triangles (an empty scene is a free field)");
@@ -330,7 +330,7 @@ class Loader {
   }
 
   Status localTransform(const tinygltf::Node& n, int index, Mat4* out) const {
-    const std::string where = "node " + std::to_string(index) + (n.name.empty() ? "" : " \"" + n.name + "\"");
+    const std::string where = "node " + std::to_string(index) + (n.name.empty() ? "" : " " + quotedName(n.name));
     if (!n.matrix.empty()) {
       if (n.matrix.size() != 16) return fail(where + ": matrix must have 16 values");
       for (int i = 0; i < 16; ++i) (*out)[i] = n.matrix[i];
@@ -456,7 +456,7 @@ class Loader {
     auto cached = mResolved.find(gltfMaterial);
     if (cached != mResolved.end()) return cached->second;
     const tinygltf::Material& gm = mModel.materials[gltfMaterial];
-    const std::string label = gm.name.empty() ? "#" + std::to_string(gltfMaterial) : "\"" + gm.name + "\"";
+    const std::string label = gm.name.empty() ? "#" + std::to_string(gltfMaterial) : quotedName(gm.name);
     uint32_t id = 0;
     bool found = false;
     // 1. The caller's map (glTF material name -> acoustic name).
@@ -466,7 +466,7 @@ class Loader {
         id = *f, found = true;
       } else {
         warnOnce(mPath + ": material map sends glTF material " + label +
-                                 " to unknown acoustic material \"" + mapped->second + "\"");
+                                 " to unknown acoustic material " + quotedName(mapped->second));
       }
     }
     // 2. extras.acoustic_material.
@@ -476,8 +476,8 @@ class Loader {
         if (auto f = mMaterials.find(v.Get<std::string>())) {
           id = *f, found = true;
         } else {
-          warnOnce(mPath + ": glTF material " + label + " names unknown acoustic material \"" +
-                                   v.Get<std::string>() + "\" in extras.acoustic_material");
+          warnOnce(mPath + ": glTF material " + label + " names unknown acoustic material " +
+                                   quotedName(v.Get<std::string>()) + " in extras.acoustic_material");
         }
       }
     }
@@ -497,7 +497,7 @@ class Loader {
       return fail("mesh " + std::to_string(meshIndex) + " does not exist");
     mMeshUsed.insert(meshIndex);
     const tinygltf::Mesh& mesh = mModel.meshes[meshIndex];
-    const std::string meshLabel = "mesh " + (mesh.name.empty() ? std::to_string(meshIndex) : "\"" + mesh.name + "\"");
+    const std::string meshLabel = "mesh " + (mesh.name.empty() ? std::to_string(meshIndex) : quotedName(mesh.name));
     const bool flip = det3(world) < 0;  // mirroring reverses winding; keep normals' sense
     TriangleMesh& out = mOut->mesh;
     for (size_t pi = 0; pi < mesh.primitives.size(); ++pi) {
@@ -702,7 +702,7 @@ Result<std::map<std::string, std::string>> loadMaterialMap(const std::string& pa
   if (!j.is_object()) return parseError(path + ": material map must be an object {\"gltf name\": \"acoustic name\"}");
   std::map<std::string, std::string> map;
   for (auto& [k, v] : j.items()) {
-    if (!v.is_string()) return parseError(path + ": \"" + k + "\" must map to a material name (string)");
+    if (!v.is_string()) return parseError(path + ": " + quotedName(k) + " must map to a material name (string)");
     map[k] = v.get<std::string>();
   }
   return map;

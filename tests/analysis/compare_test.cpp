@@ -106,6 +106,14 @@ TEST(Compare, ToleranceFileErrorsNameTheField) {
   auto unknownKey = parseTolerance(R"({"default": 1})", "tol.json");
   ASSERT_FALSE(unknownKey.isOk());
   EXPECT_NE(unknownKey.status().message().find("\"default\""), std::string::npos);
+  // The file's keys and names are escaped onto one line (quotedName).
+  auto newlineKey = parseTolerance(R"({"x\nFAKE": 1})", "tol.json");
+  ASSERT_FALSE(newlineKey.isOk());
+  EXPECT_EQ(newlineKey.status().message(), R"(tol.json: unknown key "x\nFAKE" (expected default_jnd, metrics))");
+  auto newlineMetric = parseTolerance(R"({"metrics": {"T\r30": 1}})", "tol.json");
+  ASSERT_FALSE(newlineMetric.isOk());
+  EXPECT_NE(newlineMetric.status().message().find(R"("T\r30")"), std::string::npos) << newlineMetric.status().message();
+  EXPECT_EQ(newlineMetric.status().message().find_first_of("\n\r"), std::string::npos);
   auto badBand = parseTolerance(R"({"metrics": {"EDT": {"bands": {"300": 1}}}})", "tol.json");
   ASSERT_FALSE(badBand.isOk());
   EXPECT_NE(badBand.status().message().find("300"), std::string::npos);

@@ -3,7 +3,7 @@
 // its arguments (handles of any type, NULL, released-by-us never: a freed
 // handle is the caller's bug, not hostile input), and runs it. After every
 // call the documented contract is checked: a known status, never INTERNAL,
-// a message after each error, NULL out-handles on failure, finite audio and
+// a one-line message after each error, NULL out-handles on failure, finite audio and
 // IR samples, and a context's active_sources equal to the sources the
 // program holds on it.
 //
@@ -114,7 +114,10 @@ earshot_status checked(earshot_status s) {
                  earshot_last_error_message());
     std::abort();
   }
-  if (s != EARSHOT_OK) CAPI_CHECK(earshot_last_error_message()[0] != '\0');
+  if (s != EARSHOT_OK) {
+    const char* message = earshot_last_error_message();
+    CAPI_CHECK(message[0] != '\0' && !std::strchr(message, '\n') && !std::strchr(message, '\r'));
+  }
   if (tracing()) std::fprintf(stderr, "  -> %s%s%s\n", earshot_status_string(s), s ? ": " : "",
                               s ? earshot_last_error_message() : "");
   return s;
@@ -190,7 +193,7 @@ struct Program {
 
   const char* materialName() {
     static const char* kNames[] = {"concrete", "carpet", "glass", "wood", "", "no such material",
-                                   "fuzz_a", "fuzz_b"};
+                                   "fuzz_a", "two\nlines"};
     const uint8_t sel = in.u8();
     if (sel == 255) return nullptr;
     return kNames[sel % 8];
@@ -234,7 +237,7 @@ struct Program {
     earshot_mesh_settings s;
     earshot_mesh_settings_init(&s);
     if (in.u8() > 250) s.struct_size = in.u32();
-    s.name = in.u8() < 128 ? "fuzz_mesh" : (in.u8() < 128 ? nullptr : "door");
+    s.name = in.u8() < 128 ? "fuzz_mesh" : (in.u8() < 128 ? nullptr : "door\r\n\x1b[2J");
     s.vertices = (vertexCount || in.u8() < 128) ? vertices.data() : nullptr;
     s.vertex_count = in.u8() < 240 ? vertexCount : size_t(in.count()) << (in.u8() % 40);
     s.indices = indices.data();

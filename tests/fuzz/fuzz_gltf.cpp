@@ -13,10 +13,11 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const std::string& path = file.write(data, size);
   auto result = earshot::loadGltf(path, materials, {{"wall", "brick"}, {"floor", "no_such_material"}});
   if (!result.isOk()) {
-    EARSHOT_FUZZ_CHECK(!result.status().message().empty());  // errors say what is wrong
+    EARSHOT_FUZZ_CHECK(earshot::fuzz::oneLine(result.status().message()));  // errors say what is wrong
     return 0;
   }
   // What the loader accepts must be safe to trace: the header's promises.
+  for (const std::string& w : result.value().warnings) EARSHOT_FUZZ_CHECK(earshot::fuzz::oneLine(w));
   const earshot::TriangleMesh& mesh = result.value().mesh;
   EARSHOT_FUZZ_CHECK(mesh.materialIds.size() == mesh.triangles.size());
   for (const auto& p : mesh.positions)

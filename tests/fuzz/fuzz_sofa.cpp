@@ -19,7 +19,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const std::string& path = file.write(data, size);
   auto result = earshot::hrtf::HrtfSet::load(path, 48000.0);
   if (!result.isOk()) {
-    EARSHOT_FUZZ_CHECK(!result.status().message().empty());
+    EARSHOT_FUZZ_CHECK(earshot::fuzz::oneLine(result.status().message()));
     return 0;
   }
   const auto& set = *result.value();

@@ -42,6 +42,12 @@ class TempFile {
   std::string mDir, mPath;
 };
 
+/** What every error and warning message promises (core/status.h): one
+ *  line, whatever the input held. */
+inline bool oneLine(const std::string& message) {
+  return !message.empty() && message.find('\n') == std::string::npos && message.find('\r') == std::string::npos;
+}
+
 }  // namespace earshot::fuzz
 
 /** Invariant a parser promised for an accepted input; a violation is a

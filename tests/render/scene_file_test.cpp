@@ -329,12 +329,12 @@ TEST_F(SceneFileTest, HugeAndOverflowingNumbersAreRejected) {
              "scene.json: settings.ambisonic_order: 4 is outside [0, 3]");
   EXPECT_HAS(error(scene("", R"("settings": {"ambisonic_order": 1.5})")), "settings.ambisonic_order");
   EXPECT_HAS(error(scene("", R"("settings": {"output": "surround"})")),
-             "scene.json: settings.output: 'surround' is not \"binaural\" or \"ambisonic\"");
+             "scene.json: settings.output: \"surround\" is not \"binaural\" or \"ambisonic\"");
   EXPECT_HAS(error(scene("", R"("settings": {"output": "ambisonic", "ambisonic_order": 0})")),
              "settings.output: ambisonic output needs settings.ambisonic_order 1-3");
   // Issue 16's.
   EXPECT_HAS(error(scene("", R"("settings": {"trace": "listener"})")),
-             "scene.json: settings.trace: 'listener' is not \"auto\", \"shared\" or \"per-source\"");
+             "scene.json: settings.trace: \"listener\" is not \"auto\", \"shared\" or \"per-source\"");
   EXPECT_HAS(error(scene("", R"("settings": {"trace": 2})")), "settings.trace");
 }
 

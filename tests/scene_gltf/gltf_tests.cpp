@@ -109,6 +109,34 @@ TEST(GltfLoad, MaterialMappingPrecedenceMapThenExtrasThenNameThenDefault) {
   EXPECT_EQ(noMap->mesh.materialIds[0], idOf("glass_window"));  // without the map, extras win
 }
 
+// A file's names reach warnings and errors quoted on one line (quotedName):
+// a newline or a terminal escape in a glTF material name or a material
+// map's key must not split the line or reach the terminal.
+TEST(GltfLoad, NamesFromTheFileStayOnOneLineInWarningsAndErrors) {
+  std::ifstream in(data("mapping.gltf"));
+  nlohmann::json j = nlohmann::json::parse(in);
+  j["materials"][3]["name"] = "mys\ntery\x1b[2J";
+  j["materials"][4]["name"] = std::string(5000, 'n');
+  const std::string dir = ::testing::TempDir();
+  const std::string path = dir + "/names_on_one_line.gltf";
+  std::ofstream(path) << j.dump();
+  auto r = loadGltf(path, defaultMaterials());
+  ASSERT_TRUE(r.isOk()) << r.status().message();
+  ASSERT_FALSE(r->warnings.empty());
+  for (const std::string& w : r->warnings) {
+    EXPECT_EQ(w.find_first_of("\n\r\x1b"), std::string::npos) << w;
+    EXPECT_LT(w.size(), path.size() + 200) << w;
+  }
+  EXPECT_TRUE(anyWarningContains(r->warnings, "glTF material \"mys\\ntery\\u001b[2J\" maps to no acoustic material"));
+  EXPECT_TRUE(anyWarningContains(r->warnings, "glTF material \"" + std::string(kQuotedNameBytes, 'n') + "\"... maps"));
+
+  const std::string mapPath = dir + "/names_on_one_line_map.json";
+  std::ofstream(mapPath) << R"({"wall_a": "brick", "a\nFAKE LOG LINE": 5})";
+  auto map = loadMaterialMap(mapPath);
+  ASSERT_FALSE(map.isOk());
+  EXPECT_EQ(map.status().message(), mapPath + ": \"a\\nFAKE LOG LINE\" must map to a material name (string)");
+}
+
 TEST(GltfLoad, IndexTypesAndNonIndexedLoadOtherModesAreSkippedWithWarnings) {
   auto r = loadGltf(data("modes.gltf"), defaultMaterials());
   ASSERT_TRUE(r.isOk()) << r.status().message();

@@ -148,7 +148,7 @@ TEST(TradeoffCli, UnknownPresetOrPresetsWithAGridAreExit2BeforeAnyWork) {
   auto r = runEarshot("tradeoff " + kScene + " --presets draft,ultra -o '" + dir / "out.csv'");
   EXPECT_EQ(r.exitCode, 2) << r.output;
   EXPECT_NE(r.output.find("--presets"), std::string::npos) << r.output;
-  EXPECT_NE(r.output.find("'ultra'"), std::string::npos) << "names the bad preset: " << r.output;
+  EXPECT_NE(r.output.find("\"ultra\""), std::string::npos) << "names the bad preset: " << r.output;
   EXPECT_NE(r.output.find("draft, balanced, high, reference"), std::string::npos) << "lists the valid ones: "
                                                                                     << r.output;
   EXPECT_EQ(r.output.find("reference run"), std::string::npos) << "no work before the error: " << r.output;

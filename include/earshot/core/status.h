@@ -3,8 +3,10 @@
  *  Library code never throws across a module boundary on bad input and never
  *  aborts; it returns a Status whose message names what is wrong (file, field,
  *  value), ready to print as one line. */
+#include <cstddef>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <utility>
 
 namespace earshot {
@@ -45,6 +47,14 @@ inline Status ioError(std::string m) { return {StatusCode::kIoError, std::move(m
 inline Status parseError(std::string m) { return {StatusCode::kParseError, std::move(m)}; }
 inline Status unsupported(std::string m) { return {StatusCode::kUnsupported, std::move(m)}; }
 inline Status outOfRange(std::string m) { return {StatusCode::kOutOfRange, std::move(m)}; }
+
+/** A name that came from input (a file's key, a glTF node's or material's
+ *  name, a caller's string), quoted for a message: in double quotes, at most
+ *  kQuotedNameBytes bytes of it (cut at a UTF-8 character boundary, then
+ *  "..."), with control characters, `"` and `\` escaped as JSON does, so
+ *  that the message stays one line of bounded length whatever the input. */
+std::string quotedName(std::string_view name);
+inline constexpr size_t kQuotedNameBytes = 80;
 
 /** A value or the Status that explains why there is none. */
 template <class T>
