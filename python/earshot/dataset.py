@@ -72,10 +72,11 @@ class SpecError(ValueError):
     """The spec is invalid (the message names the field)."""
 
 
-def _short(v):
-    """A spec value for a message, cut to 40 characters."""
+def _short(v, n=40):
+    """A spec value for a message: its repr (one line: newlines escaped),
+    cut to n characters."""
     t = repr(v)
-    return t if len(t) <= 40 else t[:37] + "..."
+    return t if len(t) <= n else t[:n - 3] + "..."
 
 
 # ---------------------------------------------------------------- the spec
@@ -102,9 +103,9 @@ def _inside(base, rel, field, allow_outside):
     p = os.path.realpath(os.path.join(base, rel))
     root = os.path.realpath(base)
     if not allow_outside and os.path.commonpath([p, root]) != root:
-        raise SpecError(f"{field}: '{rel}' leads outside the spec's folder (allow_outside_paths to permit)")
+        raise SpecError(f"{field}: {_short(rel, 200)} leads outside the spec's folder (allow_outside_paths to permit)")
     if not os.path.isfile(p):
-        raise SpecError(f"{field}: '{rel}' is not a file")
+        raise SpecError(f"{field}: {_short(rel, 200)} is not a file")
     return p
 
 
@@ -324,13 +325,13 @@ def _place(spec, scene, index, room_name):
             if w > 0 and earshot._point_mesh_distance(p, v, t) < w:
                 continue
             return p
-        raise ValueError(f"room {room_name}: no position {w} m from every surface found in "
+        raise ValueError(f"room {_short(room_name)}: no position {w} m from every surface found in "
                          f"{_PLACEMENT_ATTEMPTS} tries (wall_distance_m too large?)")
     for _ in range(_PLACEMENT_ATTEMPTS):
         s, l = one(), one()
         if np.linalg.norm(s - l) >= pos["min_separation_m"]:
             return [float(x) for x in s], [float(x) for x in l]
-    raise ValueError(f"room {room_name}: no pair {pos['min_separation_m']} m apart found")
+    raise ValueError(f"room {_short(room_name)}: no pair {pos['min_separation_m']} m apart found")
 
 
 def _metrics(samples, rate):

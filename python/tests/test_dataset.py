@@ -151,6 +151,14 @@ def test_bad_specs_are_refused(tmp_path, over, text):
         dataset.make(spec, tmp_path / "out", in_process=True, progress=False)
 
 
+def test_names_from_the_spec_stay_on_one_line(tmp_path):
+    (tmp_path / "sub").mkdir()
+    spec = make_spec(tmp_path / "sub", rooms=[{"geometry": "room\nFAKE LOG LINE.gltf"}])
+    with pytest.raises(ValueError, match="is not a file") as e:
+        dataset.make(spec, tmp_path / "out", in_process=True, progress=False)
+    assert "\n" not in str(e.value) and "room\\nFAKE" in str(e.value)
+
+
 def test_a_folder_of_another_spec_is_not_mixed(reference, tmp_path):
     folder, _ = reference
     out = tmp_path / "out"
