@@ -201,6 +201,18 @@ def cases(src):
     c.append(Case("secret as tolerance", {"a.wav": dry}, ["compare", "{dir}/a.wav", "{dir}/a.wav", "--tolerance",
                                                            "{outside}/secret.bin"], "error"))
 
+    # Names from a file are escaped: one that holds a newline and a forged
+    # error line gives one error line, not two.
+    forged = "x\nearshot: error: FORGED\x1b[2J"
+    c.append(Case("material map key forges a line", {"room.gltf": room, "map.json": json.dumps({forged: 5})},
+                  base_ir + ["--material-map", "{dir}/map.json"], "error", contains="x\\nearshot", outputs=["ir.wav"]))
+    c.append(Case("materials key forges a line", {"room.gltf": room, "m.json": json.dumps(
+        {"bands_hz": [1000], "materials": {"default": {"absorption": [0.1], forged: 1}}})},
+        base_ir + ["--materials", "{dir}/m.json"], "error", contains="x\\nearshot", outputs=["ir.wav"]))
+    c.append(Case("tolerance key forges a line", {"a.wav": dry, "t.json": json.dumps({forged: 1})},
+                  ["compare", "{dir}/a.wav", "{dir}/a.wav", "--tolerance", "{dir}/t.json"], "error",
+                  contains="x\\nearshot"))
+
     # 2. Memory errors and hangs in SOFA reading.
     for sofa in ["not_sofa.sofa", "pulse_truncated.sofa"]:
         c.append(Case("sofa " + sofa, {"room.gltf": room, "h.sofa": open(os.path.join(
