@@ -166,6 +166,7 @@ struct Program {
   struct Source {
     earshot_source* handle;
     int context;
+    bool directInIr;  // EARSHOT_DIRECT_IN_IMPULSE_RESPONSE
   };
   std::vector<Source> sources;
   std::vector<earshot_ir*> irs;
@@ -302,13 +303,13 @@ struct Program {
     earshot_source_settings s;
     fillSourceSettings(s);
     earshot_source* source = reinterpret_cast<earshot_source*>(uintptr_t(1));
-    const earshot_status st =
-        checked(earshot_source_create(contexts().c[ci], in.u8() < 240 ? &s : nullptr, &source));
+    const bool withSettings = in.u8() < 240;
+    const earshot_status st = checked(earshot_source_create(contexts().c[ci], withSettings ? &s : nullptr, &source));
     if (st == EARSHOT_OK) {
       CAPI_CHECK(source != nullptr);
       uint32_t index = kMaxSources;
       CAPI_CHECK(earshot_source_get_index(source, &index) == EARSHOT_OK && index < kMaxSources);
-      sources.push_back({source, ci});
+      sources.push_back({source, ci, withSettings && s.direct == EARSHOT_DIRECT_IN_IMPULSE_RESPONSE});
     } else {
       CAPI_CHECK(source == nullptr);
     }
@@ -361,12 +362,24 @@ struct Program {
     }
   }
 
-  void readIr(earshot_ir* ir) {
+  /** Reads an IR's layout and one channel. A source's IR (`fromSource`)
+   *  has the context's channels (2 binaural; 4, AmbiX order 1, for the
+   *  ambisonic context), a simulation number and an age; a computed one
+   *  the request's channels, the direct sound and neither. */
+  void readIr(earshot_ir* ir, uint32_t channels, bool fromSource, bool includesDirect) {
     earshot_ir_info info{};
     info.struct_size = sizeof(info);
     CAPI_CHECK(checked(earshot_ir_get_info(ir, &info)) == EARSHOT_OK);
-    CAPI_CHECK(info.channels >= 1 && info.channels <= 16);
-    CAPI_CHECK(info.frames <= uint64_t(kRate * 60));
+    CAPI_CHECK(info.channels == channels);
+    CAPI_CHECK(info.sample_rate_hz == kRate);
+    CAPI_CHECK(info.frames >= 1 && info.frames <= uint64_t(kRate * 60));
+    CAPI_CHECK(info.includes_direct == (includesDirect ? 1u : 0u));
+    if (fromSource) {
+      CAPI_CHECK(info.simulation >= 1 && std::isfinite(info.age_seconds) && info.age_seconds >= 0);
+      CAPI_CHECK(info.frames <= uint64_t(kRate * 0.25) + 1);  // cut at max_ir_seconds
+    } else {
+      CAPI_CHECK(info.simulation == 0 && info.age_seconds == 0);
+    }
     scratch.assign(size_t(info.frames) + 1, 7.0f);
     const uint32_t channel = in.u8() < 240 ? in.below(info.channels) : in.count();
     const uint64_t capacity = in.u8() < 240 ? info.frames : in.below(uint32_t(info.frames) + 1);
@@ -496,11 +509,11 @@ struct Program {
       case 17:
       case 18: process(); break;
       case 19: {
-        earshot_source* s = sources.empty() ? nullptr : sources[pickSource()].handle;
+        const Source* held = sources.empty() ? nullptr : &sources[pickSource()];
         earshot_ir* ir = reinterpret_cast<earshot_ir*>(uintptr_t(1));
-        if (checked(earshot_source_get_ir(s, &ir)) == EARSHOT_OK) {
-          CAPI_CHECK(ir != nullptr);
-          readIr(ir);
+        if (checked(earshot_source_get_ir(held ? held->handle : nullptr, &ir)) == EARSHOT_OK) {
+          CAPI_CHECK(ir != nullptr && held != nullptr);
+          readIr(ir, held->context == 0 ? 2 : 4, true, held->directInIr);
           irs.push_back(ir);
         }
         break;
@@ -520,7 +533,10 @@ struct Program {
         earshot_ir* ir = reinterpret_cast<earshot_ir*>(uintptr_t(1));
         if (checked(earshot_context_compute_ir(context(), &r, &ir)) == EARSHOT_OK) {
           CAPI_CHECK(ir != nullptr);
-          readIr(ir);
+          const uint32_t channels = r.receiver == EARSHOT_RECEIVER_OMNI       ? 1
+                                    : r.receiver == EARSHOT_RECEIVER_BINAURAL ? 2
+                                    : (r.ambisonic_order + 1) * (r.ambisonic_order + 1);
+          readIr(ir, channels, false, true);
           irs.push_back(ir);
         } else {
           CAPI_CHECK(ir == nullptr);
