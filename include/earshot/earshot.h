@@ -178,7 +178,7 @@ typedef enum earshot_trace_mode {
 typedef struct earshot_context_settings {
   uint32_t struct_size;        /**< sizeof(earshot_context_settings) */
   uint32_t flags;              /**< EARSHOT_CONTEXT_* flags; default 0 */
-  double sample_rate_hz;       /**< audio rate, [8000, 384000]; default 48000 */
+  double sample_rate_hz;       /**< audio rate, [8000, 192000] (the HRTF's range); default 48000 */
   /** The host's usual block (frames), [1, 65536]; default 256. The
    *  convolver's partition, and so the latency (earshot_context_info's
    *  latency_frames), is the smallest even 2^a 3^b 5^c number at least this
@@ -187,7 +187,9 @@ typedef struct earshot_context_settings {
    *  of any size regardless. */
   uint32_t block_frames;
   uint32_t max_sources;        /**< source slots allocated up front, [1, 4096]; default 32 */
-  double max_ir_seconds;       /**< reflections are cut here (10 ms fade), (0, 60]; default 3 */
+  double max_ir_seconds;       /**< reflections are cut here (10 ms fade), (0, 60]; default 3 (with ambisonic
+                                    reflections the sources share one late tail from 0.15 s on; at 0.15
+                                    or less each source's whole IR is its own) */
   uint32_t rays;               /**< rays traced per source and simulation, [1, 100000000]; default 16384;
                                     a count whose trace state (~150 bytes a ray) passes the memory limit
                                     (1 GiB) is refused (EARSHOT_ERROR_OUT_OF_RANGE) */

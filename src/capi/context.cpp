@@ -39,8 +39,10 @@ uint32_t convolverBlock(uint32_t requested) {
 std::string checkSettings(const earshot_context_settings& s) {
   if (s.flags & ~uint32_t(EARSHOT_CONTEXT_VALIDATION))
     return "settings->flags has unknown bits " + std::to_string(s.flags);
-  if (!(s.sample_rate_hz >= 8000.0 && s.sample_rate_hz <= 384000.0))
-    return "settings->sample_rate_hz " + describe(s.sample_rate_hz) + " is outside [8000, 384000]";
+  // Every context loads an HRTF (binaural reflections, the decoder, the
+  // direct sound), which is prepared at 8-192 kHz.
+  if (!(s.sample_rate_hz >= 8000.0 && s.sample_rate_hz <= 192000.0))
+    return "settings->sample_rate_hz " + describe(s.sample_rate_hz) + " is outside [8000, 192000]";
   if (s.block_frames < 1 || s.block_frames > 65536)
     return "settings->block_frames " + std::to_string(s.block_frames) + " is outside [1, 65536]";
   if (s.max_sources < 1 || s.max_sources > 4096)
@@ -248,6 +250,9 @@ earshot_status earshot_context_create(const earshot_context_settings* settings, 
       es.blockFrames = convolverBlock(settings->block_frames);
       es.maxSources = settings->max_sources;
       es.maxIrSeconds = settings->max_ir_seconds;
+      // IRs no longer than the shared tail's start (0.15 s) have no tail to
+      // share: every source's whole IR is its own.
+      if (es.sharedTailSeconds >= es.maxIrSeconds) es.sharedTailSeconds = 0;
       es.simulation.rays = settings->rays;
       es.simulation.bounces = settings->bounces;
       es.simulation.imageSourceOrder = settings->image_source_order;

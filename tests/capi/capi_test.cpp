@@ -588,6 +588,74 @@ TEST(CApiLifecycle, SourcesKeepTheContextAliveAndEveryHandleIsFreed) {
   EXPECT_EQ(alloc.frees.load(), alloc.allocations.load());
 }
 
+// A context whose rate its HRTF cannot take is refused when made, not at
+// its first source (the header said 384 kHz; the HRTF takes 192 kHz).
+TEST(CApiLifecycle, RatesTheHrtfCannotServeAreRefusedAtCreation) {
+  earshot_context_settings s = fastSettings();
+  s.sample_rate_hz = 250000;
+  earshot_context* c = nullptr;
+  EXPECT_EQ(earshot_context_create(&s, &c), EARSHOT_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(c, nullptr);
+  EXPECT_NE(std::string(earshot_last_error_message()).find("sample_rate_hz 250000 is outside [8000, 192000]"),
+            std::string::npos)
+      << earshot_last_error_message();
+  s.sample_rate_hz = 192000;
+  s.max_ir_seconds = 0.2;
+  ASSERT_EQ(earshot_context_create(&s, &c), EARSHOT_OK) << earshot_last_error_message();
+  earshot_source* src = nullptr;
+  EXPECT_EQ(earshot_source_create(c, nullptr, &src), EARSHOT_OK) << earshot_last_error_message();
+  earshot_source_release(src);
+  earshot_context_release(c);
+}
+
+// max_ir_seconds is (0, 60] in every reflection mode. At 0.15 s or less
+// (where the ambisonic bus's shared late tail would start) a context could
+// not be made: "engine: sharedTailSeconds 0.15 is outside [0, 0.1)".
+TEST(CApiLifecycle, ShortIrsMakeAContextInEveryReflectionMode) {
+  for (const uint32_t order : {0u, 1u}) {
+    for (const double seconds : {0.01, 0.1, 0.15, 0.16}) {
+      SCOPED_TRACE("ambisonic_order " + std::to_string(order) + ", max_ir_seconds " + std::to_string(seconds));
+      earshot_context_settings s = fastSettings();
+      s.max_ir_seconds = seconds;
+      s.ambisonic_order = order;
+      earshot_context* c = nullptr;
+      ASSERT_EQ(earshot_context_create(&s, &c), EARSHOT_OK) << earshot_last_error_message();
+      earshot_scene* scene = nullptr;
+      ASSERT_EQ(earshot_scene_create(c, nullptr, &scene), EARSHOT_OK);
+      earshot_mesh* m = makeMesh(c, box(0, 0, 0, 4, 4, 3), "brick", EARSHOT_MESH_STATIC, "room");
+      ASSERT_EQ(earshot_scene_add_mesh(scene, m), EARSHOT_OK);
+      ASSERT_EQ(earshot_scene_commit(scene), EARSHOT_OK);
+      ASSERT_EQ(earshot_context_set_scene(c, scene), EARSHOT_OK);
+      ASSERT_EQ(earshot_context_set_listener(c, {2, 2, 1.5f}, {0, 0, -1}, {0, 1, 0}), EARSHOT_OK);
+      earshot_source* src = nullptr;
+      ASSERT_EQ(earshot_source_create(c, nullptr, &src), EARSHOT_OK);
+      ASSERT_EQ(earshot_source_set_position(src, {1, 1, 1}), EARSHOT_OK);
+      ASSERT_EQ(earshot_simulate(c, 0), EARSHOT_OK) << earshot_last_error_message();
+      earshot_ir* ir = nullptr;
+      ASSERT_EQ(earshot_source_get_ir(src, &ir), EARSHOT_OK);
+      earshot_ir_info info{};
+      info.struct_size = sizeof(info);
+      ASSERT_EQ(earshot_ir_get_info(ir, &info), EARSHOT_OK);
+      EXPECT_EQ(info.channels, order == 0 ? 2u : 4u);
+      EXPECT_GE(info.frames, 1u);
+      EXPECT_LE(double(info.frames), seconds * s.sample_rate_hz + 1);
+      std::vector<float> left(size_t(info.frames));
+      ASSERT_EQ(earshot_ir_copy_channel(ir, 0, left.data(), info.frames), EARSHOT_OK);
+      EXPECT_GT(energy(left), 0.0);  // the floor's reflection (2.9 m) arrives within 10 ms
+      std::vector<float> out(512), outR(512);
+      const std::vector<float> in(512, 0.5f);
+      const float* inputs[] = {in.data()};
+      ASSERT_EQ(earshot_process(c, inputs, 1, out.data(), outR.data(), 512), EARSHOT_OK);
+      EXPECT_TRUE(allFinite(out) && allFinite(outR));
+      earshot_ir_release(ir);
+      earshot_source_release(src);
+      earshot_mesh_release(m);
+      earshot_scene_release(scene);
+      earshot_context_release(c);
+    }
+  }
+}
+
 // ---------------------------------------------------------------------------
 // Scene editing: a movable mesh moves without a rebuild of the static BVH;
 // materials resolve by name; meshes live in one scene at a time.

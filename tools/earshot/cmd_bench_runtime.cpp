@@ -86,6 +86,7 @@ int run(const BenchRuntimeOptions& o) {
   if (o.ambisonicOrder >= 0) es.ambisonicOrder = o.ambisonicOrder;
   if (o.irSeconds > 0) es.maxIrSeconds = o.irSeconds;
   if (o.sharedTail >= 0) es.sharedTailSeconds = o.sharedTail;
+  else if (es.sharedTailSeconds >= es.maxIrSeconds) es.sharedTailSeconds = 0;  // IRs too short to share a tail
   es.traceMode = *traceModeFromString(o.trace);
   auto model = loadBinauralModel("", es.sampleRateHz);
   if (!check(model.status())) return 2;
@@ -258,7 +259,7 @@ const Registrar registrar([](CLI::App& root) {
       ->check(CLI::Range(0.1, 60.0));
   cmd->add_option("--shared-tail", o->sharedTail,
                   "Ambisonic reflections: each source's own IR up to this time, one shared tail after it "
-                  "(seconds; 0: whole IRs per source; default: the engine's, 0.15)")
+                  "(seconds; 0: whole IRs per source; default: the engine's, 0.15, or 0 with IRs that short)")
       ->check(CLI::Range(0.0, 60.0));
   cmd->add_option("--trace", o->trace,
                   "shared: each simulation updates every source from one listener-centred trace; per-source: one "

@@ -240,7 +240,7 @@ const Registrar registrar([](CLI::App& root) {
       ->check(CLI::ExistingFile);
   addVec3Option(*cmd, "--forward", o->forward, "Listener forward vector (default 0,0,-1)");
   addVec3Option(*cmd, "--up", o->up, "Listener up vector (default 0,1,0)");
-  cmd->add_option("--rate", o->rate, "Sample rate in Hz")->check(CLI::Range(8000.0, 384000.0))->capture_default_str();
+  cmd->add_option("--rate", o->rate, "Sample rate in Hz (binaural: at most 192000, the HRTF's)")->check(CLI::Range(8000.0, 384000.0))->capture_default_str();
   cmd->add_option("--rays", o->rays, "Rays traced (balanced: 16384)")->check(CLI::Range(1u, 100000000u));
   cmd->add_option("--bounces", o->bounces, "Reflections per ray (balanced: 12)")->check(CLI::Range(0u, 100000u));
   cmd->add_option("--length", o->length, "IR length in seconds, or auto")->capture_default_str();
