@@ -317,7 +317,7 @@ EARSHOT_API earshot_status earshot_simulate(earshot_context* context, uint32_t s
 /** Starts the built-in simulation thread: it calls earshot_simulate(context,
  *  sources_per_step) every 1 / rate_hz seconds of wall time (a step that
  *  overruns delays the next rather than queueing steps). rate_hz in
- *  (0, 1000]; sources_per_step 0 = all (round robin otherwise, e.g. 32
+ *  [0.001, 1000]; sources_per_step 0 = all (round robin otherwise, e.g. 32
  *  sources at 10 Hz and 4 per step update each source at 1.25 Hz). Errors of
  *  a step are logged and the thread goes on. Errors: INVALID_ARGUMENT,
  *  INVALID_STATE (already running), OUT_OF_MEMORY (no thread). Game thread. */

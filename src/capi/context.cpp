@@ -385,8 +385,10 @@ earshot_status earshot_context_start_simulation(earshot_context* c, double rateH
   static const char* kFn = "earshot_context_start_simulation";
   if (!alive(c)) return argError(nullptr, kFn, "context is not a live earshot_context");
   return guard(&c->env, kFn, [&]() -> earshot_status {
-    if (!(rateHz > 0.0 && rateHz <= 1000.0))
-      return argError(&c->env, kFn, "rate_hz " + describe(rateHz) + " is outside (0, 1000]");
+    // At least a step every 1000 s: a period of 1 / 1e-40 s overflowed the
+    // clock's 64-bit nanoseconds (undefined; the thread then stepped in a loop).
+    if (!(rateHz >= 0.001 && rateHz <= 1000.0))
+      return argError(&c->env, kFn, "rate_hz " + describe(rateHz) + " is outside [0.001, 1000]");
     std::lock_guard<std::mutex> control(c->threadControl);
     if (c->thread.joinable())
       return fail(&c->env, kFn, EARSHOT_ERROR_INVALID_STATE, "the simulation thread is already running");

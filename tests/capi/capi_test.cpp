@@ -188,8 +188,9 @@ TEST(CApiFuzz, ThousandInvalidCallsReturnErrorsAndChangeNothing) {
       [&] { return pick(2) ? earshot_context_set_scene(nullptr, scene) : earshot_context_set_scene(ctx, ctxAsScene); },
       [&] { return pick(2) ? earshot_simulate(nullptr, 0) : earshot_simulate(sceneAsCtx, 1); },
       [&] {
-        const double rates[] = {double(kNaN), 0.0, -10.0, 1e6, double(kInf)};
-        return pick(4) ? earshot_context_start_simulation(ctx, rates[pick(5)], 0)
+        // 1e-40 Hz: a period past the clock's range (found by fuzz_capi).
+        const double rates[] = {double(kNaN), 0.0, -10.0, 1e6, double(kInf), 1e-40, 0.000999};
+        return pick(4) ? earshot_context_start_simulation(ctx, rates[pick(7)], 0)
                        : earshot_context_start_simulation(nullptr, 10.0, 0);
       },
       [&] { return earshot_context_stop_simulation(pick(2) ? nullptr : sceneAsCtx); },
@@ -855,6 +856,10 @@ TEST(CApiThreads, BuiltInSimulationThreadUpdatesSources) {
   ASSERT_EQ(earshot_context_stop_simulation(c), EARSHOT_OK);
   EXPECT_EQ(infoOf(c).simulation_thread_running, 0u);
   EXPECT_EQ(earshot_simulate(c, 0), EARSHOT_OK);
+  // The slowest rate: a step, then a wait of 1000 s that stop ends.
+  ASSERT_EQ(earshot_context_start_simulation(c, 0.001, 0), EARSHOT_OK);
+  ASSERT_EQ(earshot_context_stop_simulation(c), EARSHOT_OK);
+  EXPECT_EQ(infoOf(c).simulation_thread_running, 0u);
 
   render(c, 4096, 256, l, r);
   EXPECT_GT(energy(l) + energy(r), 0.0);
