@@ -123,6 +123,29 @@ earshot_status checked(earshot_status s) {
   return s;
 }
 
+/** The context settings' allocator, failing after `allowed` allocations;
+ *  counts what it holds, so that a leaked or twice-freed handle shows. */
+struct FailingAllocator {
+  int allowed = 0;
+  int live = 0;
+  static void* allocate(void* user, size_t size, size_t alignment) {
+    auto* a = static_cast<FailingAllocator*>(user);
+    CAPI_CHECK(alignment != 0 && (alignment & (alignment - 1)) == 0 && alignment <= 64);
+    if (a->allowed <= 0) return nullptr;
+    --a->allowed;
+    void* p = nullptr;
+    if (posix_memalign(&p, alignment < sizeof(void*) ? sizeof(void*) : alignment, size ? size : 1) != 0) return nullptr;
+    ++a->live;
+    return p;
+  }
+  static void release(void* user, void* pointer) {
+    auto* a = static_cast<FailingAllocator*>(user);
+    CAPI_CHECK(pointer != nullptr && a->live > 0);
+    --a->live;
+    std::free(pointer);
+  }
+};
+
 struct Contexts {
   earshot_context* c[2] = {nullptr, nullptr};
 };
@@ -389,6 +412,42 @@ struct Program {
     }
   }
 
+  /** A scene, a box mesh in it and a source, each made with `c`'s allocator
+   *  (which may refuse: OUT_OF_MEMORY and a NULL handle), then all dropped. */
+  void madeWithAllocator(earshot_context* c) {
+    earshot_scene* scene = reinterpret_cast<earshot_scene*>(uintptr_t(1));
+    const earshot_status sceneStatus = checked(earshot_scene_create(c, nullptr, &scene));
+    CAPI_CHECK(sceneStatus == EARSHOT_OK ? scene != nullptr : scene == nullptr);
+    static const float kCorners[] = {0, 0, 0, 4, 0, 0, 0, 4, 0, 0, 0, 3};
+    static const uint32_t kFaces[] = {0, 1, 2, 0, 1, 3, 0, 2, 3, 1, 2, 3};
+    const char* names[] = {"concrete"};
+    earshot_mesh_settings ms;
+    earshot_mesh_settings_init(&ms);
+    ms.vertices = kCorners;
+    ms.vertex_count = 4;
+    ms.indices = kFaces;
+    ms.triangle_count = 4;
+    ms.material_names = names;
+    ms.material_count = 1;
+    earshot_mesh* mesh = reinterpret_cast<earshot_mesh*>(uintptr_t(1));
+    const earshot_status meshStatus = checked(earshot_mesh_create(c, &ms, &mesh));
+    CAPI_CHECK(meshStatus == EARSHOT_OK ? mesh != nullptr : mesh == nullptr);
+    if (scene && mesh) {
+      checked(earshot_scene_add_mesh(scene, mesh));
+      checked(earshot_scene_commit(scene));
+      checked(earshot_context_set_scene(c, scene));
+    }
+    earshot_source* source = reinterpret_cast<earshot_source*>(uintptr_t(1));
+    const earshot_status sourceStatus = checked(earshot_source_create(c, nullptr, &source));
+    CAPI_CHECK(sourceStatus == EARSHOT_OK ? source != nullptr : source == nullptr);
+    if (source) {
+      checked(earshot_simulate(c, 0));
+      CAPI_CHECK(earshot_source_release(source) == EARSHOT_OK);
+    }
+    if (mesh) CAPI_CHECK(earshot_mesh_release(mesh) == EARSHOT_OK);
+    if (scene) CAPI_CHECK(earshot_scene_release(scene) == EARSHOT_OK);
+  }
+
   void step() {
     const uint32_t op = in.below(27);
     if (tracing()) std::fprintf(stderr, "step %u\n", op);
@@ -603,13 +662,26 @@ struct Program {
         // under ASan, and release waits for it): a file that fails fast instead.
         if (s.sample_rate_hz != kRate && hrtf < 200)
           s.hrtf_path = EARSHOT_FUZZ_SOURCE_DIR "/tests/data/hrtf/not_sofa.sofa";
+        // Sometimes with an allocator that fails after a few handles: then a
+        // scene, a mesh and a source are made with it and all dropped, and
+        // the allocator must hold nothing at the end.
+        FailingAllocator alloc;
+        const bool withAllocator = in.u8() > 160;
+        if (withAllocator) {
+          alloc.allowed = int(in.below(5));
+          s.allocate = &FailingAllocator::allocate;
+          s.free = &FailingAllocator::release;
+          s.allocator_user_data = &alloc;
+        }
         earshot_context* c = reinterpret_cast<earshot_context*>(uintptr_t(1));
         if (checked(earshot_context_create(&s, &c)) == EARSHOT_OK) {
           CAPI_CHECK(c != nullptr);
+          if (withAllocator) madeWithAllocator(c);
           CAPI_CHECK(earshot_context_release(c) == EARSHOT_OK);
         } else {
           CAPI_CHECK(c == nullptr);
         }
+        CAPI_CHECK(alloc.live == 0);
         break;
       }
       case 26: {

@@ -122,10 +122,23 @@ def hostile():
     return p
 
 
+def failing_allocator():
+    """Fresh contexts whose allocator gives 0, 1, .. 4 handles: the context,
+    then a scene, a mesh and a source each made or refused."""
+    p = b""
+    for allowed in range(5):
+        # Rate, block, slots, IR length, rays, bounces as the fuzzer's defaults;
+        # image-source order, threads, distance, order, output, trace, HRTF
+        # (Pulse), struct_size: defaults; then the allocator and its count.
+        p += bytes([NEW_CONTEXT]) + bytes(14) + bytes([200, allowed])
+    return p
+
+
 def main():
     os.makedirs(OUT, exist_ok=True)
     seeds = {"game_loop_binaural.bin": game_loop(0), "game_loop_ambisonic.bin": game_loop(1),
-             "gltf_and_movable.bin": gltf_and_movable(), "hostile_arguments.bin": hostile()}
+             "gltf_and_movable.bin": gltf_and_movable(), "hostile_arguments.bin": hostile(),
+             "failing_allocator.bin": failing_allocator()}
     for name, data in seeds.items():
         with open(os.path.join(OUT, name), "wb") as out:
             out.write(data)
