@@ -1,5 +1,6 @@
 #include "earshot/core/status.h"
 
+#include <algorithm>
 #include <cstdio>
 
 namespace earshot {
@@ -18,35 +19,72 @@ const char* statusCodeName(StatusCode code) {
   return "unknown";
 }
 
-std::string quotedName(std::string_view name) {
-  size_t n = name.size();
-  const bool cut = n > kQuotedNameBytes;
-  if (cut) {
-    n = kQuotedNameBytes;
-    // Back to the first byte of a character (UTF-8 continuation bytes are 10xxxxxx).
-    while (n > 0 && (static_cast<unsigned char>(name[n]) & 0xC0u) == 0x80u) --n;
-  }
+namespace {
+
+/** Bytes of the UTF-8 character starting at s[i] (1-4), or 0 if the bytes
+ *  there are not a well-formed character (RFC 3629: no overlongs, no
+ *  surrogates, nothing past U+10FFFF). */
+size_t utf8Length(std::string_view s, size_t i) {
+  const auto at = [&](size_t k) { return i + k < s.size() ? static_cast<unsigned char>(s[i + k]) : 0u; };
+  const unsigned c = at(0);
+  if (c < 0x80) return 1;
+  size_t n = 0;
+  unsigned lo = 0x80, hi = 0xBF;  // the second byte's range
+  if (c >= 0xC2 && c <= 0xDF) n = 2;
+  else if (c == 0xE0) n = 3, lo = 0xA0;
+  else if (c == 0xED) n = 3, hi = 0x9F;
+  else if (c >= 0xE1 && c <= 0xEF) n = 3;
+  else if (c == 0xF0) n = 4, lo = 0x90;
+  else if (c == 0xF4) n = 4, hi = 0x8F;
+  else if (c >= 0xF1 && c <= 0xF3) n = 4;
+  else return 0;
+  if (at(1) < lo || at(1) > hi) return 0;
+  for (size_t k = 2; k < n; ++k)
+    if (at(k) < 0x80 || at(k) > 0xBF) return 0;
+  return n;
+}
+
+}  // namespace
+
+std::string quotedName(std::string_view name, size_t maxBytes) {
   std::string out = "\"";
-  out.reserve(n + 8);
-  for (size_t i = 0; i < n; ++i) {
+  out.reserve(std::min(name.size(), maxBytes) + 8);
+  size_t i = 0;
+  while (i < name.size()) {
+    const size_t n = utf8Length(name, i);
+    if (i + (n ? n : 1) > maxBytes) break;
     const unsigned char c = static_cast<unsigned char>(name[i]);
-    switch (c) {
-      case '"': out += "\\\""; break;
-      case '\\': out += "\\\\"; break;
-      case '\n': out += "\\n"; break;
-      case '\r': out += "\\r"; break;
-      case '\t': out += "\\t"; break;
-      default:
-        if (c < 0x20 || c == 0x7f) {
-          char hex[8];
-          std::snprintf(hex, sizeof hex, "\\u%04x", unsigned(c));
-          out += hex;
-        } else {
-          out += char(c);
-        }
+    if (n == 0) {
+      out += "\xEF\xBF\xBD";  // U+FFFD for a byte that starts no character
+      i += 1;
+      continue;
     }
+    if (n > 1) {
+      out.append(name.substr(i, n));
+    } else if (c == '"') {
+      out += "\\\"";
+    } else if (c == '\\') {
+      out += "\\\\";
+    } else if (c == '\n') {
+      out += "\\n";
+    } else if (c == '\r') {
+      out += "\\r";
+    } else if (c == '\t') {
+      out += "\\t";
+    } else if (c == '\b') {
+      out += "\\b";
+    } else if (c == '\f') {
+      out += "\\f";
+    } else if (c < 0x20 || c == 0x7f) {
+      char hex[8];
+      std::snprintf(hex, sizeof hex, "\\u%04x", unsigned(c));
+      out += hex;
+    } else {
+      out += char(c);
+    }
+    i += n;
   }
-  out += cut ? "\"..." : "\"";
+  out += i < name.size() ? "\"..." : "\"";
   return out;
 }
 

@@ -170,9 +170,7 @@ std::string jsonKeyPath(const std::string& parent, const std::string& key) {
   return parent.empty() ? key : parent + "." + key;
 }
 
-std::string jsonQuoted(const std::string& s) {
-  return nlohmann::json(s).dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
-}
+std::string jsonQuoted(const std::string& s) { return quotedName(s, std::string_view::npos); }
 
 std::string jsonIndexPath(const std::string& parent, size_t index) {
   return parent + "[" + std::to_string(index) + "]";

@@ -22,7 +22,8 @@ std::string jsonKeyPath(const std::string& parent, const std::string& key);
 
 /** `s` as a JSON string literal, quotes included: control characters,
  *  quotes and backslashes escaped (invalid UTF-8 replaced), so text from the
- *  file keeps an error message on one line. */
+ *  file keeps an error message on one line. quotedName (core/status.h)
+ *  without its length cut: paths are quoted whole. */
 std::string jsonQuoted(const std::string& s);
 
 /** `parent[index]`. */

@@ -21,6 +21,24 @@ TEST(QuotedName, ControlCharactersQuotesAndBackslashesAreEscaped) {
   EXPECT_EQ(quotedName(std::string("a\0b", 3)), "\"a\\u0000b\"");
 }
 
+TEST(QuotedName, InvalidUtf8BecomesReplacementCharacters) {
+  // A lone continuation byte, a truncated 3-byte character, an overlong "/"
+  // (C0 AF), a surrogate (ED A0 80) and a byte never in UTF-8 (FF): each byte
+  // that starts no character is one U+FFFD; the valid "é" and "€" stay.
+  const std::string r = "\xEF\xBF\xBD";
+  EXPECT_EQ(quotedName("a\x80" "b"), "\"a" + r + "b\"");
+  EXPECT_EQ(quotedName("\xE2\x82"), "\"" + r + r + "\"");
+  EXPECT_EQ(quotedName("\xC0\xAF"), "\"" + r + r + "\"");
+  EXPECT_EQ(quotedName("\xED\xA0\x80"), "\"" + r + r + r + "\"");
+  EXPECT_EQ(quotedName("\xFF" "é€"), "\"" + r + "é€\"");
+  EXPECT_EQ(quotedName("\b\f"), "\"\\b\\f\"");
+}
+
+TEST(QuotedName, APathIsQuotedWhole) {
+  const std::string path = "/" + std::string(300, 'p') + "/a\nb.json";
+  EXPECT_EQ(quotedName(path, std::string_view::npos), "\"/" + std::string(300, 'p') + "/a\\nb.json\"");
+}
+
 TEST(QuotedName, ALongNameIsCutAtACharacterBoundary) {
   const std::string exact(kQuotedNameBytes, 'x');
   EXPECT_EQ(quotedName(exact), "\"" + exact + "\"");

@@ -48,13 +48,16 @@ inline Status parseError(std::string m) { return {StatusCode::kParseError, std::
 inline Status unsupported(std::string m) { return {StatusCode::kUnsupported, std::move(m)}; }
 inline Status outOfRange(std::string m) { return {StatusCode::kOutOfRange, std::move(m)}; }
 
+inline constexpr size_t kQuotedNameBytes = 80;
+
 /** A name that came from input (a file's key, a glTF node's or material's
  *  name, a caller's string), quoted for a message: in double quotes, at most
- *  kQuotedNameBytes bytes of it (cut at a UTF-8 character boundary, then
- *  "..."), with control characters, `"` and `\` escaped as JSON does, so
- *  that the message stays one line of bounded length whatever the input. */
-std::string quotedName(std::string_view name);
-inline constexpr size_t kQuotedNameBytes = 80;
+ *  `maxBytes` bytes of it (cut before the character that would pass them,
+ *  then "..."), with control characters, `"` and `\` escaped as JSON does
+ *  and each byte of invalid UTF-8 replaced by U+FFFD, so that the message
+ *  stays one line of bounded length, and valid UTF-8, whatever the input.
+ *  A path is quoted whole: maxBytes = std::string_view::npos. */
+std::string quotedName(std::string_view name, size_t maxBytes = kQuotedNameBytes);
 
 /** A value or the Status that explains why there is none. */
 template <class T>
