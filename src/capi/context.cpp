@@ -250,9 +250,6 @@ earshot_status earshot_context_create(const earshot_context_settings* settings, 
       es.blockFrames = convolverBlock(settings->block_frames);
       es.maxSources = settings->max_sources;
       es.maxIrSeconds = settings->max_ir_seconds;
-      // IRs no longer than the shared tail's start (0.15 s) have no tail to
-      // share: every source's whole IR is its own.
-      if (es.sharedTailSeconds >= es.maxIrSeconds) es.sharedTailSeconds = 0;
       es.simulation.rays = settings->rays;
       es.simulation.bounces = settings->bounces;
       es.simulation.imageSourceOrder = settings->image_source_order;

@@ -430,8 +430,13 @@ Result<std::shared_ptr<const BinauralModel>> Engine::model() const {
   return *m;
 }
 
-Result<std::unique_ptr<Engine>> Engine::create(const EngineSettings& s, BinauralModelFuture model) {
+Result<std::unique_ptr<Engine>> Engine::create(const EngineSettings& settings, BinauralModelFuture model) {
   if (!model.valid()) return invalidArgument("engine: no HRTF model");
+  EngineSettings s = settings;
+  if (!(s.sharedTailSeconds >= 0))
+    return invalidArgument("engine: sharedTailSeconds " + std::to_string(s.sharedTailSeconds) + " is negative or NaN");
+  // A shared tail that would start at or after the cut shares nothing.
+  if (s.sharedTailSeconds >= s.maxIrSeconds) s.sharedTailSeconds = 0;
   // A model already loaded is checked now (the sample rate), a loading one
   // when it is first needed.
   if (model.wait_for(std::chrono::seconds(0)) == std::future_status::ready)
@@ -453,9 +458,6 @@ Result<std::unique_ptr<Engine>> Engine::create(const EngineSettings& s, Binaural
   if (s.ambisonicOrder < 0 || s.ambisonicOrder > kMaxAmbisonicOrder)
     return invalidArgument("engine: ambisonicOrder " + std::to_string(s.ambisonicOrder) + " is outside [0, " +
                            std::to_string(kMaxAmbisonicOrder) + "]");
-  if (!(s.sharedTailSeconds >= 0 && s.sharedTailSeconds < s.maxIrSeconds))
-    return invalidArgument("engine: sharedTailSeconds " + std::to_string(s.sharedTailSeconds) + " is outside [0, " +
-                           std::to_string(s.maxIrSeconds) + ")");
   const bool sharedTail = hasSharedTail(s);
   const ConvolverSettings cs = convolverSettingsOf(s);
   auto mixer = ConvolutionMixer::create(cs, s.maxSources);

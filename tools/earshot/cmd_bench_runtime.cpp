@@ -86,7 +86,6 @@ int run(const BenchRuntimeOptions& o) {
   if (o.ambisonicOrder >= 0) es.ambisonicOrder = o.ambisonicOrder;
   if (o.irSeconds > 0) es.maxIrSeconds = o.irSeconds;
   if (o.sharedTail >= 0) es.sharedTailSeconds = o.sharedTail;
-  else if (es.sharedTailSeconds >= es.maxIrSeconds) es.sharedTailSeconds = 0;  // IRs too short to share a tail
   es.traceMode = *traceModeFromString(o.trace);
   auto model = loadBinauralModel("", es.sampleRateHz);
   if (!check(model.status())) return 2;
@@ -207,7 +206,7 @@ int run(const BenchRuntimeOptions& o) {
   auto ageAt = [&](double q) { return irAges.empty() ? 0.0 : irAges[size_t(q * double(irAges.size() - 1))]; };
   std::printf("runtime reflections=%s ir_seconds=%.1f shared_tail_s=%.2f head_turn_dps=%.0f trace=%s\n",
               es.ambisonicOrder > 0 ? ("ambisonic order " + std::to_string(es.ambisonicOrder)).c_str() : "binaural",
-              es.maxIrSeconds, es.ambisonicOrder > 0 ? es.sharedTailSeconds : 0.0, o.turnDegreesPerSecond,
+              es.maxIrSeconds, es.ambisonicOrder > 0 ? engine.settings().sharedTailSeconds : 0.0, o.turnDegreesPerSecond,
               toString(es.traceMode));
   std::printf("runtime scene=%s triangles=%zu sources=%u quality=%s block=%zu max_partition=%zu seconds=%.1f sim_threads=%u "
               "audio_cpu_pct_of_one_core=%.1f worst_block_pct_of_period=%.1f p99_block_pct=%.1f "

@@ -122,7 +122,8 @@ struct EngineSettings {
    *  multiply-adds per source fall from the whole IR's length to this, and
    *  the other sources of a simulation are synthesised up to it only (W
    *  whole; sourceIr() makes the rest when asked).
-   *  0: every source's whole IR. [0, maxIrSeconds). */
+   *  0, or at or after maxIrSeconds (IRs that short): every source's
+   *  whole IR. Negative or NaN: refused. */
   double sharedTailSeconds = 0.15;
   /** With ambisonic reflections: the sources' and the shared tail's IR
    *  spectra stored as 16-bit floats (ConvolverSettings::compactSpectra):
