@@ -263,19 +263,16 @@ struct Program {
     if (in.u8() > 250) s.struct_size = in.u32();
     s.name = in.u8() < 128 ? "fuzz_mesh" : (in.u8() < 128 ? nullptr : "door\r\n\x1b[2J");
     s.vertices = (vertexCount || in.u8() < 128) ? vertices.data() : nullptr;
-    s.vertex_count = in.u8() < 240 ? vertexCount : size_t(in.count()) << (in.u8() % 40);
+    // Counts may understate the arrays (the API cannot tell), never overstate
+    // them: reading past an array the caller sized is the caller's bug.
+    s.vertex_count = in.u8() < 240 ? vertexCount : in.below(vertexCount + 1);
     s.indices = indices.data();
-    s.triangle_count = in.u8() < 240 ? triangleCount : size_t(in.count()) << (in.u8() % 40);
+    s.triangle_count = in.u8() < 240 ? triangleCount : in.below(triangleCount + 1);
     s.material_names = materialCount ? names : nullptr;
-    s.material_count = in.u8() < 240 ? materialCount : size_t(in.count());
+    s.material_count = in.u8() < 240 ? materialCount : in.below(materialCount + 1);
     s.triangle_materials = in.u8() < 128 ? perTriangle.data() : nullptr;
     storeRaw(s.motion, in.u8() < 240 ? in.below(2) : in.count());
     s.transform = withTransform ? transform : nullptr;
-    // An over-stated count must not be read: the arrays above are the
-    // program's, so an accepted mesh must have stated its true sizes.
-    const bool honest = s.vertex_count <= vertexCount && s.triangle_count <= triangleCount &&
-                        s.material_count <= materialCount;
-    if (!honest) return;  // reading past an array the caller sized is the caller's bug
     earshot_mesh* mesh = reinterpret_cast<earshot_mesh*>(uintptr_t(1));
     const earshot_status st = checked(earshot_mesh_create(context(), &s, &mesh));
     if (st == EARSHOT_OK) {
@@ -344,7 +341,8 @@ struct Program {
     if (frames % 4 != 3) frames = (frames % 3) * 64 + (frames / 3) % 3;  // mostly 0-2 blocks, give or take
     const size_t inputCount = in.u8() < 240 ? in.below(kMaxSources + 1) : in.count();
     const size_t realInputs = inputCount < kMaxSources ? inputCount : kMaxSources;
-    // Each input: silence, a pulse, noise-like values or a hostile sample.
+    // Each input: noise-like values, or silence with one sample of any value
+    // (NaN, 3.4e38, ...), or NULL.
     std::vector<std::vector<float>> signals(realInputs, std::vector<float>(frames, 0.0f));
     std::vector<const float*> inputs(kMaxSources + 8, nullptr);
     for (size_t i = 0; i < realInputs; ++i) {
