@@ -480,6 +480,10 @@ TEST(HrtfSet, ErrorsNameTheFileAndTheProblem) {
   // A NaN Data.Delay made every binaural IR NaN.
   expectErrorNaming(kDataDir + "pulse_delay_nan.sofa", StatusCode::kParseError,
                     "Data.Delay value 0 is not finite or longer than a second");
+  // A rate of 1e-30 Hz made the resampled length 2.5e37 taps, cast to a
+  // size_t (undefined behaviour; in practice 0: "no HRIRs" at first use).
+  expectErrorNaming(kDataDir + "pulse_rate_tiny.sofa", StatusCode::kParseError,
+                    "Data.SamplingRate 1e-30 Hz is outside [1000, 1000000]");
   auto r = HrtfSet::load(kPulse, 4000.0);
   ASSERT_FALSE(r.isOk());
   EXPECT_EQ(r.status().code(), StatusCode::kInvalidArgument);
