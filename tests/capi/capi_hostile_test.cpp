@@ -90,6 +90,17 @@ TEST_F(CApiHostile, AbsoluteBufferPathIsRefused) {
   EXPECT_NE(message().find("absolute path"), std::string::npos) << message();
 }
 
+// A refused reference is the file's text: quoted, so a newline in it cannot
+// forge a second error line (found by fuzz_scene_json, the same function).
+TEST_F(CApiHostile, RefusedReferencesAreQuotedOnOneLine) {
+  for (const char* uri : {"/x\\n earshot: error: forged.bin", "../x\\n forged.bin"}) {
+    const std::string path = level("nl.gltf", gltfDoc(uri, R"([{"mesh":0}])"));
+    EXPECT_NE(load(path), EARSHOT_OK);
+    EXPECT_EQ(message().find('\n'), std::string::npos) << message();
+    EXPECT_NE(message().find("x\\n"), std::string::npos) << message();
+  }
+}
+
 TEST_F(CApiHostile, ErrorMessagesNeverEchoAFilesBytes) {
   const std::string path = level("ok.gltf", gltfDoc("data:application/octet-stream;base64," + kTriangle, R"([{"mesh":0}])"));
   const std::string secret = (mRoot / "secret.json").string();

@@ -49,6 +49,8 @@ inline Status unsupported(std::string m) { return {StatusCode::kUnsupported, std
 inline Status outOfRange(std::string m) { return {StatusCode::kOutOfRange, std::move(m)}; }
 
 inline constexpr size_t kQuotedNameBytes = 80;
+/** A path from input, quoted: Linux opens none longer (PATH_MAX). */
+inline constexpr size_t kQuotedPathBytes = 4096;
 
 /** A name that came from input (a file's key, a glTF node's or material's
  *  name, a caller's string), quoted for a message: in double quotes, at most
@@ -56,7 +58,8 @@ inline constexpr size_t kQuotedNameBytes = 80;
  *  then "..."), with control characters, `"` and `\` escaped as JSON does
  *  and each byte of invalid UTF-8 replaced by U+FFFD, so that the message
  *  stays one line of bounded length, and valid UTF-8, whatever the input.
- *  A path is quoted whole: maxBytes = std::string_view::npos. */
+ *  A path is quoted whole (maxBytes = std::string_view::npos) or, when the
+ *  input holds it, up to kQuotedPathBytes. */
 std::string quotedName(std::string_view name, size_t maxBytes = kQuotedNameBytes);
 
 /** A value or the Status that explains why there is none. */
