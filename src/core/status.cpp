@@ -88,4 +88,41 @@ std::string quotedName(std::string_view name, size_t maxBytes) {
   return out;
 }
 
+namespace detail {
+void makeOneLine(std::string& m) {
+  bool clean = true;
+  for (size_t i = 0; clean && i < m.size();) {
+    const size_t n = utf8Length(m, i);
+    const unsigned char c = static_cast<unsigned char>(m[i]);
+    clean = n > 1 || (n == 1 && c >= 0x20 && c != 0x7f);
+    i += n ? n : 1;
+  }
+  if (clean) return;  // every message but a hostile input's
+  // quotedName escapes `"` and `\` too, which a message keeps as they are:
+  // escape the rest piece by piece between them.
+  std::string out;
+  out.reserve(m.size() + 16);
+  size_t from = 0;
+  for (size_t i = 0; i <= m.size(); ++i) {
+    if (i < m.size() && m[i] != '"' && m[i] != '\\') continue;
+    const std::string q = quotedName(std::string_view(m).substr(from, i - from), std::string_view::npos);
+    out.append(q, 1, q.size() - 2);  // without its quotes
+    if (i < m.size()) out += m[i];
+    from = i + 1;
+  }
+  m = std::move(out);
+}
+}  // namespace detail
+
+std::string displayPath(std::string_view path) {
+  bool plain = path.size() <= kQuotedPathBytes;
+  for (size_t i = 0; plain && i < path.size();) {
+    const size_t n = utf8Length(path, i);
+    const unsigned char c = static_cast<unsigned char>(path[i]);
+    plain = n > 1 || (n == 1 && c >= 0x20 && c != 0x7f && c != '"' && c != '\\');
+    i += n ? n : 1;
+  }
+  return plain ? std::string(path) : quotedName(path, kQuotedPathBytes);
+}
+
 }  // namespace earshot

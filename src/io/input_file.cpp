@@ -126,14 +126,14 @@ Result<uint64_t> checkInputFile(const std::string& path, const std::string& what
   struct stat st {};
   if (::stat(path.c_str(), &st) != 0) {
     const int e = errno;
-    if (e == ENOENT || e == ENOTDIR) return notFound(path + ": " + what + " not found");
-    return ioError(path + ": cannot open " + what + " (" + std::strerror(e) + ")");
+    if (e == ENOENT || e == ENOTDIR) return notFound(displayPath(path) + ": " + what + " not found");
+    return ioError(displayPath(path) + ": cannot open " + what + " (" + std::strerror(e) + ")");
   }
   if (!S_ISREG(st.st_mode))
-    return invalidArgument(path + ": " + what + " is " + kindOf(st.st_mode) + ", expected a regular file");
+    return invalidArgument(displayPath(path) + ": " + what + " is " + kindOf(st.st_mode) + ", expected a regular file");
   const uint64_t size = static_cast<uint64_t>(st.st_size);
   if (size > maxBytes)
-    return outOfRange(path + ": " + what + " of " + formatBytes(size) + " is over the limit of " +
+    return outOfRange(displayPath(path) + ": " + what + " of " + formatBytes(size) + " is over the limit of " +
                       formatBytes(maxBytes));
   remember(st);
   return size;
@@ -145,11 +145,11 @@ Result<std::string> readInputFile(const std::string& path, const std::string& wh
   // O_NONBLOCK: a path swapped for a FIFO after the check cannot block us;
   // fstat again on what was opened.
   const int fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
-  if (fd < 0) return ioError(path + ": cannot open " + what + " (" + std::strerror(errno) + ")");
+  if (fd < 0) return ioError(displayPath(path) + ": cannot open " + what + " (" + std::strerror(errno) + ")");
   struct stat st {};
   if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode) || static_cast<uint64_t>(st.st_size) > maxBytes) {
     ::close(fd);
-    return invalidArgument(path + ": " + what + " changed while being opened (expected a regular file)");
+    return invalidArgument(displayPath(path) + ": " + what + " changed while being opened (expected a regular file)");
   }
   std::string bytes(static_cast<size_t>(st.st_size), '\0');
   size_t got = 0;
@@ -160,7 +160,7 @@ Result<std::string> readInputFile(const std::string& path, const std::string& wh
     got += static_cast<size_t>(n);
   }
   ::close(fd);
-  if (got != bytes.size()) return ioError(path + ": read error in " + what);
+  if (got != bytes.size()) return ioError(displayPath(path) + ": read error in " + what);
   return bytes;
 }
 
@@ -179,7 +179,7 @@ Status checkJsonDepth(std::string_view text, const std::string& path, int maxDep
       inString = true;
     } else if (c == '{' || c == '[') {
       if (++depth > maxDepth)
-        return parseError(path + ": JSON nested deeper than " + std::to_string(maxDepth) + " levels (at byte " +
+        return parseError(displayPath(path) + ": JSON nested deeper than " + std::to_string(maxDepth) + " levels (at byte " +
                           std::to_string(i) + ")");
     } else if (c == '}' || c == ']') {
       if (depth > 0) --depth;
@@ -255,11 +255,11 @@ Status checkOutputPath(const std::string& path) {
   struct stat st {};
   if (::stat(path.c_str(), &st) != 0) return Status::ok();  // a new file
   if (!S_ISREG(st.st_mode))
-    return invalidArgument(path + ": output is " + std::string(kindOf(st.st_mode)) +
+    return invalidArgument(displayPath(path) + ": output is " + std::string(kindOf(st.st_mode)) +
                            "; refusing to replace it (outputs must be regular files)");
   std::lock_guard<std::mutex> lock(gMutex);
   if (gInputs.count({st.st_dev, st.st_ino}))
-    return invalidArgument(path + ": output is one of this command's input files; refusing to overwrite it");
+    return invalidArgument(displayPath(path) + ": output is one of this command's input files; refusing to overwrite it");
   return Status::ok();
 }
 

@@ -1,4 +1,5 @@
-// quotedName: names from input in one bounded line.
+// quotedName, displayPath and Status: names, paths and messages from input
+// in one bounded line.
 #include <gtest/gtest.h>
 
 #include <string>
@@ -49,6 +50,28 @@ TEST(QuotedName, ALongNameIsCutAtACharacterBoundary) {
   const std::string ascii(kQuotedNameBytes - 1, 'a');
   EXPECT_EQ(quotedName(ascii + "é"), "\"" + ascii + "\"...");
   EXPECT_EQ(quotedName(ascii + "a" + "é"), "\"" + ascii + "a\"...");
+}
+
+// A path a user types is shown as it is; one from a file that holds a
+// control character, a quote or a backslash is quoted (and cut at PATH_MAX).
+TEST(DisplayPath, OnlyAnUnusualPathIsQuoted) {
+  EXPECT_EQ(displayPath("/home/ann/Räume/room 1.gltf"), "/home/ann/Räume/room 1.gltf");
+  EXPECT_EQ(displayPath("dir/x\nearshot: error: forged.bin"), "\"dir/x\\nearshot: error: forged.bin\"");
+  EXPECT_EQ(displayPath("a\"b"), "\"a\\\"b\"");
+  EXPECT_EQ(displayPath("a\xFF"), "\"a\xEF\xBF\xBD\"");
+  EXPECT_EQ(displayPath(std::string(1 << 20, 'p')).size(), kQuotedPathBytes + 5);
+}
+
+// Whatever goes into a Status's message comes out one line of valid UTF-8:
+// control characters escaped, bytes that are not UTF-8 replaced, the rest
+// (quotes, backslashes, UTF-8) as it was.
+TEST(StatusMessage, IsOneLineWhateverWentIn) {
+  EXPECT_EQ(invalidArgument("plain \"quoted\" C:\\dir é").message(), "plain \"quoted\" C:\\dir é");
+  EXPECT_EQ(notFound("x\nearshot: error: forged").message(), "x\\nearshot: error: forged");
+  EXPECT_EQ(ioError(std::string("\x1b[2J\r\"q\"\\", 9)).message(), "\\u001b[2J\\r\"q\"\\");
+  EXPECT_EQ(parseError("a\x80" "b").message(), "a\xEF\xBF\xBD" "b");
+  EXPECT_EQ(Status(StatusCode::kInternal, std::string("n\0l", 3)).message(), "n\\u0000l");
+  EXPECT_TRUE(Status::ok().message().empty());
 }
 
 }  // namespace

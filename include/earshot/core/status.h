@@ -25,10 +25,20 @@ enum class StatusCode {
 /** Name of a status code, e.g. "invalid argument". */
 const char* statusCodeName(StatusCode code);
 
+namespace detail {
+/** Escapes control characters (JSON's way: \\n, \\u001b) and replaces bytes
+ *  that are not UTF-8 by U+FFFD, in place; nothing else changes. */
+void makeOneLine(std::string& message);
+}  // namespace detail
+
 class [[nodiscard]] Status {
  public:
   Status() = default;
-  Status(StatusCode code, std::string message) : mCode(code), mMessage(std::move(message)) {}
+  /** The message is one line of valid UTF-8 whatever went into it (a name
+   *  or path from a file included): detail::makeOneLine. */
+  Status(StatusCode code, std::string message) : mCode(code), mMessage(std::move(message)) {
+    detail::makeOneLine(mMessage);
+  }
   static Status ok() { return {}; }
 
   bool isOk() const { return mCode == StatusCode::kOk; }
@@ -61,6 +71,11 @@ inline constexpr size_t kQuotedPathBytes = 4096;
  *  A path is quoted whole (maxBytes = std::string_view::npos) or, when the
  *  input holds it, up to kQuotedPathBytes. */
 std::string quotedName(std::string_view name, size_t maxBytes = kQuotedNameBytes);
+
+/** A path for a message: as it is when it is printable UTF-8 without `"`
+ *  or `\` (every path a user types), else quotedName(path,
+ *  kQuotedPathBytes): a file's reference cannot forge a line. */
+std::string displayPath(std::string_view path);
 
 /** A value or the Status that explains why there is none. */
 template <class T>
