@@ -211,11 +211,11 @@ Result<RenderResult> renderScene(const SceneDescription& scene, const RenderOpti
   if (!sharedTracer->empty()) {  // valid, but a listener outside a closed room hears nothing of it
     const bool closed = isClosedMesh(mesh);
     if (enclosureOf(*sharedTracer, closed, scene.listener.trajectory.at(0).position) == Enclosure::kOutside)
-      out.log.push_back("warning: the listener starts outside the closed volume of " + scene.geometryPath);
+      out.log.push_back("warning: the listener starts outside the closed volume of " + displayPath(scene.geometryPath));
     for (const SceneSource& src : scene.sources)
       if (enclosureOf(*sharedTracer, closed, src.trajectory.at(src.startSeconds).position) == Enclosure::kOutside)
         out.log.push_back("warning: source " + quotedName(src.name) + " starts outside the closed volume of " +
-                          scene.geometryPath);
+                          displayPath(scene.geometryPath));
   }
 
   // Dry audio, while the HRTF still loads: each file once, however many

@@ -177,7 +177,8 @@ class Loader {
   Status fail(const std::string& what) const { return parseError(mPath + ": " + what); }
 
   /** Adds a warning unless the same text was given already (instanced meshes). */
-  void warnOnce(const std::string& w) {
+  void warnOnce(std::string w) {
+    detail::makeOneLine(w);  // as an error's message: one line whatever the path holds
     if (mWarned.insert(w).second) mOut->warnings.push_back(w);
   }
 
@@ -687,7 +688,7 @@ Result<GltfLoadResult> loadGltf(const std::string& path, const MaterialTable& ma
 
   GltfLoadResult result;
   if (!confined.refused.empty()) result.warnings.push_back(confined.refused);
-  if (!warn.empty()) result.warnings.push_back(path + ": " + oneLine(jsonErrorWithoutContent(warn)));
+  if (!warn.empty()) result.warnings.push_back(displayPath(path) + ": " + oneLine(jsonErrorWithoutContent(warn)));
   Loader loader(path, model, materials, materialMap, limits);
   EARSHOT_RETURN_IF_ERROR(loader.run(&result));
   return result;
