@@ -67,7 +67,9 @@ Status checkMemoryEstimate(double bytes, const std::string& what) {
   const uint64_t limit = defaultInputLimits().maxMemoryBytes;
   const bool overShare = tShare > 0 && tShare < limit && bytes > double(tShare);
   if (bytes <= double(limit) && !overShare) return Status::ok();
-  const std::string needs = what + " needs about " + formatBytes(uint64_t(std::min(bytes, 1.8e19)));
+  // NaN (an estimate from NaN settings) has no byte count: uint64_t(NaN) is undefined.
+  const std::string needs = what + (std::isnan(bytes) ? std::string(" needs an amount that is not a number")
+                                                      : " needs about " + formatBytes(uint64_t(std::min(bytes, 1.8e19))));
   if (!(bytes <= double(limit)))
     return outOfRange(needs + ", over the memory limit of " + formatBytes(limit) + " (--max-memory)");
   tRefusedByShare = true;
