@@ -44,26 +44,38 @@ size_t utf8Length(std::string_view s, size_t i) {
   return n;
 }
 
-}  // namespace
+// Whether s needs no escaping: valid UTF-8 without control characters (and,
+// with quotesToo, without `"` and `\`).
+bool plain(std::string_view s, bool quotesToo) {
+  for (size_t i = 0; i < s.size();) {
+    const size_t n = utf8Length(s, i);
+    const unsigned char c = static_cast<unsigned char>(s[i]);
+    if (n == 0 || (n == 1 && (c < 0x20 || c == 0x7f || (quotesToo && (c == '"' || c == '\\'))))) return false;
+    i += n;
+  }
+  return true;
+}
 
-std::string quotedName(std::string_view name, size_t maxBytes) {
-  std::string out = "\"";
-  out.reserve(std::min(name.size(), maxBytes) + 8);
+// Appends s escaped (control characters as JSON does, and `"` and `\` with
+// quotesToo; U+FFFD for each byte that starts no character), up to maxBytes
+// of s, cut before the character that would pass them; returns the bytes of
+// s taken.
+size_t appendEscaped(std::string& out, std::string_view s, size_t maxBytes, bool quotesToo) {
   size_t i = 0;
-  while (i < name.size()) {
-    const size_t n = utf8Length(name, i);
+  while (i < s.size()) {
+    const size_t n = utf8Length(s, i);
     if (i + (n ? n : 1) > maxBytes) break;
-    const unsigned char c = static_cast<unsigned char>(name[i]);
+    const unsigned char c = static_cast<unsigned char>(s[i]);
     if (n == 0) {
       out += "\xEF\xBF\xBD";  // U+FFFD for a byte that starts no character
       i += 1;
       continue;
     }
     if (n > 1) {
-      out.append(name.substr(i, n));
-    } else if (c == '"') {
+      out.append(s.substr(i, n));
+    } else if (quotesToo && c == '"') {
       out += "\\\"";
-    } else if (c == '\\') {
+    } else if (quotesToo && c == '\\') {
       out += "\\\\";
     } else if (c == '\n') {
       out += "\\n";
@@ -84,45 +96,31 @@ std::string quotedName(std::string_view name, size_t maxBytes) {
     }
     i += n;
   }
-  out += i < name.size() ? "\"..." : "\"";
+  return i;
+}
+
+}  // namespace
+
+std::string quotedName(std::string_view name, size_t maxBytes) {
+  std::string out = "\"";
+  out.reserve(std::min(name.size(), maxBytes) + 8);
+  const size_t taken = appendEscaped(out, name, maxBytes, true);
+  out += taken < name.size() ? "\"..." : "\"";
   return out;
 }
 
 namespace detail {
 void makeOneLine(std::string& m) {
-  bool clean = true;
-  for (size_t i = 0; clean && i < m.size();) {
-    const size_t n = utf8Length(m, i);
-    const unsigned char c = static_cast<unsigned char>(m[i]);
-    clean = n > 1 || (n == 1 && c >= 0x20 && c != 0x7f);
-    i += n ? n : 1;
-  }
-  if (clean) return;  // every message but a hostile input's
-  // quotedName escapes `"` and `\` too, which a message keeps as they are:
-  // escape the rest piece by piece between them.
+  if (plain(m, false)) return;  // every message but a hostile input's
   std::string out;
   out.reserve(m.size() + 16);
-  size_t from = 0;
-  for (size_t i = 0; i <= m.size(); ++i) {
-    if (i < m.size() && m[i] != '"' && m[i] != '\\') continue;
-    const std::string q = quotedName(std::string_view(m).substr(from, i - from), std::string_view::npos);
-    out.append(q, 1, q.size() - 2);  // without its quotes
-    if (i < m.size()) out += m[i];
-    from = i + 1;
-  }
+  appendEscaped(out, m, std::string_view::npos, false);  // quotes and backslashes stay
   m = std::move(out);
 }
 }  // namespace detail
 
 std::string displayPath(std::string_view path) {
-  bool plain = path.size() <= kQuotedPathBytes;
-  for (size_t i = 0; plain && i < path.size();) {
-    const size_t n = utf8Length(path, i);
-    const unsigned char c = static_cast<unsigned char>(path[i]);
-    plain = n > 1 || (n == 1 && c >= 0x20 && c != 0x7f && c != '"' && c != '\\');
-    i += n ? n : 1;
-  }
-  return plain ? std::string(path) : quotedName(path, kQuotedPathBytes);
+  return path.size() <= kQuotedPathBytes && plain(path, true) ? std::string(path) : quotedName(path, kQuotedPathBytes);
 }
 
 }  // namespace earshot

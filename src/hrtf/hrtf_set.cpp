@@ -427,8 +427,8 @@ Result<std::shared_ptr<const HrtfSet>> HrtfSet::load(const std::string& sofaPath
   if (!(h->DataSamplingRate.values[0] >= kMinFileRateHz && h->DataSamplingRate.values[0] <= kMaxFileRateHz)) {
     char rate[32];
     std::snprintf(rate, sizeof rate, "%g", double(h->DataSamplingRate.values[0]));
-    return parseError(sofaPath + ": Data.SamplingRate " + rate + " Hz is outside [" + std::to_string(int(kMinFileRateHz)) + ", " +
-                      std::to_string(int(kMaxFileRateHz)) + "]");
+    return parseError(sofaPath + ": Data.SamplingRate " + rate + " Hz is outside [" +
+                      std::to_string(int(kMinFileRateHz)) + ", " + std::to_string(int(kMaxFileRateHz)) + "]");
   }
   int check = mysofa_check(h);
   if (check != MYSOFA_OK) {

@@ -68,8 +68,9 @@ Status checkMemoryEstimate(double bytes, const std::string& what) {
   const bool overShare = tShare > 0 && tShare < limit && bytes > double(tShare);
   if (bytes <= double(limit) && !overShare) return Status::ok();
   // NaN (an estimate from NaN settings) has no byte count: uint64_t(NaN) is undefined.
-  const std::string needs = what + (std::isnan(bytes) ? std::string(" needs an amount that is not a number")
-                                                      : " needs about " + formatBytes(uint64_t(std::min(bytes, 1.8e19))));
+  const std::string needs =
+      what + (std::isnan(bytes) ? std::string(" needs an amount that is not a number")
+                                : " needs about " + formatBytes(uint64_t(std::min(bytes, 1.8e19))));
   if (!(bytes <= double(limit)))
     return outOfRange(needs + ", over the memory limit of " + formatBytes(limit) + " (--max-memory)");
   tRefusedByShare = true;
@@ -181,8 +182,8 @@ Status checkJsonDepth(std::string_view text, const std::string& path, int maxDep
       inString = true;
     } else if (c == '{' || c == '[') {
       if (++depth > maxDepth)
-        return parseError(displayPath(path) + ": JSON nested deeper than " + std::to_string(maxDepth) + " levels (at byte " +
-                          std::to_string(i) + ")");
+        return parseError(displayPath(path) + ": JSON nested deeper than " + std::to_string(maxDepth) +
+                          " levels (at byte " + std::to_string(i) + ")");
     } else if (c == '}' || c == ']') {
       if (depth > 0) --depth;
     }
@@ -261,7 +262,8 @@ Status checkOutputPath(const std::string& path) {
                            "; refusing to replace it (outputs must be regular files)");
   std::lock_guard<std::mutex> lock(gMutex);
   if (gInputs.count({st.st_dev, st.st_ino}))
-    return invalidArgument(displayPath(path) + ": output is one of this command's input files; refusing to overwrite it");
+    return invalidArgument(displayPath(path) +
+                           ": output is one of this command's input files; refusing to overwrite it");
   return Status::ok();
 }
 
