@@ -44,13 +44,20 @@ size_t utf8Length(std::string_view s, size_t i) {
   return n;
 }
 
+// The C1 controls U+0080-U+009F (C2 80 - C2 9F): valid UTF-8 that some
+// terminals act on (U+009B is CSI, as ESC [ is).
+bool isC1(std::string_view s, size_t i, size_t n) {
+  return n == 2 && static_cast<unsigned char>(s[i]) == 0xC2 && static_cast<unsigned char>(s[i + 1]) < 0xA0;
+}
+
 // Whether s needs no escaping: valid UTF-8 without control characters (and,
 // with quotesToo, without `"` and `\`).
 bool plain(std::string_view s, bool quotesToo) {
   for (size_t i = 0; i < s.size();) {
     const size_t n = utf8Length(s, i);
     const unsigned char c = static_cast<unsigned char>(s[i]);
-    if (n == 0 || (n == 1 && (c < 0x20 || c == 0x7f || (quotesToo && (c == '"' || c == '\\'))))) return false;
+    if (n == 0 || isC1(s, i, n) || (n == 1 && (c < 0x20 || c == 0x7f || (quotesToo && (c == '"' || c == '\\')))))
+      return false;
     i += n;
   }
   return true;
@@ -71,7 +78,11 @@ size_t appendEscaped(std::string& out, std::string_view s, size_t maxBytes, bool
       i += 1;
       continue;
     }
-    if (n > 1) {
+    if (isC1(s, i, n)) {
+      char hex[8];
+      std::snprintf(hex, sizeof hex, "\\u%04x", unsigned(static_cast<unsigned char>(s[i + 1])));
+      out += hex;
+    } else if (n > 1) {
       out.append(s.substr(i, n));
     } else if (quotesToo && c == '"') {
       out += "\\\"";

@@ -20,6 +20,8 @@ TEST(QuotedName, ControlCharactersQuotesAndBackslashesAreEscaped) {
   EXPECT_EQ(quotedName("\r\t\"\\"), "\"\\r\\t\\\"\\\\\"");
   EXPECT_EQ(quotedName(std::string("\x1b[2J\x7f", 5)), "\"\\u001b[2J\\u007f\"");
   EXPECT_EQ(quotedName(std::string("a\0b", 3)), "\"a\\u0000b\"");
+  // The C1 controls (valid UTF-8): U+009B is CSI to some terminals.
+  EXPECT_EQ(quotedName("\xC2\x9B" "2J\xC2\x80\xC2\xA0"), "\"\\u009b2J\\u0080\xC2\xA0\"");
 }
 
 TEST(QuotedName, InvalidUtf8BecomesReplacementCharacters) {
@@ -71,6 +73,7 @@ TEST(StatusMessage, IsOneLineWhateverWentIn) {
   EXPECT_EQ(ioError(std::string("\x1b[2J\r\"q\"\\", 9)).message(), "\\u001b[2J\\r\"q\"\\");
   EXPECT_EQ(parseError("a\x80" "b").message(), "a\xEF\xBF\xBD" "b");
   EXPECT_EQ(Status(StatusCode::kInternal, std::string("n\0l", 3)).message(), "n\\u0000l");
+  EXPECT_EQ(ioError("csi \xC2\x9B" "2J").message(), "csi \\u009b2J");
   EXPECT_TRUE(Status::ok().message().empty());
 }
 
