@@ -26,8 +26,9 @@ enum class StatusCode {
 const char* statusCodeName(StatusCode code);
 
 namespace detail {
-/** Escapes control characters (JSON's way: \\n, \\u001b) and replaces bytes
- *  that are not UTF-8 by U+FFFD, in place; nothing else changes. */
+/** Escapes control characters, C1's U+0080-U+009F too (JSON's way: \\n,
+ *  \\u001b, \\u009b), and replaces bytes that are not UTF-8 by U+FFFD, in
+ *  place; nothing else changes. */
 void makeOneLine(std::string& message);
 }  // namespace detail
 
@@ -65,8 +66,8 @@ inline constexpr size_t kQuotedPathBytes = 4096;
 /** A name that came from input (a file's key, a glTF node's or material's
  *  name, a caller's string), quoted for a message: in double quotes, at most
  *  `maxBytes` bytes of it (cut before the character that would pass them,
- *  then "..."), with control characters, `"` and `\` escaped as JSON does
- *  and each byte of invalid UTF-8 replaced by U+FFFD, so that the message
+ *  then "..."), with control characters (C1's too), `"` and `\` escaped as
+ *  JSON does and each byte of invalid UTF-8 replaced by U+FFFD, so that the message
  *  stays one line of bounded length, and valid UTF-8, whatever the input.
  *  A path is quoted whole (maxBytes = std::string_view::npos) or, when the
  *  input holds it, up to kQuotedPathBytes. */
