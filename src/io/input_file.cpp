@@ -237,18 +237,18 @@ Result<std::string> resolveReference(const std::string& folder, const std::strin
   const fs::path base = folder.empty() ? fs::path(".") : fs::path(folder);
   const fs::path joined = ref.is_absolute() ? ref.lexically_normal() : (base / ref).lexically_normal();
   if (allowOutside) return joined.string();
-  // The reference is the referring file's text: quoted (escaped, on one
-  // line), whole up to the longest path Linux opens.
-  const std::string quoted = quotedName(reference, kQuotedPathBytes);
+  // The reference is the referring file's text: shown as every path is
+  // (quoted when it holds what could forge a line).
+  const std::string quoted = displayPath(reference), folderShown = displayPath(base.string());
   if (ref.is_absolute())
     return invalidArgument(where + ": absolute path " + quoted + " is refused (references must stay inside " +
-                           base.string() + "; --allow-outside-paths allows it)");
+                           folderShown + "; --allow-outside-paths allows it)");
   std::error_code e1, e2;
   const fs::path canonicalFolder = fs::weakly_canonical(fs::absolute(base, e1), e1);
   const fs::path target = fs::weakly_canonical(fs::absolute(joined, e2), e2);
   if (e1 || e2) return ioError(where + ": cannot resolve " + quoted);
   if (!isInside(target, canonicalFolder))
-    return invalidArgument(where + ": " + quoted + " leads outside " + base.string() +
+    return invalidArgument(where + ": " + quoted + " leads outside " + folderShown +
                            " (refused; --allow-outside-paths allows it)");
   return joined.string();
 }
