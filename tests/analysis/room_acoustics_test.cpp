@@ -384,7 +384,9 @@ TEST(ThirdOctaveAnalysis, ShortestReportedDecaysAreWithinOneJnd) {
       EXPECT_EQ(r->back().bandCenterHz, 0.0);
       const BandMetrics& m = (*r)[size_t(j)];
       EXPECT_DOUBLE_EQ(m.bandCenterHz, f);
-      if (tS * f >= 45.0) EXPECT_NEAR(m.edtS, tS, kJndDecayRelative * tS) << f << " Hz, EDT of " << tS;
+      if (tS * f >= 45.0) {
+        EXPECT_NEAR(m.edtS, tS, kJndDecayRelative * tS) << f << " Hz, EDT of " << tS;
+      }
       EXPECT_NEAR(m.t20S, tS, kJndDecayRelative * tS) << f << " Hz, T20 of " << tS;
       EXPECT_NEAR(m.t30S, tS, kJndDecayRelative * tS) << f << " Hz, T30 of " << tS;
     }

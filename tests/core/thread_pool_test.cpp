@@ -44,7 +44,9 @@ TEST(ThreadPool, ATasksExceptionReachesTheCaller) {
                                     if (i == 3) throw std::bad_alloc();
                                   }),
                  std::bad_alloc);
-    if (threads == 1) EXPECT_EQ(ran.load(), 4) << "no task starts after the exception";
+    if (threads == 1) {
+      EXPECT_EQ(ran.load(), 4) << "no task starts after the exception";
+    }
     // Every thread throws: the first exception, one only.
     EXPECT_THROW(pool.parallelFor(100, [&](size_t, unsigned) { throw std::runtime_error("task"); }),
                  std::runtime_error);
