@@ -61,6 +61,7 @@ extern char** environ;
 #include "earshot/io/disk_cache.h"
 #include "hrir_dsp.h"
 #include "install_layout.h"
+#include "sofa_probe_status.h"
 #include "sphere_triangulation.h"
 
 namespace earshot::hrtf {
@@ -101,6 +102,10 @@ const char* mysofaErrorName(int err) {
     case MYSOFA_ONLY_SOURCES_WITH_MC_SUPPORTED: return "only source positions with MC dimensions supported";
     default: return "unknown error";
   }
+}
+
+Status notReadable(const std::string& path, int err) {
+  return parseError(path + ": not a readable SOFA file (libmysofa: " + mysofaErrorName(err) + ")");
 }
 
 struct SofaDeleter {
@@ -244,6 +249,10 @@ Status probeSofaFile(const std::string& path, uint64_t maxBytes) {
     return outOfRange(path + ": reading it takes more than the memory limit of " + formatBytes(maxBytes) +
                       " (--max-memory)");
   if (WIFEXITED(status) && WEXITSTATUS(status) == 2) return Status::ok();  // a probe of another version
+  // mysofa_load failed: reported as reading it here would, without reading
+  // it again (libmysofa can leak on the way out of a failed read).
+  if (WIFEXITED(status) && detail::loadErrorForProbeStatus(WEXITSTATUS(status)) != MYSOFA_OK)
+    return notReadable(path, detail::loadErrorForProbeStatus(WEXITSTATUS(status)));
   return parseError(path + ": not a usable SOFA file (libmysofa failed reading it: " +
                     (WIFSIGNALED(status) ? "signal " + std::to_string(WTERMSIG(status)) : std::string("out of memory")) +
                     ")");
@@ -379,7 +388,7 @@ Result<std::shared_ptr<const HrtfSet>> HrtfSet::load(const std::string& sofaPath
   int err = 0;
   std::unique_ptr<MYSOFA_HRTF, SofaDeleter> raw(mysofa_load(sofaPath.c_str(), &err));
   if (!raw) {
-    return parseError(sofaPath + ": not a readable SOFA file (libmysofa: " + mysofaErrorName(err) + ")");
+    return notReadable(sofaPath, err);
   }
   MYSOFA_HRTF* h = raw.get();
   // Dimensions against each other before anything reads by them (libmysofa

@@ -622,7 +622,48 @@ TEST(HrtfSetProbe, TheRealProbeSaysByItsExitStatus) {
   const int junk = std::system((std::string("'") + EARSHOT_SOFA_PROBE_BUILD_PATH + "' '" + kDataDir +
                                 "not_sofa.sofa' 1073741824").c_str());
   ASSERT_TRUE(WIFEXITED(junk));
-  EXPECT_EQ(WEXITSTATUS(junk), 1);
+  EXPECT_EQ(WEXITSTATUS(junk), 16) << "16: mysofa_load's MYSOFA_INVALID_FORMAT (sofa_probe_status.h)";
+}
+
+// Pulse.sofa with one byte changed (offset 3585, 12 -> 0; found by fuzz_sofa):
+// libmysofa 1.3.1 fails with "invalid format" and leaks ~1 KB it allocated
+// before failing.
+std::string leakyPulse(const ProbeFixture& fx) {
+  const std::string path = fx.copyOf(kPulse, "leaky.sofa");
+  std::FILE* f = std::fopen(path.c_str(), "r+b");
+  EXPECT_NE(f, nullptr);
+  if (f == nullptr) return path;
+  EXPECT_EQ(std::fseek(f, 3585, SEEK_SET), 0);
+  EXPECT_EQ(std::fgetc(f), 12) << "not the Pulse.sofa this test knows";
+  EXPECT_EQ(std::fseek(f, 3585, SEEK_SET), 0);
+  EXPECT_EQ(std::fputc(0, f), 0);
+  std::fclose(f);
+  return path;
+}
+
+TEST(HrtfSetProbe, AFileTheProbeCouldNotReadIsNotReadAgain) {
+  ProbeFixture fx;
+  const std::string leaky = leakyPulse(fx);
+  // Without a probe the host reads it itself, and says why libmysofa refused it.
+  setenv("EARSHOT_SOFA_PROBE", (fx.dir + "/no-such-probe").c_str(), 1);
+  auto direct = HrtfSet::load(leaky, 48000.0);
+  ASSERT_FALSE(direct.isOk());
+  EXPECT_EQ(direct.status().code(), StatusCode::kParseError);
+  EXPECT_NE(direct.status().message().find("not a readable SOFA file (libmysofa: invalid format"), std::string::npos)
+      << direct.status().message();
+  // The real probe, after which the file becomes a valid set: the host says
+  // the same from the probe's exit status, and never reads the file (had it
+  // read it again it would have loaded Pulse.sofa; under ASan it would have
+  // leaked what libmysofa leaks).
+  const std::string real = EARSHOT_SOFA_PROBE_BUILD_PATH;
+  setenv("EARSHOT_SOFA_PROBE",
+         fx.script("probe", "'" + real + "' \"$@\"\nstatus=$?\ncp '" + kPulse + "' \"$1\"\nexit $status").c_str(), 1);
+  auto probed = HrtfSet::load(leaky, 48000.0);
+  ASSERT_FALSE(probed.isOk()) << "the host read the file again after the probe";
+  EXPECT_EQ(probed.status().message(), direct.status().message());
+  // A file the probe reads and libmysofa accepts is read by the host as before.
+  auto valid = HrtfSet::load(leaky, 48000.0);
+  EXPECT_TRUE(valid.isOk()) << valid.status().message();
 }
 
 }  // namespace

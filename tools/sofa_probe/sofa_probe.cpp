@@ -7,14 +7,18 @@
 //
 //   earshot-sofa-probe FILE MAX_BYTES
 //
-// Exit status: 0 read and valid, 1 libmysofa refused it (the caller reads it
-// again to report why), 2 usage, 3 it needs more than MAX_BYTES.
+// Exit status (src/hrtf/sofa_probe_status.h): 0 read and valid, 1 refused
+// (the caller reads it again to report why), 2 usage, 3 it needs more than
+// MAX_BYTES, 15 and up: mysofa_load failed with the error the status
+// carries (the caller reports it without reading the file again).
 #include <mysofa.h>
 #include <sys/resource.h>
 #include <unistd.h>
 
 #include <cstdlib>
 #include <cstring>
+
+#include "sofa_probe_status.h"
 
 #if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
 #define EARSHOT_PROBE_SANITIZED 1
@@ -45,7 +49,9 @@ int main(int argc, char** argv) {
   alarm(kSelfDeadlineSeconds);
   int err = 0;
   MYSOFA_HRTF* h = mysofa_load(argv[1], &err);
-  if (!h) return err == MYSOFA_NO_MEMORY ? 3 : 1;
+  // Out without the exit handlers: a failed load can leak inside libmysofa
+  // (sofa_probe_status.h), which a sanitized build would report at exit.
+  if (!h) std::_Exit(err == MYSOFA_NO_MEMORY ? 3 : earshot::hrtf::detail::probeStatusForLoadError(err));
   const int check = mysofa_check(h);
   mysofa_free(h);
   return check == MYSOFA_OK ? 0 : 1;
