@@ -9,8 +9,10 @@
 // HRIR length, then directions (3M float), file angles (3M float), taps
 // (2 M length float), delays (2M double), and a 128-bit hash of all the
 // bytes before it (earshot/io/disk_cache.h). A reader checks every size
-// against the file's before allocating, every value for finiteness and
-// every direction for unit length; anything else is a miss.
+// against the file's before allocating, every value for finiteness, every
+// direction for unit length, and the rate and delays for the ranges a SOFA
+// file can give (the checksum is no seal: anyone can compute it); anything
+// else is a miss.
 #include <cmath>
 #include <cstring>
 #include <vector>
@@ -26,6 +28,13 @@ constexpr char kMagic[8] = {'E', 'A', 'R', 'S', 'H', 'R', 'T', 'F'};
 constexpr uint32_t kFormatVersion = 1;
 constexpr uint32_t kEndianWord = 0x01020304;
 constexpr uint64_t kMaxMeasurements = uint64_t(1) << 20;
+// HrtfSet::load's ranges: a file's rate in [1 kHz, 1 MHz]; an ear's delay
+// is (onset + Data.Delay) / file rate less the mean of those, with the
+// onset within a file sample (<= 1 ms) of the HRIR (length / rate s,
+// resampled) and |Data.Delay| at most a second, so every one and their
+// mean lie within 1.01 s + length / rate of 0, and a delay within twice
+// that.
+bool plausibleOnset(double seconds, double bound) { return std::fabs(seconds) <= bound; }
 
 struct Header {
   char magic[8];
@@ -79,7 +88,9 @@ std::shared_ptr<HrtfSet> HrtfSet::readPrepared(const std::string& file, const Ca
   if (h.measurements < 1 || h.measurements > kMaxMeasurements || h.length < 1 || h.length > HrirPair::kMaxTaps)
     return nullptr;
   if (size != sizeof(Header) + payloadBytes(h.measurements, h.length)) return nullptr;
-  if (!(std::isfinite(h.fileRate) && h.fileRate > 0) || !std::isfinite(h.referenceOnset)) return nullptr;
+  if (!(h.fileRate >= HrtfSet::kMinFileRateHz && h.fileRate <= HrtfSet::kMaxFileRateHz)) return nullptr;
+  const double onsetBound = 1.01 + double(h.length) / sampleRateHz;
+  if (!plausibleOnset(h.referenceOnset, onsetBound)) return nullptr;
 
   auto set = std::shared_ptr<HrtfSet>(new HrtfSet());
   const std::size_t m = h.measurements, taps = h.length;
@@ -111,7 +122,7 @@ std::shared_ptr<HrtfSet> HrtfSet::readPrepared(const std::string& file, const Ca
   for (float v : set->mTaps)
     if (!std::isfinite(v)) return nullptr;
   for (double v : set->mDelays)
-    if (!std::isfinite(v)) return nullptr;
+    if (!plausibleOnset(v, 2 * onsetBound)) return nullptr;  // NaN too
   set->mFromCache = true;
   return set;
 }

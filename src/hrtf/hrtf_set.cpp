@@ -76,10 +76,6 @@ constexpr double kOnsetLowpassHz = 2000.0;
 // Load: measurements per grab of a preparing thread, and at most this many threads.
 constexpr std::size_t kLoadBlock = 32;
 constexpr std::size_t kMaxLoadThreads = 4;
-// The file's own sampling rate (Data.SamplingRate), Hz: what a measured set
-// can have (HRTF sets are measured at 44.1-192 kHz).
-constexpr double kMinFileRateHz = 1000.0;
-constexpr double kMaxFileRateHz = 1000000.0;
 
 const char* mysofaErrorName(int err) {
   switch (err) {
@@ -431,7 +427,8 @@ Result<std::shared_ptr<const HrtfSet>> HrtfSet::load(const std::string& sofaPath
   if (h->DataSamplingRate.elements < 1 || !(h->DataSamplingRate.values[0] > 0.0f)) {
     return parseError(sofaPath + ": Data.SamplingRate is missing or not positive");
   }
-  // A measured rate lies far inside this; outside it (3e38, 1e-30, inf) the
+  // A measured rate lies far inside [kMinFileRateHz, kMaxFileRateHz] (HRTF
+  // sets are measured at 44.1-192 kHz); outside it (3e38, 1e-30, inf) the
   // resampled length below would be 0, 1 tap or past what a size_t holds.
   if (!(h->DataSamplingRate.values[0] >= kMinFileRateHz && h->DataSamplingRate.values[0] <= kMaxFileRateHz)) {
     char rate[32];

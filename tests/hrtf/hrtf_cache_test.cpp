@@ -14,11 +14,14 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
+#include <limits>
 #include <string>
 #include <vector>
 
 #include "earshot/core/random.h"
 #include "earshot/hrtf/hrtf_set.h"
+#include "earshot/io/disk_cache.h"
 
 namespace earshot::hrtf {
 namespace {
@@ -166,6 +169,63 @@ TEST_F(HrtfCache, DamagedEntriesArePreparedAgainAndRewritten) {
     f.seekp(0, std::ios::end);
     f.write("xxxxxxxx", 8);
   });
+}
+
+// The checksum is no seal (anyone can compute it): an entry whose values a
+// SOFA file could not give is a miss, whatever its checksum says. Each is
+// prepared again and rewritten as it was.
+TEST_F(HrtfCache, AnEntryWithAValidChecksumIsStillChecked) {
+  auto fresh = load(kPulse);
+  ASSERT_TRUE(fresh);
+  ASSERT_EQ(entries().size(), 1u);
+  const fs::path entry = entries().front();
+  std::string original;
+  {
+    std::ifstream in(entry, std::ios::binary);
+    original.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  ASSERT_GT(original.size(), 96u + 16u);
+  // Header: ... file rate at byte 64, reference onset at 72 (doubles); the
+  // delays (doubles) end the payload, before the 16-byte checksum.
+  const std::size_t lastDelay = original.size() - 16 - sizeof(double);
+  auto craft = [&](std::size_t at, double value) {
+    std::string bytes = original;
+    std::memcpy(&bytes[at], &value, sizeof value);
+    const Hash128 sum = hashBytes(bytes.data(), bytes.size() - 16);
+    std::memcpy(&bytes[bytes.size() - 16], &sum.a, 8);
+    std::memcpy(&bytes[bytes.size() - 8], &sum.b, 8);
+    std::ofstream(entry, std::ios::binary | std::ios::trunc).write(bytes.data(), std::streamsize(bytes.size()));
+  };
+  auto fromFile = [&] {
+    std::ifstream in(entry, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  };
+  // A plausible value under a valid checksum is read (the crafting works).
+  double delay = 0;
+  std::memcpy(&delay, &original[lastDelay], sizeof delay);
+  craft(lastDelay, delay + 1e-6);
+  auto plausible = load(kPulse);
+  ASSERT_TRUE(plausible);
+  EXPECT_TRUE(plausible->loadedFromCache());
+  const HrtfMeasurement last = plausible->measurement(plausible->measurementCount() - 1);
+  EXPECT_EQ(last.rightDelaySeconds, delay + 1e-6);
+  struct Case {
+    const char* what;
+    std::size_t at;
+    double value;
+  };
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  for (const Case& c : {Case{"file rate 1e-30 Hz", 64, 1e-30}, Case{"file rate 3e38 Hz", 64, 3e38},
+                        Case{"reference onset 1e300 s", 72, 1e300}, Case{"delay 1e300 s", lastDelay, 1e300},
+                        Case{"delay -1e6 s", lastDelay, -1e6}, Case{"delay NaN", lastDelay, nan}}) {
+    SCOPED_TRACE(c.what);
+    craft(c.at, c.value);
+    auto again = load(kPulse);
+    ASSERT_TRUE(again);
+    EXPECT_FALSE(again->loadedFromCache());
+    expectSameSet(*fresh, *again);
+    EXPECT_TRUE(fromFile() == original) << "rewritten as prepared";
+  }
 }
 
 TEST_F(HrtfCache, NoCacheAnUnwritableFolderOrAFifoOnlyCostTime) {

@@ -115,7 +115,9 @@ class HrtfSet {
    *  bit for bit the same, when the file's bytes, the rate, the mode and
    *  the preparation's numerics (a fingerprint of it on test data) are the
    *  same: ~20 ms instead of ~0.5 s. A cache entry that is missing,
-   *  unreadable, truncated or altered is prepared again and rewritten; a
+   *  unreadable, truncated or altered, or that holds what no SOFA file
+   *  could give (a rate or a delay out of range, even under a valid
+   *  checksum), is prepared again and rewritten; a
    *  folder that cannot be written only costs the time. At most
    *  kMaxCachedSets entries are kept (the oldest go). */
   static Result<std::shared_ptr<const HrtfSet>> load(const std::string& sofaPath, double sampleRateHz,
@@ -151,6 +153,9 @@ class HrtfSet {
   /** Entries the prepared-set cache keeps (about 2.5 MB each for the
    *  shipped set at 48 kHz). */
   static constexpr std::size_t kMaxCachedSets = 16;
+  /** The range of a SOFA file's Data.SamplingRate, Hz, that load() takes. */
+  static constexpr double kMinFileRateHz = 1000.0;
+  static constexpr double kMaxFileRateHz = 1000000.0;
 
   /** Number of measured directions (duplicates included, as in the file). */
   std::size_t measurementCount() const { return mDirections.size(); }
