@@ -466,6 +466,8 @@ earshot_status earshot_source_settings_init(earshot_source_settings* s) {
   return EARSHOT_OK;
 }
 
+}  // extern "C": C++ helpers (clang warns of C linkage on a function returning std::string)
+
 namespace {
 
 /** The runtime's settings from the C struct, or a message naming the field. */
@@ -535,6 +537,8 @@ std::string toRuntime(const earshot_source_settings& s, runtime::SourceSettings&
 }
 
 }  // namespace
+
+extern "C" {
 
 earshot_status earshot_source_create(earshot_context* c, const earshot_source_settings* settings,
                                      earshot_source** out) {

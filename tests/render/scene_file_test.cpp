@@ -1,6 +1,14 @@
 // Scene files: every bad input is one line naming the file, the JSON path and
 // what was expected; the sample scenes load without warnings; the JSON Schema
 // and the format doc list the keys the parser accepts.
+
+// GCC 12 (the asan preset's -O2 with the sanitizers) warns
+// -Wmaybe-uninitialized inside libstdc++'s std::regex (std::function's move
+// of an automaton state): a false positive in library code this file only
+// uses, so off for the file, before the includes that define it.
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
 #include "earshot/render/scene_file.h"
 
 #include <gtest/gtest.h>

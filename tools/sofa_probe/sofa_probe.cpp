@@ -31,7 +31,7 @@
 namespace {
 // What this small process maps before reading anything (libc, libmysofa,
 // zlib, stacks): the limit is MAX_BYTES beyond it.
-constexpr unsigned long long kBaseBytes = 256ull << 20;
+[[maybe_unused]] constexpr unsigned long long kBaseBytes = 256ull << 20;  // unused when sanitized
 // The parent kills at its deadline; this is the fallback should it be gone.
 constexpr unsigned kSelfDeadlineSeconds = 60;
 }  // namespace
