@@ -11,6 +11,19 @@
 #include "earshot/hrtf/hrtf_set.h"
 #include "fuzz_temp_file.h"
 
+// libmysofa 1.3.1 (Debian 12) leaks inside mysofa_load on some files, read
+// or refused: a file naming a variable twice (corpus/sofa/
+// libmysofa-duplicate-variable.sofa, ListenerPosition in place of
+// ReceiverPosition: 147 bytes left after mysofa_free) or failing half-way
+// (~1 KB; HrtfSetProbe.AFileTheProbeCouldNotReadIsNotReadAgain). earshot
+// cannot free what libmysofa does not hand back, so LeakSanitizer leaves
+// allocations made inside libmysofa alone in this target; any other leak
+// still fails it. (The HRTF tests under ASan, which load valid files, would
+// still see a missing mysofa_free.)
+extern "C" __attribute__((visibility("default"))) const char* __lsan_default_suppressions() {
+  return "leak:libmysofa.so\n";
+}
+
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   static const int noCache = setenv("EARSHOT_CACHE_DIR", "off", 1);
   (void)noCache;
