@@ -643,24 +643,31 @@ std::string leakyPulse(const ProbeFixture& fx) {
 
 TEST(HrtfSetProbe, AFileTheProbeCouldNotReadIsNotReadAgain) {
   ProbeFixture fx;
-  const std::string leaky = leakyPulse(fx);
-  // Without a probe the host reads it itself, and says why libmysofa refused it.
+  // Without a probe the host reads a file itself and says why libmysofa
+  // refused it; with one, the probe's exit status says the same. (not_sofa:
+  // a file libmysofa refuses without leaking, as the host reads it here.)
+  const std::string junk = fx.copyOf(kDataDir + "not_sofa.sofa", "junk.sofa");
   setenv("EARSHOT_SOFA_PROBE", (fx.dir + "/no-such-probe").c_str(), 1);
-  auto direct = HrtfSet::load(leaky, 48000.0);
+  auto direct = HrtfSet::load(junk, 48000.0);
   ASSERT_FALSE(direct.isOk());
   EXPECT_EQ(direct.status().code(), StatusCode::kParseError);
-  EXPECT_NE(direct.status().message().find("not a readable SOFA file (libmysofa: invalid format"), std::string::npos)
-      << direct.status().message();
-  // The real probe, after which the file becomes a valid set: the host says
-  // the same from the probe's exit status, and never reads the file (had it
-  // read it again it would have loaded Pulse.sofa; under ASan it would have
-  // leaked what libmysofa leaks).
+  const std::string why = ": not a readable SOFA file (libmysofa: invalid format (not HDF5/netCDF-4))";
+  EXPECT_EQ(direct.status().message(), junk + why);
   const std::string real = EARSHOT_SOFA_PROBE_BUILD_PATH;
+  setenv("EARSHOT_SOFA_PROBE", real.c_str(), 1);
+  auto viaProbe = HrtfSet::load(junk, 48000.0);
+  ASSERT_FALSE(viaProbe.isOk());
+  EXPECT_EQ(viaProbe.status().message(), direct.status().message());
+  // The real probe on the leaky file, after which the file becomes a valid
+  // set: the host refuses it from the probe's exit status, never reading
+  // it (had it read it again it would have loaded Pulse.sofa; under ASan
+  // it would have leaked what libmysofa leaks).
+  const std::string leaky = leakyPulse(fx);
   setenv("EARSHOT_SOFA_PROBE",
          fx.script("probe", "'" + real + "' \"$@\"\nstatus=$?\ncp '" + kPulse + "' \"$1\"\nexit $status").c_str(), 1);
   auto probed = HrtfSet::load(leaky, 48000.0);
   ASSERT_FALSE(probed.isOk()) << "the host read the file again after the probe";
-  EXPECT_EQ(probed.status().message(), direct.status().message());
+  EXPECT_EQ(probed.status().message(), leaky + why);
   // A file the probe reads and libmysofa accepts is read by the host as before.
   auto valid = HrtfSet::load(leaky, 48000.0);
   EXPECT_TRUE(valid.isOk()) << valid.status().message();
