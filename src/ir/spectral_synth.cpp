@@ -779,6 +779,46 @@ static_assert(sizeof(NoiseEntryKey) == 8 + 8 + 40 + 8 + 8, "no padding in the no
 
 std::atomic<int> gNoiseCacheWrites{0};
 
+// A grid filter's response on the bins of a period of n (linear between its
+// grid points); empty for no filter (identity).
+std::vector<std::complex<float>> responseOnPeriod(const GridFilter& h, size_t n) {
+  std::vector<std::complex<float>> response;
+  if (!h.values) return response;
+  const size_t bins = n / 2 + 1;
+  response.resize(bins);
+  const size_t last = h.gridSize / 2;
+  for (size_t k = 0; k < bins; ++k) {
+    const double pos = double(k) * double(h.gridSize) / double(n);
+    const size_t i0 = std::min(size_t(pos), last);
+    const size_t i = i0 == last ? last - 1 : i0;
+    const float fr = i0 == last ? 1.0f : float(pos - double(i0));
+    response[k] = h.values[i] * (1.0f - fr) + h.values[i + 1] * fr;
+  }
+  return response;
+}
+
+// The most mean square a finished band can have, per band: the levelled
+// noise has a mean square of (about) its power, sum of W over the circle /
+// n, and the second filtering (sqrt(W) times the response) multiplies no
+// bin's energy by more than its largest W |h|^2 (Parseval). Twice that for
+// the levelling's window. A cached entry over it was not made here (its
+// checksum is no seal: anyone can compute one).
+std::array<double, kNumBands> finishedBandBounds(const std::vector<std::array<float, kNumBands>>& weights,
+                                                 const std::vector<std::complex<float>>& response, size_t n) {
+  std::array<double, kNumBands> bound{};
+  const size_t bins = n / 2 + 1;
+  for (int b = 0; b < kNumBands; ++b) {
+    double power = 0, gain = 0;
+    for (size_t k = 0; k < bins; ++k) {
+      const double w = double(weights[k][size_t(b)]) * double(weights[k][size_t(b)]);
+      power += (k == 0 || k == bins - 1) ? w : 2.0 * w;
+      gain = std::max(gain, w * (response.empty() ? 1.0 : double(std::norm(response[k]))));
+    }
+    bound[size_t(b)] = 2.0 * power / double(n) * gain;
+  }
+  return bound;
+}
+
 }  // namespace
 
 uint64_t SpectralSynth::noiseFingerprint() {
@@ -896,11 +936,15 @@ std::vector<std::shared_ptr<std::vector<std::vector<float>>>> SpectralSynth::cac
     bool ok = entry && entry->size() == sizeof key + payload && std::memcmp(entry->data(), &key, sizeof key) == 0;
     if (ok) {
       auto bands = std::make_shared<Bands>(kNumBands, std::vector<float>(n));
+      const auto bound = finishedBandBounds(*sqrtNoiseWeights(n, mBandFs), responseOnPeriod(h, n), n);
       const char* p = entry->data() + sizeof key;
-      for (auto& band : *bands) {
+      for (size_t b = 0; b < size_t(kNumBands); ++b) {
+        std::vector<float>& band = (*bands)[b];
         std::memcpy(band.data(), p, n * sizeof(float));
         p += n * sizeof(float);
-        for (float v : band) ok = ok && std::isfinite(v);
+        double sum = 0;
+        for (float v : band) sum += double(v) * double(v);  // inf or NaN for a non-finite v
+        ok = ok && sum / double(n) <= bound[b];
       }
       if (ok) out[k] = std::move(bands);
     }
@@ -940,19 +984,7 @@ std::vector<std::shared_ptr<std::vector<std::vector<float>>>> SpectralSynth::mak
   // between its grid points); one forward FFT per band serves every filter.
   const auto weights = sqrtNoiseWeights(n, mBandFs);
   std::vector<std::vector<std::complex<float>>> response(missing.size());
-  for (size_t f = 0; f < missing.size(); ++f) {
-    const GridFilter& h = filters[missing[f]].first;
-    if (!h.values) continue;
-    response[f].resize(bins);
-    const size_t last = h.gridSize / 2;
-    for (size_t k = 0; k < bins; ++k) {
-      const double pos = double(k) * double(h.gridSize) / double(n);
-      const size_t i0 = std::min(size_t(pos), last);
-      const size_t i = i0 == last ? last - 1 : i0;
-      const float fr = i0 == last ? 1.0f : float(pos - double(i0));
-      response[f][k] = h.values[i] * (1.0f - fr) + h.values[i + 1] * fr;
-    }
-  }
+  for (size_t f = 0; f < missing.size(); ++f) response[f] = responseOnPeriod(filters[missing[f]].first, n);
   const float scale = 1.0f / float(n);  // KissFFT's inverse is unnormalised
   forBandHalves([&](int b0, int b1) {
     const Plan forward = realPlan(n, false), inverse = realPlan(n, true);  // this thread's while it runs

@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cstring>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -12,6 +13,7 @@
 
 #include "cli_test_util.h"
 #include "earshot/core/bands.h"
+#include "earshot/io/disk_cache.h"
 #include "earshot/io/wav.h"
 #include "earshot/propagation/reflection_tracer.h"
 
@@ -278,6 +280,56 @@ TEST(CliIr, CacheFolderGivesTheSameIrsAndSurvivesDamage) {
   EXPECT_EQ(run("--receiver binaural", "g.wav"), fresh);
   EXPECT_FALSE(fs::exists(cache));
   EXPECT_NE(runEarshot("cache").output.find("no cache folder"), std::string::npos);
+  if (previous) setenv("EARSHOT_CACHE_DIR", saved.c_str(), 1);
+  else unsetenv("EARSHOT_CACHE_DIR");
+}
+
+// A late-noise entry is checked beyond its checksum (anyone can compute
+// one): a band louder than the noise-making could make it is a miss, made
+// again and rewritten; a plausible one is read as it is.
+TEST(CliIr, ACraftedNoiseEntryWithAValidChecksumIsMadeAgain) {
+  namespace fs = std::filesystem;
+  TempDir dir("cli_noise_craft");
+  const std::string cache = dir / "cache";
+  const char* previous = std::getenv("EARSHOT_CACHE_DIR");
+  const std::string saved = previous ? previous : "";
+  setenv("EARSHOT_CACHE_DIR", cache.c_str(), 1);
+  const std::string cmd = "ir " + kShoebox + " --material-map " + kShoeboxMap +
+                          " --source 2,3.5,1.5 --listener 7,3.5,1.5 --receiver omni --quality draft --seed 5 -o ";
+  auto run = [&](const std::string& out) {
+    auto r = runEarshot(cmd + dir / out);
+    EXPECT_EQ(r.exitCode, 0) << r.output;
+    return readFile(dir / out);
+  };
+  const std::string fresh = run("a.wav");
+  std::vector<fs::path> noises;
+  for (const auto& e : fs::directory_iterator(cache))
+    if (e.path().filename().string().rfind("noise-", 0) == 0) noises.push_back(e.path());
+  ASSERT_FALSE(noises.empty());
+  std::vector<std::string> original;
+  for (const auto& e : noises) original.push_back(readFile(e));
+  // Every sample times `gain`, under a valid checksum (the key: 72 bytes,
+  // then the bands' floats, then the 16-byte checksum).
+  auto craft = [&](float gain) {
+    for (size_t i = 0; i < noises.size(); ++i) {
+      std::string bytes = original[i];
+      for (size_t at = 72; at + 4 <= bytes.size() - 16; at += 4) {
+        float v;
+        std::memcpy(&v, &bytes[at], 4);
+        v *= gain;
+        std::memcpy(&bytes[at], &v, 4);
+      }
+      const earshot::Hash128 sum = earshot::hashBytes(bytes.data(), bytes.size() - 16);
+      std::memcpy(&bytes[bytes.size() - 16], &sum.a, 8);
+      std::memcpy(&bytes[bytes.size() - 8], &sum.b, 8);
+      std::ofstream(noises[i], std::ios::binary | std::ios::trunc).write(bytes.data(), std::streamsize(bytes.size()));
+    }
+  };
+  craft(1.01f);  // plausible: read, so the IR differs (the crafting works)
+  EXPECT_FALSE(run("b.wav") == fresh) << "a plausible crafted entry was not read";
+  craft(100.0f);  // 40 dB louder than the noise made, far past the bound: made again
+  EXPECT_TRUE(run("c.wav") == fresh) << "the IR is not the one from the noise made";
+  for (size_t i = 0; i < noises.size(); ++i) EXPECT_TRUE(readFile(noises[i]) == original[i]) << noises[i];
   if (previous) setenv("EARSHOT_CACHE_DIR", saved.c_str(), 1);
   else unsetenv("EARSHOT_CACHE_DIR");
 }
