@@ -1,9 +1,9 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
-#include <cstring>
 #include <cmath>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -306,23 +306,25 @@ TEST(CliIr, ACraftedNoiseEntryWithAValidChecksumIsMadeAgain) {
   for (const auto& e : fs::directory_iterator(cache))
     if (e.path().filename().string().rfind("noise-", 0) == 0) noises.push_back(e.path());
   ASSERT_FALSE(noises.empty());
-  std::vector<std::string> original;
-  for (const auto& e : noises) original.push_back(readFile(e));
-  // Every sample times `gain`, under a valid checksum (the key: 72 bytes,
-  // then the bands' floats, then the 16-byte checksum).
+  std::vector<std::string> original, payload;
+  for (const auto& e : noises) {
+    original.push_back(readFile(e));
+    const auto p = earshot::readCacheEntry(e.string(), original.back().size());
+    ASSERT_TRUE(p) << e;
+    payload.push_back(*p);
+  }
+  // Every sample times `gain` (the key is 72 bytes, the bands' floats
+  // follow), written back with a valid checksum.
   auto craft = [&](float gain) {
     for (size_t i = 0; i < noises.size(); ++i) {
-      std::string bytes = original[i];
-      for (size_t at = 72; at + 4 <= bytes.size() - 16; at += 4) {
+      std::string bytes = payload[i];
+      for (size_t at = 72; at + 4 <= bytes.size(); at += 4) {
         float v;
         std::memcpy(&v, &bytes[at], 4);
         v *= gain;
         std::memcpy(&bytes[at], &v, 4);
       }
-      const earshot::Hash128 sum = earshot::hashBytes(bytes.data(), bytes.size() - 16);
-      std::memcpy(&bytes[bytes.size() - 16], &sum.a, 8);
-      std::memcpy(&bytes[bytes.size() - 8], &sum.b, 8);
-      std::ofstream(noises[i], std::ios::binary | std::ios::trunc).write(bytes.data(), std::streamsize(bytes.size()));
+      ASSERT_TRUE(earshot::writeCacheEntry(cache, noises[i].filename().string(), bytes, "noise-", 1000));
     }
   };
   craft(1.01f);  // plausible: read, so the IR differs (the crafting works)

@@ -179,30 +179,25 @@ TEST_F(HrtfCache, AnEntryWithAValidChecksumIsStillChecked) {
   ASSERT_TRUE(fresh);
   ASSERT_EQ(entries().size(), 1u);
   const fs::path entry = entries().front();
-  std::string original;
-  {
-    std::ifstream in(entry, std::ios::binary);
-    original.assign(std::istreambuf_iterator<char>(in), {});
-  }
-  ASSERT_GT(original.size(), 96u + 16u);
-  // Header: ... file rate at byte 64, reference onset at 72 (doubles); the
-  // delays (doubles) end the payload, before the 16-byte checksum.
-  const std::size_t lastDelay = original.size() - 16 - sizeof(double);
-  auto craft = [&](std::size_t at, double value) {
-    std::string bytes = original;
-    std::memcpy(&bytes[at], &value, sizeof value);
-    const Hash128 sum = hashBytes(bytes.data(), bytes.size() - 16);
-    std::memcpy(&bytes[bytes.size() - 16], &sum.a, 8);
-    std::memcpy(&bytes[bytes.size() - 8], &sum.b, 8);
-    std::ofstream(entry, std::ios::binary | std::ios::trunc).write(bytes.data(), std::streamsize(bytes.size()));
-  };
   auto fromFile = [&] {
     std::ifstream in(entry, std::ios::binary);
     return std::string(std::istreambuf_iterator<char>(in), {});
   };
+  const std::string original = fromFile();
+  const auto payload = readCacheEntry(entry.string(), original.size());
+  ASSERT_TRUE(payload);
+  ASSERT_GT(payload->size(), 96u);
+  // Header: ... file rate at byte 64, reference onset at 72 (doubles); the
+  // delays (doubles) end the payload. Written back with a valid checksum.
+  const std::size_t lastDelay = payload->size() - sizeof(double);
+  auto craft = [&](std::size_t at, double value) {
+    std::string bytes = *payload;
+    std::memcpy(&bytes[at], &value, sizeof value);
+    ASSERT_TRUE(writeCacheEntry(mFolder, entry.filename().string(), bytes, "hrtf-", HrtfSet::kMaxCachedSets));
+  };
   // A plausible value under a valid checksum is read (the crafting works).
   double delay = 0;
-  std::memcpy(&delay, &original[lastDelay], sizeof delay);
+  std::memcpy(&delay, &(*payload)[lastDelay], sizeof delay);
   craft(lastDelay, delay + 1e-6);
   auto plausible = load(kPulse);
   ASSERT_TRUE(plausible);
