@@ -247,8 +247,8 @@ Status probeSofaFile(const std::string& path, uint64_t maxBytes) {
   if (WIFEXITED(status) && WEXITSTATUS(status) == 2) return Status::ok();  // a probe of another version
   // mysofa_load failed: reported as reading it here would, without reading
   // it again (libmysofa can leak on the way out of a failed read).
-  if (WIFEXITED(status) && detail::loadErrorForProbeStatus(WEXITSTATUS(status)) != MYSOFA_OK)
-    return notReadable(path, detail::loadErrorForProbeStatus(WEXITSTATUS(status)));
+  const int loadError = WIFEXITED(status) ? detail::loadErrorForProbeStatus(WEXITSTATUS(status)) : MYSOFA_OK;
+  if (loadError != MYSOFA_OK) return notReadable(path, loadError);
   return parseError(path + ": not a usable SOFA file (libmysofa failed reading it: " +
                     (WIFSIGNALED(status) ? "signal " + std::to_string(WTERMSIG(status)) : std::string("out of memory")) +
                     ")");

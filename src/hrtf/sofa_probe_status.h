@@ -23,10 +23,11 @@ constexpr int kProbeLoadErrorBase = 16;
 // The last error this libmysofa names (mysofa.h's enum).
 constexpr int kLastMysofaError = MYSOFA_ONLY_SOURCES_WITH_MC_SUPPORTED;
 
-/** The probe's exit status for mysofa_load's error `err` (not
- *  MYSOFA_NO_MEMORY: status 3), or 1 when the status cannot carry it (an
- *  errno value, an error newer than this header). */
+/** The probe's exit status for mysofa_load's error `err`: 3 for
+ *  MYSOFA_NO_MEMORY, 1 when the status cannot carry it (an errno value, an
+ *  error newer than this header). */
 constexpr int probeStatusForLoadError(int err) {
+  if (err == MYSOFA_NO_MEMORY) return 3;
   if (err == MYSOFA_INTERNAL_ERROR) return kProbeLoadInternalError;
   if (err >= MYSOFA_INVALID_FORMAT && err <= kLastMysofaError)
     return kProbeLoadErrorBase + (err - MYSOFA_INVALID_FORMAT);
@@ -47,5 +48,6 @@ static_assert(kProbeLoadErrorBase + (kLastMysofaError - MYSOFA_INVALID_FORMAT) <
 static_assert(loadErrorForProbeStatus(probeStatusForLoadError(MYSOFA_READ_ERROR)) == MYSOFA_READ_ERROR);
 static_assert(loadErrorForProbeStatus(probeStatusForLoadError(MYSOFA_INTERNAL_ERROR)) == MYSOFA_INTERNAL_ERROR);
 static_assert(loadErrorForProbeStatus(1) == MYSOFA_OK && loadErrorForProbeStatus(3) == MYSOFA_OK);
+static_assert(probeStatusForLoadError(MYSOFA_NO_MEMORY) == 3);
 
 }  // namespace earshot::hrtf::detail

@@ -51,7 +51,7 @@ int main(int argc, char** argv) {
   MYSOFA_HRTF* h = mysofa_load(argv[1], &err);
   // Out without the exit handlers: a failed load can leak inside libmysofa
   // (sofa_probe_status.h), which a sanitized build would report at exit.
-  if (!h) std::_Exit(err == MYSOFA_NO_MEMORY ? 3 : earshot::hrtf::detail::probeStatusForLoadError(err));
+  if (!h) std::_Exit(earshot::hrtf::detail::probeStatusForLoadError(err));
   const int check = mysofa_check(h);
   mysofa_free(h);
   return check == MYSOFA_OK ? 0 : 1;
