@@ -267,6 +267,42 @@ Status checkOutputPath(const std::string& path) {
   return Status::ok();
 }
 
+Status checkOutputPaths(const std::vector<std::string>& paths, const std::vector<std::string>& names) {
+  if (names.size() != paths.size()) return invalidArgument("checkOutputPaths: one name per path");
+  // Two outputs are one file when their paths are the same once the folders
+  // that exist are resolved (symlinks, ., ..), or when both exist with the
+  // same device and inode (a hard link).
+  struct Identity {
+    size_t index;
+    std::string path;
+    bool exists;
+    dev_t dev;
+    ino_t ino;
+  };
+  std::vector<Identity> seen;
+  for (size_t i = 0; i < paths.size(); ++i) {
+    if (paths[i].empty()) continue;
+    Status s = checkOutputPath(paths[i]);
+    if (!s.isOk()) return Status(s.code(), names[i] + ": " + s.message());
+    Identity id{i, {}, false, 0, 0};
+    std::error_code ec;
+    const fs::path resolved = fs::weakly_canonical(fs::absolute(paths[i], ec), ec);
+    id.path = ec ? fs::path(paths[i]).lexically_normal().string() : resolved.string();
+    struct stat st {};
+    if (::stat(paths[i].c_str(), &st) == 0) {
+      id.exists = true;
+      id.dev = st.st_dev;
+      id.ino = st.st_ino;
+    }
+    for (const Identity& o : seen)
+      if (o.path == id.path || (o.exists && id.exists && o.dev == id.dev && o.ino == id.ino))
+        return invalidArgument(names[i] + " " + displayPath(paths[i]) + " and " + names[o.index] + " " +
+                               displayPath(paths[o.index]) + " are the same file; each output needs its own");
+    seen.push_back(std::move(id));
+  }
+  return Status::ok();
+}
+
 void rememberInputFile(const std::string& path) {
   struct stat st {};
   if (::stat(path.c_str(), &st) == 0 && S_ISREG(st.st_mode)) remember(st);

@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "earshot/io/input_file.h"
 #include "earshot/io/wav.h"
 
 namespace earshot {
@@ -60,6 +61,45 @@ TEST_F(WavTest, MissingAndGarbageFilesGiveErrorsNamingTheFile) {
   auto j = readAudioFile(junk);
   ASSERT_FALSE(j.isOk());
   EXPECT_NE(j.status().message().find(junk), std::string::npos);
+}
+
+
+// One command's outputs: each may be written, and no two are one file.
+TEST_F(WavTest, TwoOutputsOfOneCommandMustBeTwoFiles) {
+  const std::string a = (dir / "a.wav").string(), b = (dir / "b.json").string();
+  EXPECT_TRUE(checkOutputPaths({a, b}, {"-o", "--json"}).isOk());
+  EXPECT_TRUE(checkOutputPaths({a, ""}, {"-o", "--json"}).isOk());  // an output not asked for
+  // The same path, new or existing, and spelled differently.
+  for (int exists = 0; exists < 2; ++exists) {
+    // Earlier tests' inputs, deleted since, stay in this process's input
+    // set: a new file may get one's inode (then it reads as an input). A
+    // file that does is kept aside, so the next gets another inode.
+    for (int k = 0; exists && k < 100; ++k) {
+      std::ofstream(a) << "old";
+      if (checkOutputPath(a).isOk()) break;
+      fs::rename(a, dir / ("taken" + std::to_string(k)));
+    }
+    for (const std::string& same : {a, (dir / "." / "a.wav").string(), (dir / "x" / ".." / "a.wav").string()}) {
+      Status s = checkOutputPaths({a, same}, {"-o", "--json"});
+      ASSERT_FALSE(s.isOk()) << same;
+      EXPECT_NE(s.message().find("--json"), std::string::npos) << s.message();
+      EXPECT_NE(s.message().find("same file"), std::string::npos) << s.message();
+    }
+  }
+  // A hard link and a symlink name the file too.
+  fs::create_hard_link(a, dir / "hard.json");
+  fs::create_symlink(a, dir / "soft.json");
+  EXPECT_FALSE(checkOutputPaths({a, (dir / "hard.json").string()}, {"-o", "--json"}).isOk());
+  EXPECT_FALSE(checkOutputPaths({(dir / "soft.json").string(), a}, {"-o", "--json"}).isOk());
+  // Each output is still checked on its own, and says which option it is.
+  Status device = checkOutputPaths({a, "/dev/null"}, {"-o", "--json"});
+  ASSERT_FALSE(device.isOk());
+  EXPECT_EQ(device.message().rfind("--json: ", 0), 0u) << device.message();
+  EXPECT_FALSE(checkOutputPaths({a}, {}).isOk());  // a name per path
+  std::ifstream f(a);
+  std::string content;
+  f >> content;
+  EXPECT_EQ(content, "old");  // nothing written
 }
 
 }  // namespace earshot

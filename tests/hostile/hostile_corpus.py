@@ -151,7 +151,7 @@ class Case:
     def __init__(self, name, files, args, expect, contains=None, outputs=(), setup=None, stdout_lacks=None):
         self.name = name
         self.files = files        # name -> bytes or str (written into the case folder)
-        self.args = args          # earshot arguments, {dir} and {src} substituted
+        self.args = args          # earshot arguments, {dir} and {outside} substituted
         self.expect = expect      # "error" or "warning"
         self.contains = contains  # a text the error/warning must contain
         self.outputs = outputs    # files the command may write (not inputs)
@@ -275,6 +275,26 @@ def cases(src):
     for target in ["dry.wav", "scene.json", "room.gltf"]:
         c.append(Case("render -o onto " + target, dict(scene_files, **{"scene.json": scene_json()}),
                       ["render", "{dir}/scene.json", "-o", "{dir}/" + target, "--quiet"], "error", contains="input"))
+    # One command's two outputs naming one file: the second would replace the
+    # first (before, `ir -o x --json x` left only the JSON).
+    c.append(Case("ir -o and --json one file", {"room.gltf": room}, base_ir + ["--json", "{dir}/ir.wav"], "error",
+                  contains="same file"))
+    c.append(Case("ir --json a hard link to -o", {"room.gltf": room, "old.wav": dry},
+                  base_ir[:-2] + ["-o", "{dir}/old.wav", "--json", "{dir}/old.json"], "error", contains="same file",
+                  setup=lambda d: os.link(os.path.join(d, "old.wav"), os.path.join(d, "old.json"))))
+    c.append(Case("ir --json through a symlink to -o", {"room.gltf": room, "old.wav": dry},
+                  base_ir[:-2] + ["-o", "{dir}/old.wav", "--json", "{dir}/sub/old.wav"], "error",
+                  contains="same file", setup=lambda d: os.symlink(".", os.path.join(d, "sub"))))
+    tradeoff = ["tradeoff", "{dir}/room.gltf", "--source", "2,3.5,1.5", "--listener", "7,3.5,1.5", "--rays", "100",
+                "--bounces", "2", "--repeats", "1"]
+    plot_script = open(os.path.join(src, "tools/plot_tradeoff.py")).read()
+    c.append(Case("tradeoff -o and --plot one file", {"room.gltf": room, "p.py": plot_script}, tradeoff + [
+        "-o", "{dir}/t.csv", "--plot", "{dir}/t.csv", "--plot-script", "{dir}/p.py"], "error", contains="same file"))
+    c.append(Case("tradeoff --plot onto its plot script", {"room.gltf": room, "p.py": plot_script}, tradeoff + [
+        "-o", "{dir}/t.csv", "--plot", "{dir}/p.py", "--plot-script", "{dir}/p.py"], "error", contains="input"))
+    c.append(Case("render -o a hard link to its audio", dict(scene_files, **{"scene.json": scene_json()}),
+                  ["render", "{dir}/scene.json", "-o", "{dir}/hard.wav", "--quiet"], "error", contains="input",
+                  setup=lambda d: os.link(os.path.join(d, "dry.wav"), os.path.join(d, "hard.wav"))))
     c.append(Case("tradeoff -o onto materials", {"room.gltf": room, "m.json": open(
         os.path.join(src, "materials/default.json")).read()},
         ["tradeoff", "{dir}/room.gltf", "--materials", "{dir}/m.json", "--source", "2,3.5,1.5", "--listener",

@@ -151,8 +151,7 @@ int run(const IrOptions& o, const CLI::App& cmd) {
 
   // Every input is read now: refuse an output that would replace one (or a
   // FIFO, a device) before computing (the writes check again).
-  for (const std::string* out : {&o.output, &o.json})
-    if (!out->empty() && !check(checkOutputPath(*out))) return 2;
+  if (!check(checkOutputPaths({o.output, o.json}, {"-o", "--json"}))) return 2;
   if (!check(audioFormatForPath(o.output).status())) return 2;
 
   ThreadPool pool(o.threads);

@@ -94,6 +94,10 @@ int run(const RenderCliOptions& o, const CLI::App& cmd) {
   std::vector<std::string> inputs = {o.scene, scene->geometryPath, scene->materialsPath, scene->materialMapPath,
                                      scene->settings.hrtfPath};
   for (const auto& s : scene->sources) inputs.push_back(s.audioPath);
+  // Remembered now (the audio is opened as the render reaches it): the
+  // output's open then refuses a hard link to one, before rendering.
+  for (const auto& in : inputs)
+    if (!in.empty()) rememberInputFile(in);
   for (const auto& in : inputs)
     if (!in.empty() && samePath(in, o.output)) {
       printError("-o " + o.output + ": is an input of the scene (" + in + "); refusing to overwrite it");

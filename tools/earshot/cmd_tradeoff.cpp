@@ -467,8 +467,8 @@ int run(const TradeoffOptions& o) {
   // Refuse an output that would replace an input (or a FIFO, a device)
   // before the reference run and the sweep (the writes check again).
   if (!o.reference.empty()) rememberInputFile(o.reference);
-  for (const std::string* out : {&o.output, &o.plot})
-    if (!out->empty() && !check(checkOutputPath(*out))) return 2;
+  if (!o.plot.empty()) rememberInputFile(o.plotScript);
+  if (!check(checkOutputPaths({o.output, o.plot}, {"-o", "--plot"}))) return 2;
   if (!o.reference.empty()) {
     auto ref = readAudioFile(o.reference);
     if (!ref.isOk()) {

@@ -21,6 +21,7 @@
 #include <cstdint>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "earshot/core/status.h"
 
@@ -115,6 +116,13 @@ std::string folderOf(const std::string& file);
  *  process has read as input (same device and inode), a directory, a FIFO, a
  *  device or a socket. A path that does not exist yet is fine. */
 Status checkOutputPath(const std::string& path);
+
+/** checkOutputPath for each of one command's outputs (empty ones skipped),
+ *  and no two of them the same file: the same device and inode when it
+ *  exists (a hard link, a symlink), else the same path once its existing
+ *  folders are resolved. `names` are the options shown in messages
+ *  ("-o", "--json"), one per path. */
+Status checkOutputPaths(const std::vector<std::string>& paths, const std::vector<std::string>& names);
 
 /** Records `path` as an input without reading it (for files a library opens
  *  itself); silently nothing if it cannot be stat'ed. */
