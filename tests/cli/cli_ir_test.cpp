@@ -45,6 +45,27 @@ TEST(CliIr, FreeFieldDirectSoundIsOneOverRAtRoverC) {
   EXPECT_NEAR(x[480], 1.0 / 3.43, 1e-4);  // 3.43 m / 343 m/s * 48 kHz = 480 samples exactly
 }
 
+// A source on the listener is valid (the direct sound's 1/r is clamped at
+// 0.1 m) but rarely meant: a warning says so, and the clamp holds.
+TEST(CliIr, ASourceOnTheListenerIsWarnedAboutAndClamped) {
+  TempDir dir("cli_coincident");
+  auto r = runEarshot("ir --source 0,0,0.05 --listener 0,0,0 --receiver omni --air off -o " + dir / "ir.wav --json " +
+                      dir / "s.json");
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_NE(r.output.find("warning: source and listener are 0.05 m apart"), std::string::npos) << r.output;
+  const auto s = nlohmann::json::parse(readFile(dir / "s.json"));
+  EXPECT_NE(s["warnings"].dump().find("clamped at 0.1 m"), std::string::npos) << s["warnings"].dump();
+  auto ir = readAudioFile(dir / "ir.wav");
+  ASSERT_TRUE(ir.isOk()) << ir.status().message();
+  float peak = 0;
+  for (float v : ir->channels[0]) peak = std::max(peak, std::abs(v));
+  EXPECT_NEAR(peak, 10.0f, 0.05f);  // 1 / 0.1 m, not 1 / 0.05 m
+  // 0.1 m apart: no warning.
+  auto far = runEarshot("ir --source 0,0,0.1 --listener 0,0,0 --receiver omni -o " + dir / "far.wav");
+  ASSERT_EQ(far.exitCode, 0) << far.output;
+  EXPECT_EQ(far.output.find("apart"), std::string::npos) << far.output;
+}
+
 // Third octaves end to end (issue 20): `ir --bands third-octave` in the
 // sample room with a materials file in third octaves that absorbs at 315 Hz
 // only; --json reports 21 bands' traced decays and the three passes; the

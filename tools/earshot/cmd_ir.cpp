@@ -2,6 +2,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <iostream>
 #include <map>
@@ -166,6 +167,13 @@ int run(const IrOptions& o, const CLI::App& cmd) {
         warn(std::string(name) + " at " + std::to_string(p.x) + "," + std::to_string(p.y) + "," + std::to_string(p.z) +
                  " lies outside the closed volume of " + o.geometry,
              warnings);
+  }
+  const double minDistance = DirectPathSettings{}.minDistanceMeters;
+  if (length(source - listener) < minDistance) {
+    char text[160];
+    std::snprintf(text, sizeof text, "source and listener are %.3g m apart: the direct sound's 1/r is clamped at %g m",
+                  length(source - listener), minDistance);
+    warn(text, warnings);
   }
   const TraceMode traceMode = *traceModeFromString(o.trace);
   if (traceMode == TraceMode::kShared && o.convergeDb > 0 &&
