@@ -111,6 +111,9 @@ def main():
     except OSError as e:
         os.unlink(tmp)
         fail(f"{dst}: {e}")
+    except BaseException:  # Ctrl-C (KeyboardInterrupt) too: no temporary file left
+        os.unlink(tmp)
+        raise
 
 
 if __name__ == "__main__":

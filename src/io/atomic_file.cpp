@@ -7,6 +7,7 @@
 #include <random>
 
 #include "earshot/io/input_file.h"
+#include "earshot/io/temp_files.h"
 
 namespace earshot {
 
@@ -16,6 +17,7 @@ Status writeFileAtomically(const std::string& path, const std::function<Status(c
   // Unique name in the same directory (rename is atomic only within a filesystem).
   std::random_device rd;
   std::string tmp = path + ".tmp-" + std::to_string(::getpid()) + "-" + std::to_string(rd());
+  const TempFileGuard guard(tmp);  // removed if a signal ends the program meanwhile
   Status s = write(tmp);
   if (!s.isOk()) {
     std::remove(tmp.c_str());

@@ -161,6 +161,7 @@ Result<std::unique_ptr<WavStreamWriter>> WavStreamWriter::open(const std::string
   w->mPath = path;
   w->mTmp = path + ".tmp-" + std::to_string(::getpid()) + "-" + std::to_string(reinterpret_cast<uintptr_t>(w.get()));
   w->mChannels = channels;
+  w->mTmpGuard = std::make_unique<TempFileGuard>(w->mTmp);
   SNDFILE* f = openForWriting(w->mTmp, *format, channels, sampleRateHz);
   if (!f) return ioError(path + ": cannot open for writing (" + sf_strerror(nullptr) + ")");
   w->mFile = f;
@@ -205,6 +206,7 @@ Status WavStreamWriter::commit() {
   Status s = checkOutputPath(mPath);  // the target may have changed meanwhile
   if (s.isOk() && std::rename(mTmp.c_str(), mPath.c_str()) != 0) s = ioError(mPath + ": cannot write (rename failed)");
   if (!s.isOk()) std::remove(mTmp.c_str());
+  mTmpGuard.reset();
   return s;
 }
 

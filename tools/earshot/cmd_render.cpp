@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "command.h"
+#include "earshot/io/temp_files.h"
 #include "earshot/io/wav.h"
 #include "earshot/offline/render_scene.h"
 #include "earshot/render/scene_file.h"
@@ -132,6 +133,9 @@ int run(const RenderCliOptions& o, const CLI::App& cmd) {
       if (!path.empty()) std::remove(path.c_str());
     }
   } removeFirstPass{normalize ? firstPass : std::string()};
+  // And if a signal ends the program before that.
+  std::optional<TempFileGuard> firstPassGuard;
+  if (normalize) firstPassGuard.emplace(firstPass);
   auto writer = WavStreamWriter::open(firstPass, *channels, scene->settings.sampleRateHz);
   if (!check(writer.status())) return 2;
   ro.sink = [&](const float* const* planar, size_t n) { return (*writer)->write(planar, n); };

@@ -12,6 +12,7 @@
 #include "earshot/earshot_version.h"
 #include "earshot/core/math.h"
 #include "earshot/io/input_file.h"
+#include "earshot/io/temp_files.h"
 #include "earshot/scene/gltf_loader.h"
 
 namespace earshot::cli {
@@ -143,6 +144,8 @@ CLI::Option* addVec3Option(CLI::App& app, const std::string& name, std::array<do
 }  // namespace earshot::cli
 
 int main(int argc, char** argv) {
+  // Ctrl-C or kill: the outputs' temporary files go too (temp_files.h).
+  earshot::removeTempFilesOnTerminationSignals();
   CLI::App app{"earshot: CPU audio propagation for VR spatial audio (impulse responses, rendering, analysis)"};
   app.require_subcommand(1);
   app.set_version_flag("--version", "earshot " EARSHOT_VERSION_STRING);

@@ -8,6 +8,7 @@
 
 #include "earshot/core/audio_buffer.h"
 #include "earshot/core/status.h"
+#include "earshot/io/temp_files.h"
 
 namespace earshot {
 
@@ -92,6 +93,7 @@ class WavStreamWriter {
   AudioFileFormat mFormat;
   void* mFile = nullptr;  // SNDFILE*
   std::vector<float> mInterleaved;
+  std::unique_ptr<TempFileGuard> mTmpGuard;  // mTmp, while it exists
 };
 
 }  // namespace earshot

@@ -1,0 +1,91 @@
+// A command ended by a signal (Ctrl-C, kill) leaves no temporary file behind
+// (temp_files.h), and its parent sees it ended by that signal.
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <filesystem>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "cli_test_util.h"
+
+extern char** environ;
+
+namespace earshot {
+namespace fs = std::filesystem;
+using testing::TempDir;
+
+namespace {
+
+std::vector<std::string> filesIn(const fs::path& dir) {
+  std::vector<std::string> names;
+  for (const auto& e : fs::directory_iterator(dir)) names.push_back(e.path().filename().string());
+  return names;
+}
+
+/** Starts `earshot args...` with the termination signals at their default
+ *  (a shell's background job would have SIGINT ignored). */
+pid_t spawnEarshot(const std::vector<std::string>& args) {
+  std::vector<std::string> all{EARSHOT_CLI};
+  all.insert(all.end(), args.begin(), args.end());
+  std::vector<char*> argv;
+  for (auto& a : all) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  posix_spawnattr_t attr;
+  posix_spawnattr_init(&attr);
+  sigset_t defaults;
+  sigemptyset(&defaults);
+  for (int s : {SIGINT, SIGTERM, SIGHUP}) sigaddset(&defaults, s);
+  posix_spawnattr_setsigdefault(&attr, &defaults);
+  sigset_t none;
+  sigemptyset(&none);
+  posix_spawnattr_setsigmask(&attr, &none);
+  posix_spawnattr_setflags(&attr, POSIX_SPAWN_SETSIGDEF | POSIX_SPAWN_SETSIGMASK);
+  pid_t pid = -1;
+  if (posix_spawn(&pid, all[0].c_str(), nullptr, &attr, argv.data(), environ) != 0) pid = -1;
+  posix_spawnattr_destroy(&attr);
+  return pid;
+}
+
+}  // namespace
+
+class CliSignal : public ::testing::TestWithParam<int> {};
+
+TEST_P(CliSignal, AnInterruptedRenderLeavesNoTemporaryFile) {
+  const int sig = GetParam();
+  for (bool normalize : {false, true}) {
+    TempDir dir("cli_signal_" + std::to_string(sig) + (normalize ? "_n" : ""));
+    const fs::path out = fs::path(dir.path) / "out.wav";
+    std::vector<std::string> args{"render", std::string(EARSHOT_SOURCE_DIR) + "/samples/hall/circling.json", "-o",
+                                  out.string(), "--quiet"};
+    if (normalize) args.insert(args.end(), {"--normalize", "-1"});
+    const pid_t pid = spawnEarshot(args);
+    ASSERT_GT(pid, 0);
+    // The render streams into a temporary file beside the output from its
+    // start (a render of the sample takes seconds): end it once it is there.
+    bool seen = false;
+    for (int i = 0; i < 6000 && !seen; ++i) {
+      for (const auto& name : filesIn(dir.path)) seen = seen || name.find(".tmp-") != std::string::npos;
+      if (!seen) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    ASSERT_EQ(::kill(pid, sig), 0);
+    int status = 0;
+    ASSERT_EQ(::waitpid(pid, &status, 0), pid);
+    ASSERT_TRUE(seen) << "no temporary file appeared";
+    ASSERT_TRUE(WIFSIGNALED(status)) << "exit status " << (WIFEXITED(status) ? WEXITSTATUS(status) : -1);
+    EXPECT_EQ(WTERMSIG(status), sig);
+    EXPECT_EQ(filesIn(dir.path), std::vector<std::string>{}) << "normalize " << normalize;
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Signals, CliSignal, ::testing::Values(SIGINT, SIGTERM, SIGHUP),
+                         [](const ::testing::TestParamInfo<int>& i) {
+                           return std::string(i.param == SIGINT ? "Int" : i.param == SIGTERM ? "Term" : "Hup");
+                         });
+
+}  // namespace earshot
