@@ -190,7 +190,7 @@ Status WavStreamWriter::write(const float* const* planar, size_t frames) {
       mClipped += mFormat.clipsAtFullScale && std::fabs(v) > 1.0f ? 1 : 0;
     }
   if (sf_writef_float(static_cast<SNDFILE*>(mFile), mInterleaved.data(), sf_count_t(frames)) != sf_count_t(frames))
-    return ioError(mPath + ": write failed");
+    return ioError(mPath + ": write failed (" + sf_strerror(static_cast<SNDFILE*>(mFile)) + ")");
   mFrames += frames;
   return Status::ok();
 }

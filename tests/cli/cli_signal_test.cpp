@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <spawn.h>
+#include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -81,6 +82,40 @@ TEST_P(CliSignal, AnInterruptedRenderLeavesNoTemporaryFile) {
     EXPECT_EQ(WTERMSIG(status), sig);
     EXPECT_EQ(filesIn(dir.path), std::vector<std::string>{}) << "normalize " << normalize;
   }
+}
+
+// A file-size limit (ulimit -f) reached mid-render is a write error naming
+// the output (SIGXFSZ ignored), and the temporary file goes.
+TEST(CliFileSizeLimit, IsAWriteErrorAndLeavesNothing) {
+  TempDir dir("cli_fsize");
+  const std::string out = dir / "out.wav";
+  const std::string scene = std::string(EARSHOT_SOURCE_DIR) + "/samples/hall/circling.json";
+  const std::string cli = EARSHOT_CLI;
+  int pipeFds[2];
+  ASSERT_EQ(::pipe(pipeFds), 0);
+  const pid_t pid = ::fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    struct rlimit limit {1 << 20, 1 << 20};  // 1 MiB: the render's WAV is larger
+    ::setrlimit(RLIMIT_FSIZE, &limit);
+    ::signal(SIGXFSZ, SIG_DFL);  // as a shell leaves it
+    ::dup2(pipeFds[1], 2);
+    ::close(pipeFds[0]);
+    ::execl(cli.c_str(), cli.c_str(), "render", scene.c_str(), "-o", out.c_str(), "--quiet", nullptr);
+    ::_exit(127);
+  }
+  ::close(pipeFds[1]);
+  std::string err;
+  char buf[4096];
+  ssize_t n;
+  while ((n = ::read(pipeFds[0], buf, sizeof buf)) > 0) err.append(buf, size_t(n));
+  ::close(pipeFds[0]);
+  int status = 0;
+  ASSERT_EQ(::waitpid(pid, &status, 0), pid);
+  ASSERT_TRUE(WIFEXITED(status)) << "ended by signal " << (WIFSIGNALED(status) ? WTERMSIG(status) : 0);
+  EXPECT_EQ(WEXITSTATUS(status), 2) << err;
+  EXPECT_NE(err.find("out.wav: write failed"), std::string::npos) << err;
+  EXPECT_EQ(filesIn(dir.path), std::vector<std::string>{});
 }
 
 INSTANTIATE_TEST_SUITE_P(Signals, CliSignal, ::testing::Values(SIGINT, SIGTERM, SIGHUP),

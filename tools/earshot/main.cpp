@@ -3,6 +3,7 @@
 #include <cerrno>
 #include <cstdlib>
 #include <cmath>
+#include <csignal>
 #include <iostream>
 #include <map>
 #include <sstream>
@@ -146,6 +147,9 @@ CLI::Option* addVec3Option(CLI::App& app, const std::string& name, std::array<do
 int main(int argc, char** argv) {
   // Ctrl-C or kill: the outputs' temporary files go too (temp_files.h).
   earshot::removeTempFilesOnTerminationSignals();
+  // A file-size limit (ulimit -f) then fails the write (EFBIG: an error
+  // naming the output, the temporary file removed) instead of killing.
+  std::signal(SIGXFSZ, SIG_IGN);
   CLI::App app{"earshot: CPU audio propagation for VR spatial audio (impulse responses, rendering, analysis)"};
   app.require_subcommand(1);
   app.set_version_flag("--version", "earshot " EARSHOT_VERSION_STRING);
