@@ -256,7 +256,21 @@ Result<std::string> resolveReference(const std::string& folder, const std::strin
 Status checkOutputPath(const std::string& path) {
   if (path.empty()) return invalidArgument("output path is empty");
   struct stat st {};
-  if (::stat(path.c_str(), &st) != 0) return Status::ok();  // a new file
+  if (::stat(path.c_str(), &st) != 0) {
+    // A new file: its folder must exist and take it, so that a command with
+    // several outputs fails before writing the first rather than after.
+    const fs::path parent = fs::path(path).parent_path();
+    const std::string folder = parent.empty() ? "." : parent.string();
+    struct stat dir {};
+    if (::stat(folder.c_str(), &dir) != 0)
+      return notFound(displayPath(path) + ": cannot write: folder " + displayPath(folder) + " does not exist");
+    if (!S_ISDIR(dir.st_mode))
+      return invalidArgument(displayPath(path) + ": cannot write: " + displayPath(folder) + " is not a folder");
+    if (::access(folder.c_str(), W_OK | X_OK) != 0)
+      return ioError(displayPath(path) + ": cannot write into folder " + displayPath(folder) + " (" +
+                     std::strerror(errno) + ")");
+    return Status::ok();
+  }
   if (!S_ISREG(st.st_mode))
     return invalidArgument(displayPath(path) + ": output is " + std::string(kindOf(st.st_mode)) +
                            "; refusing to replace it (outputs must be regular files)");

@@ -285,6 +285,11 @@ def cases(src):
     c.append(Case("ir --json through a symlink to -o", {"room.gltf": room, "old.wav": dry},
                   base_ir[:-2] + ["-o", "{dir}/old.wav", "--json", "{dir}/sub/old.wav"], "error",
                   contains="same file", setup=lambda d: os.symlink(".", os.path.join(d, "sub"))))
+    # An output that cannot be written is found before the first is written.
+    c.append(Case("ir --json into a missing folder", {"room.gltf": room}, base_ir + ["--json", "{dir}/no/s.json"],
+                  "error", contains="does not exist"))
+    c.append(Case("ir --json under a file", {"room.gltf": room}, base_ir + ["--json", "{dir}/room.gltf/s.json"],
+                  "error", contains="not a folder"))
     tradeoff = ["tradeoff", "{dir}/room.gltf", "--source", "2,3.5,1.5", "--listener", "7,3.5,1.5", "--rays", "100",
                 "--bounces", "2", "--repeats", "1"]
     plot_script = open(os.path.join(src, "tools/plot_tradeoff.py")).read()

@@ -114,7 +114,8 @@ std::string folderOf(const std::string& file);
 
 /** An output may be written to `path`: refused if it is one of the files this
  *  process has read as input (same device and inode), a directory, a FIFO, a
- *  device or a socket. A path that does not exist yet is fine. */
+ *  device or a socket. A path that does not exist yet is fine when its
+ *  folder exists and this process may write into it. */
 Status checkOutputPath(const std::string& path);
 
 /** checkOutputPath for each of one command's outputs (empty ones skipped),
