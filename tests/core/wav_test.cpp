@@ -79,13 +79,18 @@ TEST_F(WavTest, TwoOutputsOfOneCommandMustBeTwoFiles) {
       if (checkOutputPath(a).isOk()) break;
       fs::rename(a, dir / ("taken" + std::to_string(k)));
     }
-    for (const std::string& same : {a, (dir / "." / "a.wav").string(), (dir / "x" / ".." / "a.wav").string()}) {
+    fs::create_directories(dir / "sub");
+    for (const std::string& same : {a, (dir / "." / "a.wav").string(), (dir / "sub" / ".." / "a.wav").string()}) {
       Status s = checkOutputPaths({a, same}, {"-o", "--json"});
       ASSERT_FALSE(s.isOk()) << same;
       EXPECT_NE(s.message().find("--json"), std::string::npos) << s.message();
       EXPECT_NE(s.message().find("same file"), std::string::npos) << s.message();
     }
   }
+  // Through a folder that does not exist: no file can be written there.
+  Status missing = checkOutputPaths({a, (dir / "x" / ".." / "a.wav").string()}, {"-o", "--json"});
+  ASSERT_FALSE(missing.isOk());
+  EXPECT_NE(missing.message().find("does not exist"), std::string::npos) << missing.message();
   // A hard link and a symlink name the file too.
   fs::create_hard_link(a, dir / "hard.json");
   fs::create_symlink(a, dir / "soft.json");
