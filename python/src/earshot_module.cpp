@@ -340,6 +340,7 @@ std::vector<IrOut> computeGroup(SceneData& scene, const IrOptions& q, const std:
         continue;
       }
       outs[k].report = thirdOctaveReportJson(*r, s, !scene.tracer->empty());
+      for (std::string& w : thirdOctaveIrWarnings(*r)) outs[k].warnings.push_back(std::move(w));
       outs[k].ir = std::move(r->ir);
     }
     return outs;
@@ -349,6 +350,7 @@ std::vector<IrOut> computeGroup(SceneData& scene, const IrOptions& q, const std:
   for (size_t k = 0; k < sources.size(); ++k) {
     OmniIrResult& result = (*r)[k];
     outs[k].report = irReportJson(result, s, !scene.tracer->empty());
+    for (std::string& w : irWarnings(result)) outs[k].warnings.push_back(std::move(w));
     outs[k].ir = std::move(result.ir);
   }
   return outs;

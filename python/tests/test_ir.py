@@ -197,6 +197,20 @@ def test_from_arrays_with_material_dicts():
         assert t60[3] == pytest.approx(eyring, rel=0.25), (a, t60)
 
 
+def test_an_ir_cut_by_the_automatic_lengths_cap_says_so():
+    # A box that does not absorb rings past the 30 s cap: the IR stops there,
+    # and its warnings say so (as `earshot ir` does); a given length does not.
+    v = np.array([[0, 0, 0], [5, 0, 0], [5, 4, 0], [0, 4, 0], [0, 0, 3], [5, 0, 3], [5, 4, 3], [0, 4, 3]], float)
+    t = np.array([[0, 3, 7], [0, 7, 4], [1, 5, 6], [1, 6, 2], [0, 4, 5], [0, 5, 1], [3, 2, 6], [3, 6, 7],
+                  [0, 1, 2], [0, 2, 3], [4, 7, 6], [4, 6, 5]])
+    lossless = earshot.Scene.from_arrays(v, t, np.zeros(12, int), {"w": {"absorption": [0] * 7, "scattering": 0.5}})
+    r = lossless.ir((1, 1, 1), (4, 3, 2), receiver="omni", quality="draft", air="off")
+    assert r.stats["tail"]["length_capped_at_s"] == 30.0
+    assert any("had not decayed by 60 dB at 30 s" in w for w in r.warnings), r.warnings
+    given = lossless.ir((1, 1, 1), (4, 3, 2), receiver="omni", quality="draft", air="off", length=1.0)
+    assert not any("had not decayed" in w for w in given.warnings), given.warnings
+
+
 @pytest.mark.parametrize("kwargs,exc,text", [
     (dict(source=(float("nan"), 0, 0)), ValueError, "finite"),
     (dict(source="1,2,3"), TypeError, "string"),

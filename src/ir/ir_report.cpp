@@ -2,6 +2,7 @@
 #include "earshot/ir/ir_report.h"
 
 #include <cmath>
+#include <cstdio>
 
 #include "earshot/ir/third_octave.h"
 
@@ -10,6 +11,29 @@
 #include <nlohmann/json.hpp>
 
 namespace earshot {
+
+std::vector<std::string> irWarnings(const OmniIrResult& r) {
+  std::vector<std::string> out;
+  if (r.tail.cappedAtSeconds > 0) {
+    double slowest = 0;
+    for (double t : r.tail.t60Seconds) slowest = std::max(slowest, t);
+    char text[256];
+    std::snprintf(text, sizeof text,
+                  "the reverberation had not decayed by 60 dB at %g s, where the automatic length stops (slowest "
+                  "band's T60 %.3g s): the IR ends abruptly; check the materials' absorption, or give a length",
+                  r.tail.cappedAtSeconds, slowest);
+    out.push_back(text);
+  }
+  return out;
+}
+
+std::vector<std::string> thirdOctaveIrWarnings(const ThirdOctaveIrResult& result) {
+  std::vector<std::string> out;
+  for (const OmniIrResult& pass : result.passes)
+    for (std::string& w : irWarnings(pass))
+      if (std::find(out.begin(), out.end(), w) == out.end()) out.push_back(std::move(w));
+  return out;
+}
 
 std::string irReportJson(const OmniIrResult& r, const OmniIrSettings& settings, bool geometryTraced) {
   nlohmann::json stats;
@@ -63,7 +87,8 @@ std::string irReportJson(const OmniIrResult& r, const OmniIrSettings& settings, 
                    {"measured_by_probes", r.tail.probed},
                    {"start_s", r.tail.startSeconds},
                    {"mean_loss_per_reflection", r.tail.meanLoss},
-                   {"mean_free_path_m", r.tail.meanFreePathMeters}};
+                   {"mean_free_path_m", r.tail.meanFreePathMeters},
+                   {"length_capped_at_s", r.tail.cappedAtSeconds}};
   stats["skipped"] = r.skipped;
   stats["time_ms"] = {{"direct", r.timings.directMs},     {"early_reflections", r.timings.imageSourcesMs},
                       {"trace", r.timings.traceMs},       {"tail", r.timings.tailMs},

@@ -101,8 +101,9 @@ Result<TailRates> tailRates(const TailData& tail, double dt, size_t traced, cons
         if (tail.probeAlive[i][b] > 0) lastProbe = double(i + 1) * dt;
     for (const CutRay& c : tail.probeEnds)
       lastProbe = std::max(lastProbe, double(c.pathMeters) / settings.speedOfSound);
-    const double end = std::min(settings.maxAutoSeconds, std::max(lastCut, lastProbe) +
-                                                             settings.dynamicRangeDb / 10.0 * std::log(10.0) / slowest);
+    const double wanted = std::max(lastCut, lastProbe) + settings.dynamicRangeDb / 10.0 * std::log(10.0) / slowest;
+    const double end = std::min(settings.maxAutoSeconds, wanted);
+    if (!(wanted <= settings.maxAutoSeconds)) r.info.cappedAtSeconds = settings.maxAutoSeconds;
     r.bins = std::max(traced, size_t(std::ceil(end / dt)));
   }
 

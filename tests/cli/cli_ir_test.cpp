@@ -66,6 +66,27 @@ TEST(CliIr, ASourceOnTheListenerIsWarnedAboutAndClamped) {
   EXPECT_EQ(far.output.find("apart"), std::string::npos) << far.output;
 }
 
+// A room that does not absorb rings past the automatic length's 30 s cap:
+// the IR ends abruptly there, and a warning and --json say so.
+TEST(CliIr, AnIrCutByTheAutomaticLengthsCapIsWarnedAbout) {
+  TempDir dir("cli_capped");
+  std::ofstream(dir / "m.json") << R"({"bands_hz": [125, 250, 500, 1000, 2000, 4000, 8000], "materials": )"
+                                << R"({"default": {"absorption": [0, 0, 0, 0, 0, 0, 0], "scattering": 0.5}}})";
+  const std::string common = "ir " + kShoebox + " --materials " + dir / "m.json" +
+                             " --source 2,3.5,1.5 --listener 7,3.5,1.5 --receiver omni --quality draft --air off";
+  auto r = runEarshot(common + " -o " + dir / "ir.wav --json " + dir / "s.json");
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_NE(r.output.find("warning: the reverberation had not decayed by 60 dB at 30 s"), std::string::npos)
+      << r.output;
+  const auto s = nlohmann::json::parse(readFile(dir / "s.json"));
+  EXPECT_EQ(s["tail"]["length_capped_at_s"].get<double>(), 30.0);
+  // An explicit length is what was asked for: no warning.
+  auto given = runEarshot(common + " --length 2 -o " + dir / "two.wav --json " + dir / "two.json");
+  ASSERT_EQ(given.exitCode, 0) << given.output;
+  EXPECT_EQ(given.output.find("had not decayed"), std::string::npos) << given.output;
+  EXPECT_EQ(nlohmann::json::parse(readFile(dir / "two.json"))["tail"]["length_capped_at_s"].get<double>(), 0.0);
+}
+
 // Third octaves end to end (issue 20): `ir --bands third-octave` in the
 // sample room with a materials file in third octaves that absorbs at 315 Hz
 // only; --json reports 21 bands' traced decays and the three passes; the

@@ -235,6 +235,36 @@ TEST(TailCompletion, RatesMadeOnceForASharedTraceGiveTheSameBits) {
   }
 }
 
+// The automatic length says when its cap, not the decay, ended it: a room
+// that hardly absorbs, or a cap below a room's decay; an explicit length
+// or a decay that ends first is not capped.
+TEST(TailCompletion, ALengthCutByTheCapSaysSo) {
+  ThreadPool pool(1);
+  ReflectionSettings s;
+  s.rays = 2000;
+  s.air.enabled = false;
+  Room live(0.001f, 0.5f), room(0.2f, 0.5f);
+  auto l = traceReflections(*live.tracer, live.materials, kSource, kListener, s, pool);
+  auto r = traceReflections(*room.tracer, room.materials, kSource, kListener, s, pool);
+  ASSERT_TRUE(l.isOk() && r.isOk());
+  TailCompletionSettings t;
+  t.air.enabled = false;
+  TailInfo info;
+  ASSERT_TRUE(completeTail(l->histogram, l->tail, t, &info).isOk());
+  EXPECT_EQ(info.cappedAtSeconds, t.maxAutoSeconds);  // T60 ~ 500 s
+  EXPECT_NEAR(info.lengthSeconds, t.maxAutoSeconds, l->histogram.binSeconds());
+  ASSERT_TRUE(completeTail(r->histogram, r->tail, t, &info).isOk());
+  EXPECT_EQ(info.cappedAtSeconds, 0.0);
+  const double natural = info.lengthSeconds;
+  EXPECT_LT(natural, t.maxAutoSeconds);
+  t.maxAutoSeconds = natural / 2;
+  ASSERT_TRUE(completeTail(r->histogram, r->tail, t, &info).isOk());
+  EXPECT_EQ(info.cappedAtSeconds, natural / 2);
+  t.lengthSeconds = natural;  // explicit: its own length, not capped
+  ASSERT_TRUE(completeTail(r->histogram, r->tail, t, &info).isOk());
+  EXPECT_EQ(info.cappedAtSeconds, 0.0);
+}
+
 TEST(TailCompletion, ExplicitLengthIsHonoured) {
   Room room(0.2f, 1.0f);
   ThreadPool pool(1);

@@ -211,6 +211,7 @@ int run(const IrOptions& o, const CLI::App& cmd) {
   stats["trace"] = o.trace;
   stats["threads"] = pool.threadCount();
   if (stats["silent"].get<bool>()) warn("the IR is silent: nothing of the source reaches the listener", warnings);
+  for (const std::string& w : thirdOctave ? thirdOctaveIrWarnings(*thirds) : irWarnings(r)) warn(w, warnings);
 
   uint64_t clipped = 0;
   if (!check(writeAudioFile(o.output, irOut, &clipped))) return 2;

@@ -5,6 +5,7 @@
  *  Python package (`IR.params`, `IR.stats`, `IR.time_ms`) both report
  *  through this one function, so their fields and numbers are the same. */
 #include <string>
+#include <vector>
 
 #include "earshot/ir/ir_pipeline.h"
 
@@ -21,7 +22,16 @@ namespace earshot {
  *  traced, and the counts say so. */
 std::string irReportJson(const OmniIrResult& result, const OmniIrSettings& settings, bool geometryTraced);
 
+/** What a computed IR says is probably not meant, one line each (`earshot
+ *  ir` prints them, the Python package's IR.warnings holds them): the
+ *  automatic length stopped at its cap before the reverberation had
+ *  decayed (TailInfo::cappedAtSeconds). */
+std::vector<std::string> irWarnings(const OmniIrResult& result);
+
 struct ThirdOctaveIrResult;
+/** irWarnings of each pass, each text once. */
+std::vector<std::string> thirdOctaveIrWarnings(const ThirdOctaveIrResult& result);
+
 /** A third-octave IR's report (third_octave.h): irReportJson of the
  *  unshifted pass, plus "bands": "third-octave" and "third_octave":
  *  {bands_hz (nominal), centers_hz, decay: {edt_s, t20_s, t30_s} (21 each,

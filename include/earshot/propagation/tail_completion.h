@@ -71,6 +71,10 @@ struct TailInfo {
    *  (ReflectionSettings::tailProbes), not kappa x the population's rate. */
   std::array<bool, kNumBands> probed{};
   double lengthSeconds = 0.0;        ///< of the returned histogram
+  /** The automatic length stopped at maxAutoSeconds before the slowest
+   *  band had decayed by dynamicRangeDb (a room that hardly absorbs): that
+   *  cap, else 0. The IR then ends abruptly. */
+  double cappedAtSeconds = 0.0;
 };
 
 /** Returns the completed histogram (a new, possibly longer one). */
