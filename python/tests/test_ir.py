@@ -206,6 +206,7 @@ def test_an_ir_cut_by_the_automatic_lengths_cap_says_so():
     lossless = earshot.Scene.from_arrays(v, t, np.zeros(12, int), {"w": {"absorption": [0] * 7, "scattering": 0.5}})
     r = lossless.ir((1, 1, 1), (4, 3, 2), receiver="omni", quality="draft", air="off")
     assert r.stats["tail"]["length_capped_at_s"] == 30.0
+    assert r.samples.shape[-1] == pytest.approx(30.0 * r.sample_rate, rel=0.01)
     assert any("had not decayed by 60 dB at 30 s" in w for w in r.warnings), r.warnings
     given = lossless.ir((1, 1, 1), (4, 3, 2), receiver="omni", quality="draft", air="off", length=1.0)
     assert not any("had not decayed" in w for w in given.warnings), given.warnings

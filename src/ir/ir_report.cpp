@@ -88,6 +88,7 @@ std::string irReportJson(const OmniIrResult& r, const OmniIrSettings& settings, 
                    {"start_s", r.tail.startSeconds},
                    {"mean_loss_per_reflection", r.tail.meanLoss},
                    {"mean_free_path_m", r.tail.meanFreePathMeters},
+                   {"detections_per_energy_in_flight", r.tail.kappa},
                    {"length_capped_at_s", r.tail.cappedAtSeconds}};
   stats["skipped"] = r.skipped;
   stats["time_ms"] = {{"direct", r.timings.directMs},     {"early_reflections", r.timings.imageSourcesMs},

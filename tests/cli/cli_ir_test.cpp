@@ -80,6 +80,10 @@ TEST(CliIr, AnIrCutByTheAutomaticLengthsCapIsWarnedAbout) {
       << r.output;
   const auto s = nlohmann::json::parse(readFile(dir / "s.json"));
   EXPECT_EQ(s["tail"]["length_capped_at_s"].get<double>(), 30.0);
+  // At draft (8 bounces) too: kappa from the probes carries the tail on
+  // past the trace's 4 s (it stopped there).
+  EXPECT_NEAR(s["ir_seconds"].get<double>(), 30.0, 0.1);
+  for (double kappa : s["tail"]["detections_per_energy_in_flight"]) EXPECT_GT(kappa, 0.0);
   // An explicit length is what was asked for: no warning.
   auto given = runEarshot(common + " --length 2 -o " + dir / "two.wav --json " + dir / "two.json");
   ASSERT_EQ(given.exitCode, 0) << given.output;

@@ -265,6 +265,53 @@ TEST(TailCompletion, ALengthCutByTheCapSaysSo) {
   EXPECT_EQ(info.cappedAtSeconds, 0.0);
 }
 
+// Where a trace's histogram ends with the room still ringing, the tail
+// carries on from the probes' measured level at the population's rate:
+// no dip before the end, no step after it, and a tail at all when no bin
+// past the image sources was complete enough to calibrate kappa (few
+// bounces), where it used to stop at the trace's end.
+TEST(TailCompletion, TheTailCarriesOnSmoothlyPastTheTracesEnd) {
+  Room live(0.03f, 0.5f);  // T60 ~4.7 s
+  ThreadPool pool(2);
+  ReflectionSettings s;
+  s.maxTimeSeconds = 1.5;
+  s.bounces = 8;
+  s.air.enabled = false;  // as the completion's
+  auto r = traceReflections(*live.tracer, live.materials, kSource, kListener, s, pool);
+  ASSERT_TRUE(r.isOk());
+  const double dt = r->histogram.binSeconds();
+  for (double calibrationStart : {0.02, 0.12}) {  // 0.12 s: past where the 8-bounce trace is complete
+    TailCompletionSettings t;
+    t.air.enabled = false;
+    t.calibrationStartSeconds = calibrationStart;
+    TailInfo info;
+    auto c = completeTail(r->histogram, r->tail, t, &info);
+    ASSERT_TRUE(c.isOk());
+    ASSERT_GT(c->durationSeconds(), 3.0);
+    // Mean level (dB) of all bands over [from, to).
+    auto level = [&](double from, double to) {
+      double e = 0;
+      for (size_t i = size_t(from / dt); i < size_t(to / dt); ++i)
+        for (int b = 0; b < kNumBands; ++b) e += c->energy(i, b);
+      return 10 * std::log10(e / (to - from));
+    };
+    // The decay line through [0.6, 1.0) and [1.9, 2.3): the probes' level
+    // and the extrapolation's; every 50 ms from 0.3 s before the end to 0.3
+    // s after it on that line within 1 dB (before: -2 dB just before the
+    // end, +1 dB just after).
+    const double a = level(0.6, 1.0), z = level(1.9, 2.3);
+    auto line = [&](double mid) { return a + (z - a) * (mid - 0.8) / (2.1 - 0.8); };
+    for (int k = 0; k < 12; ++k) {
+      const double from = 1.2 + 0.05 * k;
+      EXPECT_NEAR(level(from, from + 0.05), line(from + 0.025), 1.0)
+          << "calibration from " << calibrationStart << " s, window at " << from << " s";
+    }
+    // The rate: the room's ~4.7 s T60 (13 dB per second) within 20 %.
+    EXPECT_NEAR((a - z) / 1.3, 60.0 / 4.7, 0.2 * 60.0 / 4.7) << calibrationStart;
+    for (int b = 0; b < kNumBands; ++b) EXPECT_GT(info.kappa[b], 0.0) << calibrationStart;
+  }
+}
+
 TEST(TailCompletion, ExplicitLengthIsHonoured) {
   Room room(0.2f, 1.0f);
   ThreadPool pool(1);
