@@ -262,6 +262,21 @@ Result<EnergyHistogram> completeTail(const EnergyHistogram& h, const TailData& t
       }
       info.kappa[b] = probeInFlight > 0 ? probeDetected / probeInFlight : 0.0;
     }
+    if (!(info.kappa[b] > 0)) {
+      // No probes either (tailProbes 0): the traced rays still in flight
+      // after the image sources, though most were cut (the first
+      // kFitWindowSeconds where any are). Without it the whole tail after
+      // the cut was lost (0.3 s for a 14 s room at 8 bounces).
+      detected = inFlight = 0;
+      size_t taken = 0;
+      for (size_t i = calib0; i < usable && taken < size_t(kFitWindowSeconds / dt) + 1; ++i) {
+        if (!(tail.alive[i][b] > 0)) continue;
+        detected += h.energy(i, b);
+        inFlight += tail.alive[i][b];
+        ++taken;
+      }
+      info.kappa[b] = inFlight > 0 ? detected / inFlight : 0.0;
+    }
     size_t start = traced;
     for (size_t i = 0; i < usable; ++i)
       if (virtualEnergy[i][b] > tail.alive[i][b] && virtualEnergy[i][b] > 0) {

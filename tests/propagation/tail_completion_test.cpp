@@ -312,6 +312,45 @@ TEST(TailCompletion, TheTailCarriesOnSmoothlyPastTheTracesEnd) {
   }
 }
 
+// Without tail probes and with few bounces, no bin past the image sources
+// is complete: kappa comes from the traced rays still in flight there, and
+// the tail carries on at the population's rate (it used to end at the
+// cut: kappa 0).
+TEST(TailCompletion, WithoutProbesOrACompleteBinTheTailStillCarriesOn) {
+  Room live(0.03f, 0.5f);  // T60 ~4.7 s
+  ThreadPool pool(2);
+  ReflectionSettings s;
+  s.bounces = 8;
+  s.tailProbes = 0;
+  s.maxTimeSeconds = 1.0;
+  s.air.enabled = false;
+  auto r = traceReflections(*live.tracer, live.materials, kSource, kListener, s, pool);
+  ASSERT_TRUE(r.isOk());
+  TailCompletionSettings t;
+  t.air.enabled = false;
+  t.calibrationStartSeconds = 0.12;
+  TailInfo info;
+  auto c = completeTail(r->histogram, r->tail, t, &info);
+  ASSERT_TRUE(c.isOk());
+  EXPECT_GT(c->durationSeconds(), 3.0);
+  const double dt = c->binSeconds();
+  auto level = [&](double from, double to) {
+    double e = 0;
+    for (size_t i = size_t(from / dt); i < size_t(to / dt); ++i)
+      for (int b = 0; b < kNumBands; ++b) e += c->energy(i, b);
+    return 10 * std::log10(e / (to - from));
+  };
+  EXPECT_NEAR((level(0.5, 0.7) - level(2.5, 2.7)) / 2.0, 60.0 / 4.7, 0.2 * 60.0 / 4.7);
+  for (int b = 0; b < kNumBands; ++b) EXPECT_GT(info.kappa[b], 0.0);
+  // kappa within 25 % of what a trace complete there measures (40 bounces).
+  s.bounces = 40;
+  auto full = traceReflections(*live.tracer, live.materials, kSource, kListener, s, pool);
+  ASSERT_TRUE(full.isOk());
+  TailInfo complete;
+  ASSERT_TRUE(completeTail(full->histogram, full->tail, t, &complete).isOk());
+  for (int b = 0; b < kNumBands; ++b) EXPECT_NEAR(info.kappa[b], complete.kappa[b], 0.25 * complete.kappa[b]) << b;
+}
+
 TEST(TailCompletion, ExplicitLengthIsHonoured) {
   Room room(0.2f, 1.0f);
   ThreadPool pool(1);
