@@ -28,7 +28,16 @@
  *  tests/regression). Measured there, 16 seeds at the default budget with
  *  flutter cones: RMS error of the converged T20s 0.30 JND and of T30 at
  *  4 kHz 0.33 (energy in flight x kappa: 1.1 and 0.9). Without probes, V(t)
- *  is all cut rays at delta. */
+ *  is all cut rays at delta.
+ *
+ *  kappa is measured where the trace is complete (virtual energy under 10 %
+ *  of the traced). With few bounces no bin after the image sources is (8
+ *  bounces in a 10x7x3 m room cut the rays about when the last second-order
+ *  image source arrives); kappa then comes from the probes' own detections
+ *  per energy in flight, else from the traced rays still in flight there.
+ *  The probes are smoothed within the traced histogram (a window folds
+ *  back at its end), and probes the histogram's end stopped join V(t) there,
+ *  so the tail carries on past the end without a step. */
 #include <array>
 #include <vector>
 
