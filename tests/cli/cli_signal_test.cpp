@@ -118,6 +118,23 @@ TEST(CliFileSizeLimit, IsAWriteErrorAndLeavesNothing) {
   EXPECT_EQ(filesIn(dir.path), std::vector<std::string>{});
 }
 
+// -o a hard link to a source's audio is refused before the render starts
+// (it was refused only at commit, after rendering all of it: the progress
+// lines came first).
+TEST(CliRenderOutput, AHardLinkToAnInputIsRefusedBeforeRendering) {
+  TempDir dir("cli_render_link");
+  const fs::path src = fs::path(EARSHOT_SOURCE_DIR) / "samples" / "hall";
+  for (const char* f : {"circling.json", "hall.glb", "materials_map.json", "guitar.wav"})
+    fs::copy_file(src / f, fs::path(dir.path) / f);
+  fs::create_hard_link(fs::path(dir.path) / "guitar.wav", fs::path(dir.path) / "out.wav");
+  const std::string before = testing::readFile(dir / "guitar.wav");
+  auto r = testing::runEarshot("render " + dir / "circling.json" + " -o " + dir / "out.wav");
+  EXPECT_EQ(r.exitCode, 2) << r.output;
+  EXPECT_NE(r.output.find("input"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("earshot: render "), std::string::npos) << r.output;  // no progress: nothing rendered
+  EXPECT_EQ(testing::readFile(dir / "guitar.wav"), before);
+}
+
 INSTANTIATE_TEST_SUITE_P(Signals, CliSignal, ::testing::Values(SIGINT, SIGTERM, SIGHUP),
                          [](const ::testing::TestParamInfo<int>& i) {
                            return std::string(i.param == SIGINT ? "Int" : i.param == SIGTERM ? "Term" : "Hup");
