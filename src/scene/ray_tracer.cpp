@@ -138,7 +138,12 @@ void RayTracer::occludedMany(const Ray* rays, size_t count, uint8_t* occludedOut
   size_t index[kChunk];
   RTCIntersectContext ctx;
   rtcInitIntersectContext(&ctx);
-  ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;  // typically one origin, nearby directions
+  // Incoherent (the default), although the rays often share an origin:
+  // with RTC_INTERSECT_CONTEXT_FLAG_COHERENT, Embree 3.13.5 as Debian 12
+  // builds it can loop for ever over instances on CPUs with AVX-512 (its
+  // coherent packet path keeps a 16-bit ray mask in a 64-bit stack slot and
+  // tests all 64 bits, so bytes left there by earlier calls keep the loop
+  // going). Test: DynamicScene.ShadowRaysOverInstancesReturnWhateverTheStackHeld.
   for (size_t start = 0; start < count; start += kChunk) {
     const size_t end = std::min(count, start + kChunk);
     size_t n = 0;
