@@ -1162,8 +1162,8 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
     }
   };
   // Next-event estimation of a reflection's diffuse part: the detectors
-  // facing it; their shadow rays go to Embree together (one origin: a
-  // coherent stream).
+  // facing it; their shadow rays go to Embree together (one stream call
+  // per hit point; RayTracer::occludedMany).
   auto detectReflectionEvent = [&](const ReflectionEvent& e, Accumulator& a, DetectScratch& x) {
     size_t facing = 0;
     uint32_t shadowCount = 0;
