@@ -330,6 +330,38 @@ TEST(CliIr, CacheFolderGivesTheSameIrsAndSurvivesDamage) {
   else unsetenv("EARSHOT_CACHE_DIR");
 }
 
+// A cache folder that cannot be one (a file, a device, a folder under a
+// file) keeps nothing, and every run quietly prepares afresh: `earshot
+// cache` says so instead of listing "0 files". (A folder not writable is
+// said so too; as root, which the tests may run as, every folder is.)
+TEST(CliCache, AFolderThatCannotHoldTheCacheIsWarnedAbout) {
+  TempDir dir("cli_cache_unusable");
+  const std::string file = dir / "a_file";
+  std::ofstream(file) << "x";
+  const char* previous = std::getenv("EARSHOT_CACHE_DIR");
+  const std::string saved = previous ? previous : "";
+  struct Case {
+    std::string folder, why;
+  };
+  for (const Case& c : {Case{file, "it is not a folder"}, Case{"/dev/null", "it is not a folder"},
+                        Case{file + "/sub/cache", "it cannot be made: " + file + " is not a folder"}}) {
+    setenv("EARSHOT_CACHE_DIR", c.folder.c_str(), 1);
+    auto r = runEarshot("cache");
+    EXPECT_EQ(r.exitCode, 0) << r.output;
+    EXPECT_NE(r.output.find("warning: " + c.folder + ": " + c.why + ", so nothing new is kept there"), std::string::npos)
+        << c.folder << ": " << r.output;
+  }
+  // A folder that can be made, or is there: no warning.
+  for (const std::string& fine : {dir / "new/cache", dir.path.string()}) {
+    setenv("EARSHOT_CACHE_DIR", fine.c_str(), 1);
+    auto r = runEarshot("cache");
+    EXPECT_EQ(r.exitCode, 0) << r.output;
+    EXPECT_EQ(r.output.find("warning"), std::string::npos) << r.output;
+  }
+  if (previous) setenv("EARSHOT_CACHE_DIR", saved.c_str(), 1);
+  else unsetenv("EARSHOT_CACHE_DIR");
+}
+
 // A late-noise entry is checked beyond its checksum (anyone can compute
 // one): a band louder than the noise-making could make it is a miss, made
 // again and rewritten; a plausible one is read as it is.

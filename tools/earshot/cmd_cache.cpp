@@ -2,7 +2,10 @@
 // HRTF sets, late noises: README "The cache folder"); --clear empties it of
 // earshot's files; --prepare prepares the default HRTF set into it (the
 // build runs it to make the prepared set earshot installs).
+#include <unistd.h>
+
 #include <cstdio>
+#include <filesystem>
 #include <map>
 #include <memory>
 #include <string>
@@ -22,6 +25,31 @@ struct CacheOptions {
 
 // The rates the default set is prepared at (build time and --prepare).
 constexpr double kPreparedRates[] = {44100.0, 48000.0};
+
+/** Why nothing new can be kept in `folder`, or "" when earshot can write
+ *  there (or make it: its nearest existing ancestor is a writable folder).
+ *  Earshot itself then quietly prepares what it needs afresh each run. */
+std::string unusableBecause(const std::string& folder) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  fs::path p(folder);
+  const fs::file_status st = fs::status(p, ec);
+  if (fs::exists(st)) {
+    if (!fs::is_directory(st)) return "it is not a folder";
+    return ::access(folder.c_str(), W_OK | X_OK) == 0 ? "" : "the folder is not writable";
+  }
+  for (p = p.parent_path(); !p.empty(); p = p.parent_path()) {
+    const fs::file_status up = fs::status(p, ec);
+    if (!fs::exists(up)) {
+      if (p == p.parent_path()) break;
+      continue;
+    }
+    if (!fs::is_directory(up)) return "it cannot be made: " + p.string() + " is not a folder";
+    if (::access(p.c_str(), W_OK | X_OK) != 0) return "it cannot be made: " + p.string() + " is not writable";
+    return "";
+  }
+  return "";
+}
 
 void runCache(const CacheOptions& o) {
   const std::string folder = cacheFolder();
@@ -70,6 +98,12 @@ void runCache(const CacheOptions& o) {
               formatBytes(total).c_str());
   for (const auto& [kind, count] : byKind)
     std::printf("  %-8s %zu, %s\n", kind.c_str(), count.first, formatBytes(count.second).c_str());
+  const std::string why = unusableBecause(folder);
+  if (!why.empty())
+    std::fprintf(stderr,
+                 "earshot: warning: %s: %s, so nothing new is kept there and every run prepares HRTF sets and late "
+                 "noises afresh (set EARSHOT_CACHE_DIR to a writable folder, or to 'off')\n",
+                 folder.c_str(), why.c_str());
 }
 
 const Registrar registrar([](CLI::App& root) {
