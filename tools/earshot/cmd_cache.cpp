@@ -11,6 +11,7 @@
 #include <string>
 
 #include "command.h"
+#include "earshot/core/status.h"
 #include "earshot/hrtf/hrtf_set.h"
 #include "earshot/io/disk_cache.h"
 #include "earshot/io/input_file.h"
@@ -44,8 +45,9 @@ std::string unusableBecause(const std::string& folder) {
       if (p == p.parent_path()) break;
       continue;
     }
-    if (!fs::is_directory(up)) return "it cannot be made: " + p.string() + " is not a folder";
-    if (::access(p.c_str(), W_OK | X_OK) != 0) return "it cannot be made: " + p.string() + " is not writable";
+    if (!fs::is_directory(up)) return "it cannot be made: " + displayPath(p.string()) + " is not a folder";
+    if (::access(p.c_str(), W_OK | X_OK) != 0)
+      return "it cannot be made: " + displayPath(p.string()) + " is not writable";
     return "";
   }
   return "";
@@ -73,16 +75,16 @@ void runCache(const CacheOptions& o) {
         printError(set.status().message());
         return;
       }
-      std::printf("%s at %.0f Hz: %s\n", path->c_str(), rate,
+      std::printf("%s at %.0f Hz: %s\n", displayPath(*path).c_str(), rate,
                   (*set)->loadedFromCache() ? "already prepared" : "prepared");
     }
   }
   const auto files = listCacheFiles(folder);
   if (o.clear) {
     const size_t removed = clearCacheFiles(folder);
-    std::printf("%s: removed %zu file%s\n", folder.c_str(), removed, removed == 1 ? "" : "s");
+    std::printf("%s: removed %zu file%s\n", displayPath(folder).c_str(), removed, removed == 1 ? "" : "s");
     if (removed != files.size()) {
-      printError(folder + ": " + std::to_string(files.size() - removed) + " files could not be removed");
+      printError(displayPath(folder) + ": " + std::to_string(files.size() - removed) + " files could not be removed");
     }
     return;
   }
@@ -94,7 +96,7 @@ void runCache(const CacheOptions& o) {
     k.second += f.bytes;
     total += f.bytes;
   }
-  std::printf("%s: %zu file%s, %s\n", folder.c_str(), files.size(), files.size() == 1 ? "" : "s",
+  std::printf("%s: %zu file%s, %s\n", displayPath(folder).c_str(), files.size(), files.size() == 1 ? "" : "s",
               formatBytes(total).c_str());
   for (const auto& [kind, count] : byKind)
     std::printf("  %-8s %zu, %s\n", kind.c_str(), count.first, formatBytes(count.second).c_str());
@@ -103,7 +105,7 @@ void runCache(const CacheOptions& o) {
     std::fprintf(stderr,
                  "earshot: warning: %s: %s, so nothing new is kept there and every run prepares HRTF sets and late "
                  "noises afresh (set EARSHOT_CACHE_DIR to a writable folder, or to 'off')\n",
-                 folder.c_str(), why.c_str());
+                 displayPath(folder).c_str(), why.c_str());
 }
 
 const Registrar registrar([](CLI::App& root) {
