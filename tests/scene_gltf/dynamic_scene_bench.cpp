@@ -149,7 +149,11 @@ void run(Case& c, int runs, ThreadPool& pool) {
   auto flat = RayTracer::create(c.flat);
   if (!flat) die(flat.status());
   ReflectionSettings rs;  // 16384 rays x 12 bounces
-  std::vector<double> flatMs, instMs;
+  // Also a shared trace from the listener for 9 sources around the source:
+  // its shadow rays go to Embree in streams (RayTracer::occludedMany).
+  std::vector<SharedTraceSource> sources(9);
+  for (int i = 0; i < 9; ++i) sources[size_t(i)].position = c.source + Vec3d(0.4 * (i % 3 - 1), 0.4 * (i / 3 - 1), 0);
+  std::vector<double> flatMs, instMs, flatSharedMs, instSharedMs;
   const int traceRuns = std::max(5, runs / 2);
   for (int k = 0; k <= traceRuns; ++k) {  // run 0 warms up
     rs.seed = uint64_t(k + 1);
@@ -157,36 +161,28 @@ void run(Case& c, int runs, ThreadPool& pool) {
     auto b = traceReflections(**snap, defaultMaterials(), c.source, c.listener, rs, pool);
     if (!a) die(a.status());
     if (!b) die(b.status());
+    auto t0 = std::chrono::steady_clock::now();
+    auto sa = traceReflectionsShared(**flat, defaultMaterials(), c.listener, sources, rs, pool);
+    const double saMs = msSince(t0);
+    t0 = std::chrono::steady_clock::now();
+    auto sb = traceReflectionsShared(**snap, defaultMaterials(), c.listener, sources, rs, pool);
+    const double sbMs = msSince(t0);
+    if (!sa) die(sa.status());
+    if (!sb) die(sb.status());
     if (k == 0) continue;
     flatMs.push_back(a->stats.traceMs);
     instMs.push_back(b->stats.traceMs);
+    flatSharedMs.push_back(saMs);
+    instSharedMs.push_back(sbMs);
   }
-  std::printf("  traceReflections 16k x 12, %u threads: flat %.2f ms, instanced %.2f ms (%+.1f %%), %d runs\n",
-              pool.threadCount(), median(flatMs), median(instMs), 100.0 * (median(instMs) / median(flatMs) - 1.0),
-              traceRuns);
-
-  // A shared trace from the listener for 9 sources around the source: its
-  // shadow rays go to Embree in streams (RayTracer::occludedMany).
-  std::vector<SharedTraceSource> sources(9);
-  for (int i = 0; i < 9; ++i) sources[size_t(i)].position = c.source + Vec3d(0.4 * (i % 3 - 1), 0.4 * (i / 3 - 1), 0);
-  std::vector<double> flatSharedMs, instSharedMs;
-  for (int k = 0; k <= traceRuns; ++k) {
-    rs.seed = uint64_t(k + 1);
-    auto t0 = std::chrono::steady_clock::now();
-    auto a = traceReflectionsShared(**flat, defaultMaterials(), c.listener, sources, rs, pool);
-    const double aMs = msSince(t0);
-    t0 = std::chrono::steady_clock::now();
-    auto b = traceReflectionsShared(**snap, defaultMaterials(), c.listener, sources, rs, pool);
-    const double bMs = msSince(t0);
-    if (!a) die(a.status());
-    if (!b) die(b.status());
-    if (k == 0) continue;
-    flatSharedMs.push_back(aMs);
-    instSharedMs.push_back(bMs);
-  }
-  std::printf("  traceReflectionsShared 16k x 12, 9 sources: flat %.2f ms, instanced %.2f ms (%+.1f %%), %d runs\n",
-              median(flatSharedMs), median(instSharedMs),
-              100.0 * (median(instSharedMs) / median(flatSharedMs) - 1.0), traceRuns);
+  auto report = [&](const char* what, const std::vector<double>& f, const std::vector<double>& i) {
+    std::printf("  %s flat %.2f ms, instanced %.2f ms (%+.1f %%), %d runs\n", what, median(f), median(i),
+                100.0 * (median(i) / median(f) - 1.0), traceRuns);
+  };
+  char label[96];
+  std::snprintf(label, sizeof label, "traceReflections 16k x 12, %u threads:", pool.threadCount());
+  report(label, flatMs, instMs);
+  report("traceReflectionsShared 16k x 12, 9 sources:", flatSharedMs, instSharedMs);
 }
 
 }  // namespace
