@@ -70,9 +70,10 @@ class RayTracer {
   bool intersect(const Ray& ray, Hit& hit) const;
   /** True when anything lies on the ray within [tNear, tFar]. */
   bool occluded(const Ray& ray) const;
-  /** occluded() for each of `count` rays, through Embree's ray streams
-   *  (cheaper per ray for rays of one origin, e.g. the shadow rays from a
-   *  hit to many sources): occludedOut[i] = 1 or 0. Allocates nothing. */
+  /** occluded() for each of `count` rays (e.g. the shadow rays from a hit
+   *  to many sources), through Embree's ray streams, up to 64 rays a call,
+   *  without the coherent flag (ray_tracer.cpp says why):
+   *  occludedOut[i] = 1 or 0. Allocates nothing. */
   void occludedMany(const Ray* rays, size_t count, uint8_t* occludedOut) const;
 
   /** The world-space triangles every hit's index refers to. */
