@@ -783,19 +783,26 @@ Status validate(const ReflectionSettings& s) {
   return validate(s.air);
 }
 
+const RayTail& TailData::rays() const {
+  static const RayTail kNone;
+  return shared ? *shared : kNone;
+}
+
 double traceMemoryBytes(const ReflectionSettings& s, size_t detectors, unsigned threads) {
   const double nd = double(std::max<size_t>(1, detectors)), sums = double(std::max(1u, threads)) + 1.0;
   const double bins = std::ceil(s.maxTimeSeconds / s.binSeconds) + 1.0;
   // traceCore's per-ray slots (cutRays, wasCut, probeEnds, probeEnded), and
-  // each result's tail: at most a cut and a probe's end per ray.
-  const double perRay = 2.0 * (double(sizeof(CutRay)) + 1.0) + nd * 2.0 * double(sizeof(CutRay));
+  // the results' RayTail (one for all): at most a cut and a probe's end per
+  // ray.
+  const double perRay = 2.0 * (double(sizeof(CutRay)) + 1.0) + 2.0 * double(sizeof(CutRay));
   // Each thread's Accumulator and the merged one: every detector's hist and
   // probeHist, the in-flight diffs (aliveDiff, probeAliveDiff); each
-  // result's histogram (doubles) and its tail's alive, probeAlive and
-  // probeDetected curves.
+  // result's histogram (doubles) and probeDetected curve, and the RayTail's
+  // alive and probeAlive curves.
   const double perBin =
       sums * (nd * double(EnergyHistogram::kStride + kNumBands) + 2.0 * kNumBands) * double(sizeof(int64_t)) +
-      nd * (double(EnergyHistogram::kStride) * sizeof(double) + 3.0 * double(sizeof(BandArrayD)));
+      nd * (double(EnergyHistogram::kStride) * sizeof(double) + double(sizeof(BandArrayD))) +
+      2.0 * double(sizeof(BandArrayD));
   return double(s.rays) * perRay + bins * perBin;
 }
 
@@ -838,14 +845,14 @@ struct SharedTracePaths::Impl {
   PathKey key;
   std::vector<PathEvents> tasks;  // per task of the trace
   ReflectionStats stats;          // the trace's counts (what every detector shares)
-  TailData tail;                  // the listener's rays' tail data
+  std::shared_ptr<const RayTail> tail;  // the listener's rays' tail data
   size_t bytes = 0;
   uint64_t generation = 0;
   void clear() {
     ++generation;
     valid = false;
     tasks = {};
-    tail = {};
+    tail.reset();
     bytes = 0;
   }
 };
@@ -1549,14 +1556,16 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
   // What the detectors share: the rays' tail data and counts.
   ReflectionResult& shared = results[0];
   ReflectionStats& stats = shared.stats;
-  TailData& tail = shared.tail;
+  std::shared_ptr<const RayTail> rayTail;
   if (replay) {
     const double radius = stats.receiverRadiusMeters;
     stats = paths->stats;
     stats.receiverRadiusMeters = radius;
     stats.pathsReused = true;
-    tail = paths->tail;
+    rayTail = paths->tail;
   } else {
+    auto made = std::make_shared<RayTail>();
+    RayTail& tail = *made;
     stats.raysTraced = traced;
     stats.estimatedErrorDb = estimatedErrorDb;
     stats.flutterAxes = uint32_t(flutterAxes.size());
@@ -1610,18 +1619,23 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
         e.planes.shrink_to_fit();
       }
       paths->stats = stats;
-      paths->tail = tail;
+      paths->tail = made;
       paths->bytes = sizeof(SharedTracePaths::Impl);
       for (const PathEvents& e : paths->tasks) paths->bytes += e.bytes();
       paths->valid = true;
     }
+    rayTail = std::move(made);
   }
   stats.traceMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-  for (size_t r = 1; r < nd; ++r) {
+  // One RayTail for every detector: copies of it, one per source, were
+  // fresh pages each (about 1 MB a source in the furnished room: 32 sources
+  // took 120 ms, more than their detection).
+  for (size_t r = 0; r < nd; ++r) {
+    results[r].tail.shared = rayTail;
+    if (r == 0) continue;
     const double radius = results[r].stats.receiverRadiusMeters;
     results[r].stats = stats;
     results[r].stats.receiverRadiusMeters = radius;
-    results[r].tail = tail;
   }
 
   // Each detector's own: its histogram, per-order energies, probes' detections.

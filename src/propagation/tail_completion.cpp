@@ -28,6 +28,7 @@ Status validateTailSettings(const TailCompletionSettings& settings) {
 Result<TailRates> tailRates(const TailData& tail, double dt, size_t traced, const TailCompletionSettings& settings) {
   EARSHOT_RETURN_IF_ERROR(validateTailSettings(settings));
   if (!(dt > 0)) return invalidArgument("tail rates: histogram bin is not positive");
+  const RayTail& rays = tail.rays();
   TailRates r;
   r.binSeconds = dt;
   r.tracedBins = traced;
@@ -38,13 +39,13 @@ Result<TailRates> tailRates(const TailData& tail, double dt, size_t traced, cons
   // 1. Decay rates: solve the renewal equation F(delta) = 1 by bisection
   // (F increases with delta).
   BandArrayD& delta = info.decayRatePerSecond;
-  bool haveRates = !tail.pathEnergy.empty();
+  bool haveRates = !rays.pathEnergy.empty();
   for (int b = 0; b < kNumBands && haveRates; ++b) {
     double total = 0, kept = 0, length = 0;
-    for (size_t i = 0; i < tail.pathEnergy.size(); ++i) {
-      total += tail.pathEnergy[i][b];
-      kept += tail.pathRetained[i][b];
-      length += tail.pathRetained[i][b] * freePathBinCenter(i);
+    for (size_t i = 0; i < rays.pathEnergy.size(); ++i) {
+      total += rays.pathEnergy[i][b];
+      kept += rays.pathRetained[i][b];
+      length += rays.pathRetained[i][b] * freePathBinCenter(i);
     }
     if (!(total > 0)) {
       haveRates = false;
@@ -53,8 +54,8 @@ Result<TailRates> tailRates(const TailData& tail, double dt, size_t traced, cons
     info.meanLoss[b] = 1.0 - kept / total;
     info.meanFreePathMeters[b] = kept > 0 ? length / kept : 0.0;
     std::vector<std::pair<double, double>> paths;  // (free path, energy kept), non-empty bins only
-    for (size_t i = 0; i < tail.pathRetained.size(); ++i)
-      if (tail.pathRetained[i][b] > 0) paths.emplace_back(freePathBinCenter(i), tail.pathRetained[i][b]);
+    for (size_t i = 0; i < rays.pathRetained.size(); ++i)
+      if (rays.pathRetained[i][b] > 0) paths.emplace_back(freePathBinCenter(i), rays.pathRetained[i][b]);
     auto F = [&](double d) {
       double sum = 0;
       for (const auto& [l, kept] : paths) sum += kept * std::exp((d / settings.speedOfSound - m[b]) * l);
@@ -85,8 +86,8 @@ Result<TailRates> tailRates(const TailData& tail, double dt, size_t traced, cons
   // (T30 5 s at 125 Hz in the furnished sample), where furniture scrambles
   // directions.
   double lastCut = 0;
-  for (const CutRay& c : tail.cutRays) lastCut = std::max(lastCut, double(c.pathMeters) / settings.speedOfSound);
-  r.anyCut = !tail.cutRays.empty() && haveRates;
+  for (const CutRay& c : rays.cutRays) lastCut = std::max(lastCut, double(c.pathMeters) / settings.speedOfSound);
+  r.anyCut = !rays.cutRays.empty() && haveRates;
   double slowest = 1e30;
   for (int b = 0; b < kNumBands; ++b) slowest = std::min(slowest, delta[b]);
 
@@ -97,10 +98,10 @@ Result<TailRates> tailRates(const TailData& tail, double dt, size_t traced, cons
     // The probes' decay may be slower than the population's rate: cover
     // where they were still in flight, and where the last of them ended.
     double lastProbe = 0;
-    for (size_t i = 0; i < tail.probeAlive.size(); ++i)
+    for (size_t i = 0; i < rays.probeAlive.size(); ++i)
       for (int b = 0; b < kNumBands; ++b)
-        if (tail.probeAlive[i][b] > 0) lastProbe = double(i + 1) * dt;
-    for (const CutRay& c : tail.probeEnds)
+        if (rays.probeAlive[i][b] > 0) lastProbe = double(i + 1) * dt;
+    for (const CutRay& c : rays.probeEnds)
       lastProbe = std::max(lastProbe, double(c.pathMeters) / settings.speedOfSound);
     const double wanted = std::max(lastCut, lastProbe) + settings.dynamicRangeDb / 10.0 * std::log(10.0) / slowest;
     const double end = std::min(settings.maxAutoSeconds, wanted);
@@ -118,10 +119,10 @@ Result<TailRates> tailRates(const TailData& tail, double dt, size_t traced, cons
     // flight (the last traced bin), not then. Joined late, the first ~10 ms
     // after the end held neither (the 100 ms after a 4 s trace read ~1 dB
     // low in a concrete room).
-    auto join = [&](const std::vector<CutRay>& rays, std::vector<BandArrayD>& joining, BandArrayD* total,
+    auto join = [&](const std::vector<CutRay>& ends, std::vector<BandArrayD>& joining, BandArrayD* total,
                     size_t latest) {
       joining.assign(bins, BandArrayD{});
-      for (const CutRay& c : rays) {
+      for (const CutRay& c : ends) {
         const size_t bin = std::min(latest, size_t(double(c.pathMeters) / settings.speedOfSound / dt));
         for (int b = 0; b < kNumBands; ++b) {
           const double e = double(c.energy[b]) * std::exp(-m[b] * c.pathMeters);
@@ -130,8 +131,8 @@ Result<TailRates> tailRates(const TailData& tail, double dt, size_t traced, cons
         }
       }
     };
-    join(tail.cutRays, r.cut, &r.cutTotal, SIZE_MAX);
-    join(tail.probeEnds, r.probeEnds, nullptr, tail.probeAlive.empty() ? SIZE_MAX : tail.probeAlive.size() - 1);
+    join(rays.cutRays, r.cut, &r.cutTotal, SIZE_MAX);
+    join(rays.probeEnds, r.probeEnds, nullptr, rays.probeAlive.empty() ? SIZE_MAX : rays.probeAlive.size() - 1);
   }
   return r;
 }
@@ -150,6 +151,7 @@ Result<EnergyHistogram> completeTail(const EnergyHistogram& h, const TailData& t
     own = std::move(made.value());
     rates = &own;
   }
+  const RayTail& rays = tail.rays();
   TailInfo info = rates->info;
   const BandArrayD& delta = rates->info.decayRatePerSecond;
   const bool anyCut = rates->anyCut;
@@ -168,17 +170,17 @@ Result<EnergyHistogram> completeTail(const EnergyHistogram& h, const TailData& t
     bool probed[kNumBands];
     double scale[kNumBands], step[kNumBands], v[kNumBands];
     for (int b = 0; b < kNumBands; ++b) {
-      probed[b] = !tail.probeAlive.empty() && tail.probeCutEnergy[b] > 0;
-      scale[b] = probed[b] ? rates->cutTotal[b] / tail.probeCutEnergy[b] : 1.0;
+      probed[b] = !rays.probeAlive.empty() && rays.probeCutEnergy[b] > 0;
+      scale[b] = probed[b] ? rates->cutTotal[b] / rays.probeCutEnergy[b] : 1.0;
       step[b] = std::exp(-delta[b] * dt);
       v[b] = 0;
       info.probed[b] = probed[b];
     }
     for (size_t i = 0; i < bins; ++i) {
-      const bool alive = i < tail.probeAlive.size(), detected = i < tail.probeDetected.size();
+      const bool alive = i < rays.probeAlive.size(), detected = i < tail.probeDetected.size();
       for (int b = 0; b < kNumBands; ++b) {
         v[b] *= step[b];
-        const double measured = probed[b] && alive ? tail.probeAlive[i][b] : 0.0;
+        const double measured = probed[b] && alive ? rays.probeAlive[i][b] : 0.0;
         virtualEnergy[i][b] = scale[b] * (measured + v[b]);  // a ray cut in bin i is in flight from bin i + 1
         extrapolated[i][b] = scale[b] * v[b];
         if (probed[b] && detected) probeDeposits[i][b] = scale[b] * tail.probeDetected[i][b];
@@ -233,19 +235,17 @@ Result<EnergyHistogram> completeTail(const EnergyHistogram& h, const TailData& t
   // image-source part.
   // Bins where the traced histogram, the energy in flight and the virtual
   // energy all exist (an open scene's filled length can be shorter).
-  const size_t usable = std::min({traced, bins, tail.alive.size()});
+  const size_t usable = std::min({traced, bins, rays.alive.size()});
   const size_t calib0 = std::min(usable, size_t(settings.calibrationStartSeconds / dt));
   for (int b = 0; b < kNumBands; ++b) {
     size_t end = calib0;
-    while (end < usable && tail.alive[end][b] > 0 &&
-           virtualEnergy[end][b] < 0.1 * tail.alive[end][b])
-      ++end;
+    while (end < usable && rays.alive[end][b] > 0 && virtualEnergy[end][b] < 0.1 * rays.alive[end][b]) ++end;
     size_t begin = calib0;
     if (end > begin + size_t(kFitWindowSeconds / dt)) begin = end - size_t(kFitWindowSeconds / dt);
     double detected = 0, inFlight = 0;
     for (size_t i = begin; i < end; ++i) {
       detected += h.energy(i, b);
-      inFlight += tail.alive[i][b];
+      inFlight += rays.alive[i][b];
     }
     info.kappa[b] = inFlight > 0 ? detected / inFlight : 0.0;
     if (!(inFlight > 0) && info.probed[b] && !tail.probeDetected.empty()) {
@@ -254,11 +254,11 @@ Result<EnergyHistogram> completeTail(const EnergyHistogram& h, const TailData& t
       // arrives). The same ratio from the probes, which are detected and
       // counted in flight alike past their cut; without it the tail past
       // the probes' end (the histogram's length, maxTimeSeconds) was lost.
-      const size_t probeBins = std::min({traced, bins, tail.probeAlive.size(), tail.probeDetected.size()});
+      const size_t probeBins = std::min({traced, bins, rays.probeAlive.size(), tail.probeDetected.size()});
       double probeDetected = 0, probeInFlight = 0;
       for (size_t i = calib0; i < probeBins; ++i) {
         probeDetected += tail.probeDetected[i][b];
-        probeInFlight += tail.probeAlive[i][b];
+        probeInFlight += rays.probeAlive[i][b];
       }
       info.kappa[b] = probeInFlight > 0 ? probeDetected / probeInFlight : 0.0;
     }
@@ -270,16 +270,16 @@ Result<EnergyHistogram> completeTail(const EnergyHistogram& h, const TailData& t
       detected = inFlight = 0;
       size_t taken = 0;
       for (size_t i = calib0; i < usable && taken < size_t(kFitWindowSeconds / dt) + 1; ++i) {
-        if (!(tail.alive[i][b] > 0)) continue;
+        if (!(rays.alive[i][b] > 0)) continue;
         detected += h.energy(i, b);
-        inFlight += tail.alive[i][b];
+        inFlight += rays.alive[i][b];
         ++taken;
       }
       info.kappa[b] = inFlight > 0 ? detected / inFlight : 0.0;
     }
     size_t start = traced;
     for (size_t i = 0; i < usable; ++i)
-      if (virtualEnergy[i][b] > tail.alive[i][b] && virtualEnergy[i][b] > 0) {
+      if (virtualEnergy[i][b] > rays.alive[i][b] && virtualEnergy[i][b] > 0) {
         start = i;
         break;
       }

@@ -415,7 +415,7 @@ TEST(ReflectionTracer, StopsWhenTheHistogramHasConverged) {
   EXPECT_EQ(strict->stats.raysTraced, 16384u);
   EXPECT_GT(strict->stats.estimatedErrorDb, 1e-6);
   EXPECT_EQ(strict->histogram.data(), all->histogram.data());
-  EXPECT_EQ(strict->tail.alive, all->tail.alive);
+  EXPECT_EQ(strict->tail.rays().alive, all->tail.rays().alive);
 
   s.convergenceDb = 2.0;
   auto loose = traceReflections(*room.tracer, room.materials, kSource, kListener, s, two);

@@ -124,8 +124,9 @@ struct CutRay {
   BandArray energy{};                 ///< energy after the last reflection (no air)
 };
 
-/** What tail completion needs from a trace (energies in the histogram's units). */
-struct TailData {
+/** What tail completion needs from a trace's rays (energies in the
+ *  histogram's units): the same for every detector of one trace. */
+struct RayTail {
   std::vector<BandArrayD> alive;      ///< per bin: energy of rays in flight (air of the bin's centre: each has travelled c t)
   std::vector<CutRay> cutRays;        ///< in ray order
   /** Free paths of the later half of the bounces, in log-spaced length bins
@@ -137,17 +138,27 @@ struct TailData {
    *  after their cut, per bin (air applied), and the energy they were cut
    *  with (air applied). Empty / zero without probes. */
   std::vector<BandArrayD> probeAlive;
+  BandArrayD probeCutEnergy{};
+  /** Probes stopped 60 dB down, at the histogram's end or at
+   *  kMaxProbeBounces: what they would have carried on with (energy without
+   *  air, as CutRay). */
+  std::vector<CutRay> probeEnds;
+};
+
+/** What tail completion needs from a trace, for one detector. */
+struct TailData {
+  /** The rays' part, shared by the detectors of one trace and by the kept
+   *  paths (SharedTracePaths) that gave it: a shared trace's sources hold
+   *  one, not a copy each. Read it through rays(); null: no rays. */
+  std::shared_ptr<const RayTail> shared;
   /** What the tail probes past their cut deposit in the receiver sphere, per
    *  bin (every segment by the sphere: specular and diffuse paths alike).
    *  Empty when the sphere is under 0.5 m (a surface next to the listener):
    *  too few hits; tail completion then uses kappa x probeAlive, and at most
    *  4096 rays are probes (enough for that smooth shape). */
   std::vector<BandArrayD> probeDetected;
-  BandArrayD probeCutEnergy{};
-  /** Probes stopped 60 dB down, at the histogram's end or at
-   *  kMaxProbeBounces: what they would have carried on with (energy without
-   *  air, as CutRay). */
-  std::vector<CutRay> probeEnds;
+  /** `shared`, or an empty RayTail where it is null. */
+  const RayTail& rays() const;
 };
 
 /** Free-path bins: log-spaced, 64 per octave from 1/1024 m up (~10 km at
