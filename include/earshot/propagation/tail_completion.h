@@ -90,8 +90,9 @@ struct TailInfo {
 /** What completeTail derives from the rays' tail data alone: the decay
  *  rates (the renewal equation) and the energy the cut rays and the
  *  probes' ends join the virtual population with, per bin. The same for
- *  every source of a shared trace (TailData is the listener's rays'): made
- *  once there (tailRates) and given to each source's completeTail. */
+ *  every source of a shared trace (they share one RayTail, the listener's
+ *  rays'): made once there (tailRates) and given to each source's
+ *  completeTail. */
 struct TailRates {
   double binSeconds = 0.0;           ///< of the histograms they serve
   size_t tracedBins = 0;
@@ -103,7 +104,8 @@ struct TailRates {
   std::vector<BandArrayD> cut, probeEnds;  ///< per bin: energy joining (air applied)
 };
 
-/** The rates of `tail` for histograms of `tracedBins` bins of `binSeconds`. */
+/** The rates of `tail` (its rays(); probeDetected is not read) for
+ *  histograms of `tracedBins` bins of `binSeconds`. */
 Result<TailRates> tailRates(const TailData& tail, double binSeconds, size_t tracedBins,
                             const TailCompletionSettings& settings);
 
