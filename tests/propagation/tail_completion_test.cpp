@@ -110,13 +110,13 @@ TEST(TailCompletion, ProbesCarryTheirRaysOnExactly) {
   ASSERT_TRUE(probed.isOk() && full.isOk());
   EXPECT_LE(probed->stats.segmentsTraced, full->stats.segmentsTraced);  // probes stop at the histogram's end
   EXPECT_GT(probed->stats.tailProbeSegments, probed->stats.segmentsTraced / 2);
-  ASSERT_EQ(probed->tail.rays().probeAlive.size(), full->tail.rays().alive.size());
+  const RayTail &p = probed->tail.rays(), &f = full->tail.rays();
+  ASSERT_EQ(p.probeAlive.size(), f.alive.size());
   double peak = 0;
-  for (const auto& a : full->tail.rays().alive) peak = std::max(peak, a[0]);
-  for (size_t i = 0; i < full->tail.rays().alive.size(); ++i)
+  for (const auto& a : f.alive) peak = std::max(peak, a[0]);
+  for (size_t i = 0; i < f.alive.size(); ++i)
     for (int b = 0; b < kNumBands; ++b)
-      ASSERT_NEAR(probed->tail.rays().alive[i][b] + probed->tail.rays().probeAlive[i][b], full->tail.rays().alive[i][b], 1e-12 * peak)
-          << "bin " << i << " band " << b;
+      ASSERT_NEAR(p.alive[i][b] + p.probeAlive[i][b], f.alive[i][b], 1e-12 * peak) << "bin " << i << " band " << b;
 }
 
 // What probes deposit past their cut is what the same rays would have
