@@ -1,5 +1,5 @@
-// earshot_process through the C API is real-time safe: no heap allocation and
-// no lock on the audio thread while the game thread moves the source, the
+// earshot_process through the C API is real-time safe: no heap allocation, no
+// lock and (after the first second) no page fault on the audio thread while the game thread moves the source, the
 // listener and a door (with commits) and the built-in simulation thread
 // updates the IRs. Links the allocation hook (a binary of its own).
 #include <gtest/gtest.h>
@@ -64,7 +64,7 @@ TEST(CApiRealtime, ProcessNeverAllocatesOrLocksWhileTheGameEditsAndTheThreadSimu
   inputs[ia] = dryA.data();
   inputs[ib] = dryB.data();
   const size_t sizes[] = {256, 256, 100, 1024, 17};
-  long allocations = 0, locks = 0;
+  long allocations = 0, locks = 0, firstSecondFaults = 0, steadyFaults = 0;
   double outEnergy = 0;
   int failures = 0;
   {
@@ -72,7 +72,9 @@ TEST(CApiRealtime, ProcessNeverAllocatesOrLocksWhileTheGameEditsAndTheThreadSimu
     size_t frames = 0;
     for (int k = 0; frames < 96000; ++k) {
       const size_t n = sizes[k % 5];
+      const long f0 = earshot::test::threadPageFaults();
       if (earshot_process(c, inputs, 4, left.data(), right.data(), n) != EARSHOT_OK) ++failures;
+      (frames < 48000 ? firstSecondFaults : steadyFaults) += earshot::test::threadPageFaults() - f0;
       for (size_t i = 0; i < n; ++i) outEnergy += double(left[i]) * left[i] + double(right[i]) * right[i];
       frames += n;
       // Pace roughly like a device (about 4x real time) so that the other threads interleave.
@@ -91,6 +93,10 @@ TEST(CApiRealtime, ProcessNeverAllocatesOrLocksWhileTheGameEditsAndTheThreadSimu
   EXPECT_EQ(gameErrors.load(), 0);
   EXPECT_EQ(allocations, 0);
   EXPECT_EQ(locks, 0);
+  if (earshot::test::mallocIsHooked()) {  // as in runtime_realtime_test.cpp
+    EXPECT_EQ(steadyFaults, 0) << "page faults on the audio thread after the first second (" << firstSecondFaults
+                               << " in it)";
+  }
   EXPECT_TRUE(std::isfinite(outEnergy));
   EXPECT_GT(outEnergy, 0.0);
 

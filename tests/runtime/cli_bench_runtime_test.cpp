@@ -59,6 +59,17 @@ TEST(CliBenchRuntime, ReportsTheWorstBlocksWallAndCpuTimeAndTheMachinesSteal) {
   EXPECT_LE(f.at("p99_block_pct"), f.at("worst_block_pct_of_period") + 1e-6);
   EXPECT_GT(f.at("max_block_cpu_pct"), 0.0);
   EXPECT_GT(f.at("per_source_update_hz"), 0.0);
+  // The audio thread's page faults after the first second: counted per
+  // block, so the worst block's are within the total, and the blocks with
+  // any within the blocks counted (whether there are none is asserted by
+  // runtime_realtime_test.cpp, without a sanitizer).
+  for (const char* key : {"audio_page_faults_after_first_second", "audio_blocks_with_faults", "of_blocks",
+                          "audio_page_faults_in_worst_block"})
+    ASSERT_EQ(f.count(key), 1u) << key << " missing in\n" << r.out;
+  EXPECT_LE(f.at("audio_page_faults_in_worst_block"), f.at("audio_page_faults_after_first_second"));
+  EXPECT_LE(f.at("audio_blocks_with_faults"), f.at("of_blocks"));
+  EXPECT_LE(f.at("audio_blocks_with_faults"), f.at("audio_page_faults_after_first_second"));
+  EXPECT_GT(f.at("of_blocks"), 0.0);
 }
 
 }  // namespace

@@ -6,6 +6,7 @@
 
 #include <dlfcn.h>
 #include <pthread.h>
+#include <sys/resource.h>
 
 #include <atomic>
 #include <cstdlib>
@@ -160,6 +161,12 @@ bool mallocIsHooked() {
 #else
   return false;
 #endif
+}
+
+long threadPageFaults() {
+  rusage ru{};
+  if (getrusage(RUSAGE_THREAD, &ru) != 0) return -1;
+  return ru.ru_minflt + ru.ru_majflt;
 }
 
 }  // namespace earshot::test

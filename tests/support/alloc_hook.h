@@ -21,6 +21,12 @@ class AllocationCounter {
   void resume();
 };
 
+/** Page faults (minor and major) the calling thread has taken so far, or -1.
+ *  A fault on the audio thread (memory it is the first to touch, or that the
+ *  kernel took back) is a trap into the kernel that no allocation hook sees:
+ *  ~12 us each in this project's guest machine (docs/performance.md). */
+long threadPageFaults();
+
 /** True when malloc/free themselves are hooked (glibc, no sanitizer); else
  *  only operator new/delete are seen. */
 bool mallocIsHooked();

@@ -5,8 +5,10 @@
 // worst audio block as a fraction of its period: its wall time, and the
 // audio thread's own CPU time in it (worst_block_cpu_pct; the difference is
 // time the thread waited for the CPU) and in the block that took the most
-// (max_block_cpu_pct).
+// (max_block_cpu_pct), and the page faults the audio thread took in
+// engine.process after the first second.
 #include <pthread.h>
+#include <sys/resource.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -52,6 +54,15 @@ double threadCpuSeconds() {
   timespec ts{};
   clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
   return double(ts.tv_sec) + 1e-9 * double(ts.tv_nsec);
+}
+
+// Page faults this thread has taken so far (minor and major): a fault costs
+// ~12 us in this project's guest (docs/performance.md), so a block that
+// faults a few hundred times takes a third of its period more.
+uint64_t threadFaults() {
+  rusage ru{};
+  if (getrusage(RUSAGE_THREAD, &ru) != 0) return 0;
+  return uint64_t(ru.ru_minflt) + uint64_t(ru.ru_majflt);
 }
 
 // The machine's steal time so far (Linux /proc/stat: time a hypervisor ran
@@ -145,6 +156,7 @@ int run(const BenchRuntimeOptions& o) {
   }
   std::vector<float> left(o.block), right(o.block);
   std::vector<double> blockMs, blockCpuMs, irAges;
+  std::vector<uint64_t> blockFaults;
   // The audio thread (this one) at real-time priority where the system
   // allows it; said either way.
   std::string audioPriority = "realtime (SCHED_FIFO 80)";
@@ -177,8 +189,10 @@ int run(const BenchRuntimeOptions& o) {
     }
     const auto t0 = std::chrono::steady_clock::now();
     const double c0 = threadCpuSeconds();
+    const uint64_t f0 = threadFaults();
     engine.process(inputs.data(), left.data(), right.data(), o.block);
     const double cpu = threadCpuSeconds() - c0;
+    blockFaults.push_back(threadFaults() - f0);
     audioCpu += cpu;
     blockMs.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
     blockCpuMs.push_back(1000.0 * cpu);
@@ -198,6 +212,12 @@ int run(const BenchRuntimeOptions& o) {
   const auto worstAt = std::max_element(blockMs.begin() + std::ptrdiff_t(warm), blockMs.end());
   const double worstCpu = blockCpuMs[size_t(worstAt - blockMs.begin())];
   const double maxCpu = *std::max_element(blockCpuMs.begin() + std::ptrdiff_t(warm), blockCpuMs.end());
+  const uint64_t worstFaults = blockFaults[size_t(worstAt - blockMs.begin())];
+  uint64_t steadyFaults = 0, faultingBlocks = 0;
+  for (size_t b = warm; b < blockFaults.size(); ++b) {
+    steadyFaults += blockFaults[b];
+    faultingBlocks += blockFaults[b] > 0 ? 1 : 0;
+  }
   std::vector<double> steady(blockMs.begin() + std::ptrdiff_t(warm), blockMs.end());
   std::sort(steady.begin(), steady.end());
   const double worst = steady.back(), p99 = steady[size_t(0.99 * double(steady.size() - 1))];
@@ -223,6 +243,10 @@ int run(const BenchRuntimeOptions& o) {
   std::printf("sim_ms_per_source_update trace_and_image_sources=%.1f synthesis=%.1f prepare=%.1f wall=%.1f\n",
               simTotals.traceMs * perUpdate, simTotals.synthesisMs * perUpdate, simTotals.prepareMs * perUpdate,
               simTotals.totalMs * perUpdate);
+  std::printf("audio_page_faults_after_first_second=%llu audio_blocks_with_faults=%llu of_blocks=%zu "
+              "audio_page_faults_in_worst_block=%llu (the audio thread's, in engine.process)\n",
+              static_cast<unsigned long long>(steadyFaults), static_cast<unsigned long long>(faultingBlocks),
+              blockFaults.size() - warm, static_cast<unsigned long long>(worstFaults));
   std::printf("audio_thread_priority=%s sim_threads=%u at nice +%d\n", audioPriority.c_str(),
               engine.settings().threads, es.workerNice);
   if (steal0 >= 0 && steal1 >= 0)
