@@ -1630,9 +1630,9 @@ std::vector<ReflectionResult> traceCore(const RayTracer& tracer, const MaterialT
   // One RayTail for every detector: copies of it, one per source, were
   // fresh pages each (about 1 MB a source in the furnished room: for 32
   // sources 110-130 ms on one thread, about as long as their detection).
-  for (size_t r = 0; r < nd; ++r) {
-    results[r].tail.shared = rayTail;
-    if (r == 0) continue;
+  for (size_t r = 0; r < nd; ++r) results[r].tail.shared = rayTail;
+  // The counts (the first result's, `stats`) for the others, each with its own radius.
+  for (size_t r = 1; r < nd; ++r) {
     const double radius = results[r].stats.receiverRadiusMeters;
     results[r].stats = stats;
     results[r].stats.receiverRadiusMeters = radius;
