@@ -1,7 +1,8 @@
 // earshot_process through the C API is real-time safe: no heap allocation, no
-// lock and (after the first second) no page fault on the audio thread while the game thread moves the source, the
-// listener and a door (with commits) and the built-in simulation thread
-// updates the IRs. Links the allocation hook (a binary of its own).
+// lock and (after the first second) no page fault on the audio thread while
+// the game thread moves the source, the listener and a door (with commits)
+// and the built-in simulation thread updates the IRs. Links the allocation
+// hook (a binary of its own).
 #include <gtest/gtest.h>
 
 #include <atomic>

@@ -192,10 +192,11 @@ int run(const BenchRuntimeOptions& o) {
     const uint64_t f0 = threadFaults();
     engine.process(inputs.data(), left.data(), right.data(), o.block);
     const double cpu = threadCpuSeconds() - c0;
-    blockFaults.push_back(threadFaults() - f0);
+    const uint64_t faults = threadFaults() - f0;
     audioCpu += cpu;
     blockMs.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
     blockCpuMs.push_back(1000.0 * cpu);
+    blockFaults.push_back(faults);
     std::this_thread::sleep_until(start + std::chrono::duration<double>(double(b + 1) * period));
   }
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
