@@ -8,6 +8,9 @@
 #include <map>
 #include <sstream>
 #include <vector>
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
 
 #include "command.h"
 #include "earshot/earshot_version.h"
@@ -145,6 +148,18 @@ CLI::Option* addVec3Option(CLI::App& app, const std::string& name, std::array<do
 }  // namespace earshot::cli
 
 int main(int argc, char** argv) {
+#if defined(__GLIBC__)
+  // Memory a trace or a synthesis frees stays in the process for the next
+  // one. By default glibc maps large blocks afresh and trims the heap's top
+  // back to the system, so every trace's histograms and every IR's buffers
+  // were new pages again: ~760 page faults a shoebox trace, ~12 us each on a
+  // virtual machine (docs/performance.md, fifteenth session). Blocks over
+  // 32 MiB (glibc's most for this setting) are still mapped and unmapped.
+  // The process keeps what it freed until it exits; what it may allocate at
+  // once is still --max-memory's to limit.
+  mallopt(M_MMAP_THRESHOLD, 32 << 20);
+  mallopt(M_TRIM_THRESHOLD, 1 << 30);
+#endif
   // Ctrl-C or kill: the outputs' temporary files go too (temp_files.h).
   earshot::removeTempFilesOnTerminationSignals();
   // A file-size limit (ulimit -f) then fails the write (EFBIG: an error
