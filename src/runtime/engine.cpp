@@ -66,6 +66,9 @@ struct Engine::Slot {
   std::atomic<double> gain{1.0};
   // Controls (SourceSettings), written by the game thread.
   std::atomic<double> directGain{1.0}, reflectionsGain{1.0};
+  // The gains in dB as given, for sourceControls(): back from the linear
+  // gains, -0 and the tiny values (|dB| < ~1e-3) came back changed.
+  std::atomic<double> gainDb{0.0}, directGainDb{0.0}, reflectionsGainDb{0.0};
   std::atomic<int> distanceModel{0}, occlusion{int(OcclusionMode::kRay)}, priority{0};
   std::atomic<double> distanceMin{1.0}, distanceMax{100.0}, rolloff{1.0}, radius{0.5};
   std::atomic<bool> transmissionOn{true};
@@ -291,6 +294,8 @@ namespace {
 void storeControls(Engine::Slot& slot, const SourceSettings& s) {
   slot.directGain.store(dbToGain(s.directGainDb));
   slot.reflectionsGain.store(dbToGain(s.reflectionsGainDb));
+  slot.directGainDb.store(s.directGainDb);
+  slot.reflectionsGainDb.store(s.reflectionsGainDb);
   slot.distanceModel.store(int(s.distance.model));
   slot.distanceMin.store(s.distance.minDistance);
   slot.distanceMax.store(s.distance.maxDistance);
@@ -326,6 +331,7 @@ Status Engine::setSourceControls(uint32_t s, const SourceSettings& settings) {
   EARSHOT_RETURN_IF_ERROR(validate(settings));
   Slot& slot = *mSlots[s];
   slot.gain.store(dbToGain(settings.gainDb), std::memory_order_relaxed);
+  slot.gainDb.store(settings.gainDb, std::memory_order_relaxed);
   storeControls(slot, settings);
   return Status::ok();
 }
@@ -334,10 +340,10 @@ Result<SourceSettings> Engine::sourceControls(uint32_t s) const {
   if (!validSource(s)) return invalidArgument("source " + std::to_string(s) + " does not exist");
   const Slot& slot = *mSlots[s];
   SourceSettings out;
-  out.gainDb = 20.0 * std::log10(std::max(slot.gain.load(), 1e-12));
+  out.gainDb = slot.gainDb.load();
   out.direct = DirectMode(slot.direct.load());
-  out.directGainDb = 20.0 * std::log10(std::max(slot.directGain.load(), 1e-12));
-  out.reflectionsGainDb = 20.0 * std::log10(std::max(slot.reflectionsGain.load(), 1e-12));
+  out.directGainDb = slot.directGainDb.load();
+  out.reflectionsGainDb = slot.reflectionsGainDb.load();
   out.distance.model = DistanceModel(slot.distanceModel.load());
   out.distance.minDistance = slot.distanceMin.load();
   out.distance.maxDistance = slot.distanceMax.load();
@@ -591,6 +597,7 @@ Result<uint32_t> Engine::addSource(const SourceSettings& settings) {
       slot.voice.store(slot.voiceOwner.get(), std::memory_order_release);
     }
     slot.gain.store(std::pow(10.0, settings.gainDb / 20.0));
+    slot.gainDb.store(settings.gainDb);
     slot.tailGain.store(0.0);  // until its first simulation
     slot.direct.store(int(settings.direct));
     storeControls(slot, settings);
@@ -626,6 +633,7 @@ Status Engine::setSourceGainDb(uint32_t s, double gainDb) {
   if (!(gainDb >= -120.0 && gainDb <= 60.0))
     return invalidArgument("source gain " + std::to_string(gainDb) + " dB is outside [-120, 60]");
   mSlots[s]->gain.store(std::pow(10.0, gainDb / 20.0), std::memory_order_relaxed);
+  mSlots[s]->gainDb.store(gainDb, std::memory_order_relaxed);
   return Status::ok();
 }
 

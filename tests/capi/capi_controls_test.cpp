@@ -6,6 +6,7 @@
 #include <thread>
 
 #include <cmath>
+#include <cstring>
 #include <vector>
 
 #include "capi_fixture.h"
@@ -177,6 +178,27 @@ TEST(CapiControls, GainsScaleWhatTheyName) {
   const double quiet = r.impulseEnergy();
   // The direct sound's -120 dB leaves ~1e-12 of the open level: negligible.
   EXPECT_NEAR(quiet / full, 0.1, 0.002);
+}
+
+// What earshot_source_get_settings returns is what was set, to the bit
+// (fuzz_capi found -0 and 1e-30 dB coming back as +0: the engine gave the
+// gains back from their linear values). earshot_source_set_gain_db too.
+TEST(CapiControls, GainsReadBackAsSet) {
+  World w(false);
+  for (float db : {-0.0f, 1e-30f, -1e-20f, 4e-4f, -7.25f, -39.9f, 40.0f}) {  // -db within [-120, 40] too
+    earshot_source_settings s = defaults();
+    s.gain_db = db;
+    s.direct_gain_db = -db;
+    s.reflections_gain_db = db / 2;
+    w.set(s);
+    const earshot_source_settings back = w.get();
+    EXPECT_EQ(std::memcmp(&back.gain_db, &s.gain_db, sizeof(float)), 0) << db << " came back as " << back.gain_db;
+    EXPECT_EQ(std::memcmp(&back.direct_gain_db, &s.direct_gain_db, sizeof(float)), 0) << -db;
+    EXPECT_EQ(std::memcmp(&back.reflections_gain_db, &s.reflections_gain_db, sizeof(float)), 0) << db / 2;
+    ASSERT_EQ(earshot_source_set_gain_db(w.src, -db), EARSHOT_OK);
+    const float expected = -db, got = w.get().gain_db;
+    EXPECT_EQ(std::memcmp(&got, &expected, sizeof(float)), 0) << -db << " came back as " << got;
+  }
 }
 
 TEST(CapiControls, OcclusionModesDifferAsDocumented) {
