@@ -36,13 +36,6 @@ Ran runCli(const std::string& args) {
   return r;
 }
 
-// Minor page faults of the children reaped so far (the CLI and its shell).
-long childPageFaults() {
-  rusage u{};
-  getrusage(RUSAGE_CHILDREN, &u);
-  return u.ru_minflt;
-}
-
 // Every key=number of the report.
 std::map<std::string, double> figures(const std::string& out) {
   std::map<std::string, double> f;
@@ -132,6 +125,12 @@ TEST(CliBenchTrace, RepeatedTracesTakeNoNewPages) {
 #if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__) || !defined(__GLIBC__)
   GTEST_SKIP() << "glibc's allocator only";
 #else
+  // Minor page faults of the children reaped so far (the CLI and its shell).
+  auto childPageFaults = [] {
+    rusage u{};
+    getrusage(RUSAGE_CHILDREN, &u);
+    return u.ru_minflt;
+  };
   const std::string shoebox = std::string(EARSHOT_SOURCE_DIR) + "/samples/shoebox/shoebox.gltf";
   const std::string common = "bench trace '" + shoebox + "' --material-map '" + EARSHOT_SOURCE_DIR +
                              "/samples/shoebox/materials_map.json' --threads 1 --no-embree-limit --runs ";
