@@ -35,8 +35,18 @@ RECEIVERS = ("omni", "binaural")
 QUALITIES = ("draft", "balanced", "high", "reference")
 TRACE_MODES = ("per-source", "shared", "auto")
 
-__all__ = ["Scene", "IR", "Render", "render", "analysis", "BANDS_HZ", "RECEIVERS", "QUALITIES", "TRACE_MODES",
-           "set_memory_limit", "memory_limit"]
+__all__ = ["Scene", "IR", "Render", "render", "analysis", "dataset", "BANDS_HZ", "RECEIVERS", "QUALITIES",
+           "TRACE_MODES", "set_memory_limit", "memory_limit"]
+
+
+def __getattr__(name):
+    """earshot.dataset on first use (PEP 562), so that `import earshot`
+    alone gives `earshot.dataset.make/load` as docs/python.md shows them,
+    without loading the dataset module for every import."""
+    if name == "dataset":
+        import importlib
+        return importlib.import_module(".dataset", __name__)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 _MAX_JSON_FILE_BYTES = 64 << 20
 

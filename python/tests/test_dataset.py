@@ -183,3 +183,24 @@ def test_outputs_never_replace_inputs(tmp_path):
     with pytest.raises(ValueError, match="replace an input"):
         dataset.make(spec, tmp_path, in_process=True, progress=False)
     assert json.loads(spec.read_text())["count"] == 10
+
+
+def test_import_earshot_alone_gives_the_dataset_functions(tmp_path):
+    # docs/python.md: `import earshot` then earshot.dataset.make / load, in a
+    # fresh interpreter (this one imported earshot.dataset above). The module
+    # is loaded on first use, not by `import earshot`.
+    spec = make_spec(tmp_path, count=2, shard_size=2)
+    code = ("import sys, earshot\n"
+            "assert 'earshot.dataset' not in sys.modules\n"
+            "assert 'dataset' in earshot.__all__\n"
+            f"earshot.dataset.make({str(spec)!r}, {str(tmp_path / 'out')!r}, in_process=True, progress=False)\n"
+            f"print(sum(1 for _ in earshot.dataset.load({str(tmp_path / 'out')!r})))\n"
+            "try:\n"
+            "    earshot.no_such_thing\n"
+            "except AttributeError as e:\n"
+            "    print('AttributeError', e)\n")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    lines = r.stdout.split("\n")
+    assert lines[0] == "2"
+    assert lines[1].startswith("AttributeError") and "no_such_thing" in lines[1]
