@@ -596,7 +596,7 @@ Result<uint32_t> Engine::addSource(const SourceSettings& settings) {
       slot.voiceOwner = std::move(voice.value());
       slot.voice.store(slot.voiceOwner.get(), std::memory_order_release);
     }
-    slot.gain.store(std::pow(10.0, settings.gainDb / 20.0));
+    slot.gain.store(dbToGain(settings.gainDb));
     slot.gainDb.store(settings.gainDb);
     slot.tailGain.store(0.0);  // until its first simulation
     slot.direct.store(int(settings.direct));
@@ -632,7 +632,7 @@ Status Engine::setSourceGainDb(uint32_t s, double gainDb) {
   if (!validSource(s)) return invalidArgument("source " + std::to_string(s) + " does not exist");
   if (!(gainDb >= -120.0 && gainDb <= 60.0))
     return invalidArgument("source gain " + std::to_string(gainDb) + " dB is outside [-120, 60]");
-  mSlots[s]->gain.store(std::pow(10.0, gainDb / 20.0), std::memory_order_relaxed);
+  mSlots[s]->gain.store(dbToGain(gainDb), std::memory_order_relaxed);
   mSlots[s]->gainDb.store(gainDb, std::memory_order_relaxed);
   return Status::ok();
 }
