@@ -86,6 +86,22 @@ def test_same_irs_on_a_two_worker_local_cluster(reference, tmp_path):
     assert_same(loaded(tmp_path / "out"), irs)
 
 
+def test_same_irs_through_a_running_scheduler(reference, tmp_path):
+    # `--scheduler ADDRESS`: a cluster that runs apart from the command (here
+    # a LocalCluster of one worker process, reached by its address only).
+    from dask.distributed import LocalCluster
+    folder, irs = reference
+    cluster = LocalCluster(n_workers=1, threads_per_worker=1, processes=True, scheduler_port=0,
+                           dashboard_address=":0", silence_logs=40)
+    try:
+        s = dataset.make(folder / "spec.json", tmp_path / "out", scheduler=cluster.scheduler_address,
+                         progress=False)
+    finally:
+        cluster.close()
+    assert s["irs_made"] == 10 and s["shards_made"] == 4
+    assert_same(loaded(tmp_path / "out"), irs)
+
+
 def test_killed_run_resumes_to_the_same_irs(reference, tmp_path):
     folder, irs = reference
     out = tmp_path / "out"
