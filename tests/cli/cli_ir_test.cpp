@@ -481,11 +481,12 @@ namespace earshot {
 TEST(CliIr, OutputFormatFollowsTheExtension) {
   TempDir dir("cli_formats");
   const std::string common = "ir --source 0,0,-3.43 --listener 0,0,0 --receiver omni --air off --length 0.1 -o ";
-  for (const char* name : {"ir.wav", "ir.flac", "ir.ogg", "IR.FLAC"}) {
+  for (const char* name : {"ir.wav", "ir.flac", "ir.ogg", "IR.FLAC", "noextension"}) {
     auto r = runEarshot(common + dir / name);
     ASSERT_EQ(r.exitCode, 0) << name << ": " << r.output;
   }
   EXPECT_EQ(readFile(dir / "ir.wav").substr(0, 4), "RIFF");
+  EXPECT_EQ(readFile(dir / "noextension"), readFile(dir / "ir.wav"));  // --help: WAV for a name without one
   EXPECT_EQ(readFile(dir / "ir.flac").substr(0, 4), "fLaC");
   EXPECT_EQ(readFile(dir / "IR.FLAC").substr(0, 4), "fLaC");
   EXPECT_EQ(readFile(dir / "ir.ogg").substr(0, 4), "OggS");

@@ -232,7 +232,7 @@ const Registrar registrar([](CLI::App& root) {
       ->check(CLI::ExistingFile);
   addVec3Option(*cmd, "--source", o->source, "Source position in metres")->required();
   addVec3Option(*cmd, "--listener", o->listener, "Listener position in metres")->required();
-  cmd->add_option("-o,--output", o->output, "Output audio file, format by extension: .wav (32-bit float), .flac (24-bit), .ogg (Vorbis); binaural: 2 channels left, right; omni: 1; ambisonic: (order+1)^2 AmbiX (ACN, SN3D)")
+  cmd->add_option("-o,--output", o->output, "Output audio file, format by extension: .wav (32-bit float; also for a name without one), .flac (24-bit), .ogg (Vorbis); binaural: 2 channels left, right; omni: 1; ambisonic: (order+1)^2 AmbiX (ACN, SN3D)")
       ->required();
   cmd->add_option("--materials", o->materials, "Materials JSON (default: the built-in materials/default.json)");
   cmd->add_option("--material-map", o->materialMap, "JSON object mapping glTF material names to acoustic materials");

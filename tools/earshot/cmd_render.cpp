@@ -184,7 +184,7 @@ const Registrar registrar([](CLI::App& root) {
       "(docs/scene-format.md)");
   cmd->add_option("scene", o->scene, "Scene file (JSON)")->required()->check(CLI::ExistingFile);
   cmd->add_option("-o,--output", o->output,
-                  "Output audio, 2 channels (left, right) or with --output-format ambisonic the AmbiX channels, format by extension: .wav (32-bit float), .flac (24-bit), "
+                  "Output audio, 2 channels (left, right) or with --output-format ambisonic the AmbiX channels, format by extension: .wav (32-bit float; also for a name without one), .flac (24-bit), "
                   ".ogg (Vorbis; FLAC and Ogg clip beyond full scale, and say how many samples). Written to a "
                   "temporary file and renamed at the end: an existing file is replaced only on success")
       ->required();
