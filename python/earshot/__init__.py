@@ -308,7 +308,11 @@ class Scene:
     def _kwargs(self, receiver="binaural", order=None, forward=(0.0, 0.0, -1.0), up=(0.0, 1.0, 0.0),
                 quality="balanced", rays=None, bounces=None, ism_order=None, bin_ms=None, tail_probes=None,
                 sample_rate=48000.0, length=None, air="20,50", hrtf=None, receiver_radius=0.0, converge=0.0,
-                flutter_cones=True, trace="per-source", bands="octave"):
+                flutter_cones=True, trace="per-source", bands="octave", **unknown):
+        if unknown:  # named as the caller's option, not as this helper's argument
+            import inspect
+            known = [n for n in inspect.signature(Scene._kwargs).parameters if n not in ("self", "unknown")]
+            raise TypeError(f"unknown option(s) {sorted(unknown)}; the options are {known}")
         if not isinstance(receiver, str):
             raise TypeError("receiver: expected 'omni', 'binaural' or 'ambisonic'")
         if order is not None and receiver != "ambisonic":

@@ -27,7 +27,8 @@ unless allow_outside_paths):
                     "height_m": null},          # [lo, hi] above the room's floor, or null: anywhere
       "format": "hdf5",         # hdf5 | wav (default hdf5)
       "shard_size": 100,        # IRs per shard (default 100)
-      "ir_options": {}          # any other option of Scene.ir (rays, bounces, length, air, ...)
+      "ir_options": {}          # any other option of Scene.ir (rays, bounces, length, air, ...; hrtf: a
+                                # SOFA file relative to the spec's folder, like the rooms' files)
     }
 
 IR i is made in room i mod R (R rooms after generators expand), with seed
@@ -98,7 +99,7 @@ def read_spec(path, *, allow_outside_paths=False):
 
 
 def _inside(base, rel, field, allow_outside):
-    if not isinstance(rel, str) or not rel:
+    if not isinstance(rel, str) or not rel or "\0" in rel:
         raise SpecError(f"{field}: expected a file name")
     p = os.path.realpath(os.path.join(base, rel))
     root = os.path.realpath(base)
@@ -163,6 +164,12 @@ def resolve_spec(spec, base_dir, *, allow_outside_paths=False, name="spec"):
     bad = set(out["ir_options"]) & {"receiver", "quality", "sample_rate", "seed", "threads"}
     if bad:
         raise SpecError(f"ir_options: {sorted(bad)} are set at the spec's top level")
+    # A file the options name is the spec's as the rooms' files are: relative
+    # to its folder and inside it (not relative to wherever a worker runs).
+    out["ir_options"] = dict(out["ir_options"])
+    if out["ir_options"].get("hrtf") is not None:
+        out["ir_options"]["hrtf"] = _inside(base_dir, out["ir_options"]["hrtf"], "ir_options.hrtf",
+                                            allow_outside_paths)
     rooms = out.get("rooms")
     if not isinstance(rooms, list) or not rooms:
         raise SpecError("rooms: expected a non-empty list")
@@ -225,8 +232,11 @@ def resolve_spec(spec, base_dir, *, allow_outside_paths=False, name="spec"):
     out["rooms"] = resolved
     out["allow_outside_paths"] = bool(allow_outside_paths)
     # Checked now rather than on every worker: the IR options.
-    earshot.Scene()._kwargs(receiver=out["receiver"], quality=out["quality"], sample_rate=float(sr),
-                            **out["ir_options"])
+    try:
+        earshot.Scene()._kwargs(receiver=out["receiver"], quality=out["quality"], sample_rate=float(sr),
+                                **out["ir_options"])
+    except (TypeError, ValueError) as e:
+        raise SpecError(f"ir_options: {e}") from None
     return out
 
 

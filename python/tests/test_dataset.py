@@ -13,7 +13,7 @@ import pytest
 
 import earshot
 from earshot import dataset
-from conftest import SHOEBOX, SHOEBOX_MAP
+from conftest import SHOEBOX, SHOEBOX_MAP, SOURCE_DIR
 
 
 def make_spec(folder, **over):
@@ -159,6 +159,12 @@ def test_wav_format(reference, tmp_path):
     ({"receiver": "ambisonic"}, "receiver"),
     ({"ir_options": {"rays": -1}}, "rays"),
     ({"positions": {"wall_distance_m": -1}}, "wall_distance"),
+    ({"rooms": [{"geometry": "shoebox\0.gltf"}]}, "geometry: expected a file name"),
+    ({"ir_options": {"hrtf": "../escape.sofa"}}, "ir_options.hrtf: .* leads outside"),
+    ({"ir_options": {"hrtf": "/etc/passwd"}}, "ir_options.hrtf: .* leads outside"),
+    ({"ir_options": {"hrtf": "none.sofa"}}, "ir_options.hrtf: .* is not a file"),
+    ({"ir_options": {"colour": 1}}, r"ir_options: unknown option\(s\) \['colour'\]"),
+    ({"ir_options": {"length": "long"}}, "ir_options: length"),
 ])
 def test_bad_specs_are_refused(tmp_path, over, text):
     (tmp_path / "sub").mkdir()
@@ -220,3 +226,26 @@ def test_import_earshot_alone_gives_the_dataset_functions(tmp_path):
     lines = r.stdout.split("\n")
     assert lines[0] == "2"
     assert lines[1].startswith("AttributeError") and "no_such_thing" in lines[1]
+
+
+def test_an_hrtf_in_ir_options_is_the_specs_file(tmp_path, monkeypatch):
+    # Relative to the spec's folder, as the rooms' files are: not to the
+    # folder the command (or a Dask worker) runs in. The caller's dict stays.
+    folder = tmp_path / "spec"
+    folder.mkdir()
+    shutil.copy(os.path.join(SOURCE_DIR, "hrtf", "FHK_HRIR_L2354.sofa"), folder / "ears.sofa")
+    make_spec(folder)
+    spec = json.loads((folder / "spec.json").read_text())
+    spec.update(rooms=spec["rooms"][:1], count=1, receiver="binaural", ir_options={"hrtf": "ears.sofa", "rays": 256,
+                                                                                  "length": 0.2})
+    resolved = dataset.resolve_spec(spec, str(folder))
+    assert resolved["ir_options"]["hrtf"] == os.path.realpath(folder / "ears.sofa")
+    assert spec["ir_options"]["hrtf"] == "ears.sofa"
+    (folder / "spec.json").write_text(json.dumps(spec))
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    s = dataset.make(folder / "spec.json", tmp_path / "out", in_process=True, progress=False)
+    assert s["irs_made"] == 1
+    [(_, x, p)] = loaded(tmp_path / "out")
+    assert x.shape[0] == 2 and p["receiver"] == "binaural"

@@ -241,6 +241,7 @@ def test_an_ir_cut_by_the_automatic_lengths_cap_says_so():
     (dict(bands="sixth"), ValueError, "bands"),
     (dict(bands=3), TypeError, "bands"),
     (dict(bands="third-octave", trace="shared"), ValueError, "per-source"),
+    (dict(colour="red"), TypeError, r"unknown option\(s\) \['colour'\]; the options are \['receiver'"),
 ])
 def test_bad_arguments_raise(shoebox, kwargs, exc, text):
     args = dict(source=SRC, listener=LIS, quality="draft")
