@@ -508,6 +508,30 @@ def _inputs(spec):
     return out
 
 
+def _folder_record(out_dir):
+    """The folder's spec.json as make wrote it ({hash, format_version,
+    earshot, spec}). One that is damaged, or not a dataset's, is a
+    ValueError naming it (never its contents)."""
+    path = os.path.join(out_dir, "spec.json")
+    try:
+        if os.path.getsize(path) > 16 << 20:
+            raise ValueError("over 16 MB")
+        with open(path, "rb") as f:
+            rec = json.loads(f.read())
+        spec = rec["spec"]
+        whole = (lambda v, hi: isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= hi)
+        if not (isinstance(rec, dict) and isinstance(rec.get("hash"), str) and isinstance(spec, dict)
+                and whole(spec.get("count"), _MAX_COUNT) and whole(spec.get("shard_size"), 100_000)
+                and spec.get("format") in ("hdf5", "wav")):
+            raise ValueError("not as make writes it")
+    except (ValueError, RecursionError, KeyError, TypeError) as e:
+        why = str(e) if type(e) is ValueError and str(e) in ("over 16 MB", "not as make writes it") \
+            else type(e).__name__
+        raise ValueError(f"{path}: not a dataset's record ({why}); was the folder made by earshot.dataset, "
+                         "and changed since?") from None
+    return rec
+
+
 def _prepare_dir(spec, out_dir, spec_path_in=None):
     # An output never replaces an input (the spec, a room's files).
     inputs = {os.path.realpath(p) for p in _inputs(spec) + ([spec_path_in] if spec_path_in else [])}
@@ -520,9 +544,7 @@ def _prepare_dir(spec, out_dir, spec_path_in=None):
     spec_path = os.path.join(out_dir, "spec.json")
     h = _spec_hash(spec)
     if os.path.exists(spec_path):
-        with open(spec_path) as f:
-            old = json.load(f)
-        if old.get("hash") != h:
+        if _folder_record(out_dir)["hash"] != h:
             raise ValueError(f"{out_dir}: holds a dataset made from a different spec; use a new folder")
     else:
         tmp = spec_path + f".tmp-{os.getpid()}"
@@ -633,25 +655,60 @@ def load(out_dir, *, partial=False):
     dataset in id order. An incomplete dataset raises ValueError unless
     partial=True (then only its complete shards)."""
     out_dir = os.fspath(out_dir)
-    with open(os.path.join(out_dir, "spec.json")) as f:
-        spec = json.load(f)["spec"]
+    spec = _folder_record(out_dir)["spec"]
     for k in range(_shard_count(spec)):
         p = _shard_path(out_dir, spec, k)
         if not _shard_complete(out_dir, spec, k):
             if partial:
                 continue
             raise ValueError(f"{out_dir}: shard {k} is missing or incomplete (run make again to finish it)")
+        damaged = (ValueError, KeyError, TypeError, OSError, struct.error, RecursionError)
+
+        def failure(i, e):
+            why = str(e) if "memory limit" in str(e) or str(e) == "not an IR" else type(e).__name__
+            return ValueError(f"{p}: IR {i} is damaged ({why}); delete the shard and run make again to make it anew")
+        ids = _shard_range(spec, k)
         if spec["format"] == "hdf5":
             import h5py
-            with h5py.File(p, "r") as f:
-                for i in _shard_range(spec, k):
-                    ds = f[f"ir/{i:08d}"]
-                    yield i, ds[()], json.loads(ds.attrs["params"])
+            try:
+                f = h5py.File(p, "r")
+            except damaged as e:
+                raise failure(ids[0], e) from None
+            with f:
+                for i in ids:
+                    try:
+                        x, params = _read_hdf5_ir(f, i)
+                    except damaged as e:
+                        raise failure(i, e) from None
+                    yield i, x, params
         else:
-            rows = {r["id"]: r for r in _shard_manifest(p, spec)}
-            for i in _shard_range(spec, k):
-                x, _ = read_wav_float(os.path.join(p, f"ir-{i:08d}.wav"))
-                yield i, x, rows[i]
+            try:
+                rows = {r["id"]: r for r in _shard_manifest(p, spec)}
+            except damaged as e:
+                raise failure(ids[0], e) from None
+            for i in ids:
+                try:
+                    w = os.path.join(p, f"ir-{i:08d}.wav")
+                    if os.path.getsize(w) > earshot.memory_limit():
+                        raise ValueError(f"{os.path.getsize(w)} bytes, over the memory limit of "
+                                         f"{earshot.memory_limit() / 2**20:.1f} MiB (set_memory_limit)")
+                    x, params = read_wav_float(w)[0], rows[i]
+                except damaged as e:
+                    raise failure(i, e) from None
+                yield i, x, params
+
+
+def _read_hdf5_ir(f, i):
+    """IR i of an open HDF5 shard and its parameters. Its size is checked
+    against the memory limit before it is read: a damaged file may claim
+    any shape."""
+    ds = f[f"ir/{i:08d}"]
+    if len(ds.shape) != 2 or ds.dtype != np.float32 or not 1 <= ds.shape[0] <= 16:
+        raise ValueError("not an IR")
+    if ds.shape[0] * ds.shape[1] * 4 > earshot.memory_limit():
+        raise ValueError(f"{ds.shape[0]} x {ds.shape[1]} samples, over the memory limit of "
+                         f"{earshot.memory_limit() / 2**20:.1f} MiB (set_memory_limit)")
+    return ds[()], json.loads(ds.attrs["params"])
 
 
 def main(argv=None):

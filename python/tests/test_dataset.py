@@ -249,3 +249,49 @@ def test_an_hrtf_in_ir_options_is_the_specs_file(tmp_path, monkeypatch):
     assert s["irs_made"] == 1
     [(_, x, p)] = loaded(tmp_path / "out")
     assert x.shape[0] == 2 and p["receiver"] == "binaural"
+
+
+def test_a_damaged_folder_is_a_clear_error_not_a_crash(reference, tmp_path):
+    # What a damaged file makes load() allocate is checked first: an IR that
+    # claims 2 x 2,000,000 samples (sparse, a few KB on disk) is refused
+    # under an 8 MiB limit before it is read.
+    import h5py
+    folder, irs = reference
+    out = tmp_path / "out"
+    shutil.copytree(folder / "out", out)
+    with h5py.File(out / "shards" / "shard-00000.h5", "r+") as f:
+        params = f["ir/00000000"].attrs["params"]
+        del f["ir/00000000"]
+        f.create_dataset("ir/00000000", shape=(2, 2_000_000), dtype="f4", chunks=(1, 4096))
+        f["ir/00000000"].attrs["params"] = params
+    before = earshot.memory_limit()
+    try:
+        earshot.set_memory_limit(8 << 20)
+        with pytest.raises(ValueError, match=r"shard-00000.h5: IR 0 is damaged \(2 x 2000000 samples, over the "
+                                             r"memory limit of 8.0 MiB"):
+            loaded(out)
+    finally:
+        earshot.set_memory_limit(None if before == 1 << 30 else before)
+    with h5py.File(out / "shards" / "shard-00000.h5", "r+") as f:
+        del f["ir/00000000"]
+        f.create_dataset("ir/00000000", data=np.zeros((1, 2, 3), np.float32))
+    with pytest.raises(ValueError, match=r"shard-00000.h5: IR 0 is damaged \(not an IR\)"):
+        loaded(out)
+    with h5py.File(out / "shards" / "shard-00000.h5", "r+") as f:
+        del f["ir/00000000"]
+    with pytest.raises(ValueError, match=r"shard-00000.h5: IR 0 is damaged \(KeyError\)"):
+        loaded(out)
+    shutil.rmtree(out / "shards")
+    shutil.copytree(folder / "out" / "shards", out / "shards")
+    with h5py.File(out / "shards" / "shard-00000.h5", "r+") as f:
+        f["ir/00000001"].attrs["params"] = "{not json"
+    with pytest.raises(ValueError, match=r"IR 1 is damaged \(JSONDecodeError\)"):
+        loaded(out)
+    # The folder's own record: garbage, or JSON that is not one.
+    for text in (b"\xff\xfe garbage", b"[1, 2]", b'{"hash": "x", "spec": {"count": 1e999}}'):
+        (out / "spec.json").write_bytes(text)
+        with pytest.raises(ValueError, match=r"spec.json: not a dataset's record") as e:
+            loaded(out)
+        assert "garbage" not in str(e.value)
+        with pytest.raises(ValueError, match=r"spec.json: not a dataset's record"):
+            dataset.make(folder / "spec.json", out, in_process=True, progress=False)
