@@ -48,6 +48,10 @@ def __getattr__(name):
         return importlib.import_module(".dataset", __name__)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
+
+def __dir__():
+    return sorted(set(globals()) | {"dataset"})  # for completion, before its first use
+
 _MAX_JSON_FILE_BYTES = 64 << 20
 
 

@@ -214,7 +214,7 @@ def test_import_earshot_alone_gives_the_dataset_functions(tmp_path):
     spec = make_spec(tmp_path, count=2, shard_size=2)
     code = ("import sys, earshot\n"
             "assert 'earshot.dataset' not in sys.modules\n"
-            "assert 'dataset' in earshot.__all__\n"
+            "assert 'dataset' in earshot.__all__ and 'dataset' in dir(earshot) and 'Scene' in dir(earshot)\n"
             f"earshot.dataset.make({str(spec)!r}, {str(tmp_path / 'out')!r}, in_process=True, progress=False)\n"
             f"print(sum(1 for _ in earshot.dataset.load({str(tmp_path / 'out')!r})))\n"
             "try:\n"
