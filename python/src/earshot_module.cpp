@@ -41,7 +41,9 @@ namespace {
 
 /** Raises the Python exception that fits `status` (called with the GIL held). */
 [[noreturn]] void raise(const Status& status) {
-  const std::string& msg = status.message();
+  // The engine names the memory limit by the CLI's option; Python sets it
+  // with earshot.set_memory_limit.
+  const std::string msg = renamedMemoryLimit(status.message(), "earshot.set_memory_limit");
   switch (status.code()) {
     case StatusCode::kNotFound:
       PyErr_SetString(PyExc_FileNotFoundError, msg.c_str());

@@ -258,7 +258,8 @@ def test_memory_limit_refuses_a_trace_past_it_until_raised(shoebox):
     try:
         earshot.set_memory_limit(4 << 20)
         assert earshot.memory_limit() == 4 << 20
-        with pytest.raises(ValueError, match="30000 rays.*over the memory limit of 4.0 MiB"):
+        with pytest.raises(ValueError, match=r"30000 rays.*over the memory limit of 4.0 MiB "
+                                             r"\(earshot.set_memory_limit\)"):
             shoebox.ir(SRC, LIS, quality="draft", receiver="omni", rays=30000)
         earshot.set_memory_limit(64 << 20)
         ir = shoebox.ir(SRC, LIS, quality="draft", receiver="omni", rays=30000)

@@ -79,8 +79,16 @@ earshot_status toCode(StatusCode code) {
 earshot_status fromStatus(const Env* env, const char* fn, const Status& status) noexcept {
   if (status.isOk()) return EARSHOT_OK;
   const earshot_status code = toCode(status.code());
-  if (code == EARSHOT_ERROR_INVALID_ARGUMENT) return argError(env, fn, status.message());
-  return fail(env, fn, code, status.message());
+  // The engine names the memory limit by the CLI's option; a C caller sets it
+  // with earshot_set_memory_limit.
+  std::string message;
+  try {
+    message = renamedMemoryLimit(status.message(), "earshot_set_memory_limit");
+  } catch (...) {
+    return EARSHOT_ERROR_OUT_OF_MEMORY;
+  }
+  if (code == EARSHOT_ERROR_INVALID_ARGUMENT) return argError(env, fn, message);
+  return fail(env, fn, code, message);
 }
 
 std::string checkStructSize(uint32_t got, size_t expected, const char* name) {

@@ -78,6 +78,15 @@ Status checkMemoryEstimate(double bytes, const std::string& what) {
                     formatBytes(limit) + " (--max-memory) for work run side by side");
 }
 
+std::string renamedMemoryLimit(const std::string& message, const std::string& setter) {
+  static const std::string kCli = "(--max-memory)";
+  std::string out;
+  size_t from = 0;
+  for (size_t at; (at = message.find(kCli, from)) != std::string::npos; from = at + kCli.size())
+    out.append(message, from, at - from).append("(").append(setter).append(")");
+  return out.append(message, from, std::string::npos);
+}
+
 MemoryLimitShare::MemoryLimitShare(uint64_t bytes) : mOuterShare(tShare), mOuterRefused(tRefusedByShare) {
   tShare = std::max<uint64_t>(bytes, 1);
   tRefusedByShare = false;

@@ -138,6 +138,10 @@ TEST_F(CApiHostile, RaysPastTheMemoryLimitAreRefusedUntilTheCallerRaisesIt) {
   earshot_context* ctx = nullptr;
   EXPECT_EQ(earshot_context_create(&cs, &ctx), EARSHOT_ERROR_OUT_OF_RANGE) << message();
   EXPECT_NE(message().find("simulation.rays 20000000"), std::string::npos) << message();
+  // Named as a C caller sets it, not by the CLI's option.
+  EXPECT_NE(message().find("over the memory limit of 1.0 GiB (earshot_set_memory_limit)"), std::string::npos)
+      << message();
+  EXPECT_EQ(message().find("--max-memory"), std::string::npos) << message();
   EXPECT_EQ(ctx, nullptr);
   ASSERT_EQ(earshot_set_memory_limit(uint64_t(8) << 30), EARSHOT_OK);
   ASSERT_EQ(earshot_get_memory_limit(&limit), EARSHOT_OK);

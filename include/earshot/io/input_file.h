@@ -54,6 +54,10 @@ void setDefaultMaxMemoryBytes(uint64_t bytes);
  *  (--max-memory)" when an estimate of `bytes` passes the process's memory
  *  limit (before allocating it); ok otherwise. */
 Status checkMemoryEstimate(double bytes, const std::string& what);
+/** `message` with the CLI's name of the memory limit, "(--max-memory)",
+ *  replaced by `setter` (how the caller's API sets it: the C API's
+ *  "earshot_set_memory_limit", Python's "earshot.set_memory_limit"). */
+std::string renamedMemoryLimit(const std::string& message, const std::string& setter);
 
 /** While alive, this thread's checkMemoryEstimate compares with `bytes`
  *  (its share of the limit) where that is below the process's limit: work
