@@ -531,7 +531,8 @@ def render(scene, *, base_dir=None, quality=None, seed=None, threads=0, start=0.
     elif _path(scene) is not None and (isinstance(scene, _os.PathLike) or not scene.lstrip().startswith("{")):
         p = _path(scene)
         if not _os.path.isfile(p):
-            raise FileNotFoundError(f"{p}: no such scene file")
+            shown = p if len(p) <= 200 else p[:197] + "..."  # a long string that is neither a path nor JSON text
+            raise FileNotFoundError(f"{shown}: no such scene file")
         if _os.path.getsize(p) > _MAX_JSON_FILE_BYTES:
             raise ValueError(f"{p}: the scene file is over {_MAX_JSON_FILE_BYTES >> 20} MB")
         with open(p, "rb") as f:

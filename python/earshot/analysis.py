@@ -32,6 +32,8 @@ def _json_text(doc, what):
         raise ValueError(f"{what}: every number must be finite (a NaN or infinity was given)") from None
     except TypeError as e:
         raise TypeError(f"{what}: not JSON-serialisable: {e}") from None
+    except RecursionError:  # the engine's JSON readers stop at 128 levels in any case
+        raise ValueError(f"{what}: nested too deeply") from None
 
 
 METRICS = ("EDT", "T20", "T30", "C50", "C80", "D50", "Ts")

@@ -48,3 +48,17 @@ def test_render_errors(tmp_path):
     scene["listener"]["position"] = [float("nan"), 0, 0]
     with pytest.raises(ValueError, match="scene: every number must be finite"):
         earshot.render(scene, base_dir=os.path.dirname(SCENE))
+    # A dict nested past Python's recursion limit is a ValueError like any
+    # bad scene, and a long string that is neither JSON text nor a file is
+    # named in 200 characters, not echoed whole.
+    deep = cur = {}
+    for _ in range(100_000):
+        cur["x"] = {}
+        cur = cur["x"]
+    with pytest.raises(ValueError, match="scene: nested too deeply"):
+        earshot.render(deep)
+    with pytest.raises(ValueError, match="materials: nested too deeply"):
+        earshot.Scene(materials=deep)
+    with pytest.raises(FileNotFoundError) as e:
+        earshot.render("[" * 1_000_000)
+    assert len(str(e.value)) < 250 and str(e.value).endswith("...: no such scene file")
