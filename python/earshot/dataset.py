@@ -564,13 +564,20 @@ def _prepare_dir(spec, out_dir, spec_path_in=None):
                 os.unlink(p)
 
 
-def _write_manifest(out_dir, rows):
+def _write_manifest(out_dir, spec, n):
+    """DIR/manifest.jsonl from the n shards' own manifests, one shard at a
+    time; returns every IR's pipeline time (ms, an array of doubles)."""
+    from array import array
+    pipeline_ms = array("d")
     final = os.path.join(out_dir, "manifest.jsonl")
     tmp = final + f".tmp-{os.getpid()}"
     with open(tmp, "w") as f:
-        for r in rows:
-            f.write(json.dumps(r) + "\n")
+        for k in range(n):
+            for r in _shard_manifest(_shard_path(out_dir, spec, k), spec):
+                f.write(json.dumps(r) + "\n")
+                pipeline_ms.append(r["time_ms"]["pipeline"])
     os.replace(tmp, final)
+    return pipeline_ms
 
 
 def make(spec, out_dir, *, workers=None, scheduler=None, in_process=False, progress=True,
@@ -592,12 +599,16 @@ def make(spec, out_dir, *, workers=None, scheduler=None, in_process=False, progr
     n = _shard_count(spec)
     todo = [k for k in range(n) if not _shard_complete(out_dir, spec, k)]
     t0 = time.perf_counter()
-    rows_by_shard = {}
     log = (lambda m: print(f"earshot dataset: {m}", file=sys.stderr, flush=True)) if progress else (lambda m: None)
     log(f"{spec['count']} IRs in {n} shards; {n - len(todo)} already made, {len(todo)} to make")
+    # What make holds stays bounded whatever the count: a shard's rows are
+    # dropped once it is written (the manifest is read back from the shards
+    # at the end), and on Dask only a window of shards is in flight (each
+    # future released once done), so neither this process nor the cluster
+    # holds every row (~12 KiB each in memory: 11 GiB for a million IRs).
     if todo and (in_process or (workers == 0)):
         for j, k in enumerate(todo):
-            rows_by_shard[k] = run_shard(spec, out_dir, k)
+            run_shard(spec, out_dir, k)
             log(f"shard {k} done ({j + 1}/{len(todo)})")
     elif todo:
         from dask.distributed import Client, LocalCluster, as_completed
@@ -616,13 +627,25 @@ def make(spec, out_dir, *, workers=None, scheduler=None, in_process=False, progr
             except ImportError:
                 log("Dask dashboard: not available (it needs bokeh: Debian 12 has no python3-bokeh); "
                     "progress below")
-            futures = {client.submit(run_shard, spec, out_dir, k, key=f"earshot-shard-{k}-{_spec_hash(spec)[:8]}",
-                                     pure=False): k for k in todo}
+            tag = _spec_hash(spec)[:8]
+            pending = iter(todo)
+            running = as_completed()
+
+            def submit_next():
+                k = next(pending, None)
+                if k is not None:
+                    running.add(client.submit(run_shard, spec, out_dir, k, key=f"earshot-shard-{k}-{tag}",
+                                              pure=False))
+            # Four shards a worker thread in flight (at least 16): enough to
+            # keep a cluster busy, and workers that join later get work.
+            for _ in range(max(16, 4 * sum(client.nthreads().values()))):
+                submit_next()
             done = 0
-            for fut in as_completed(futures):
-                k = futures[fut]
-                rows_by_shard[k] = fut.result()
+            for fut in running:
+                fut.result()  # raises a shard's error here
+                fut.release()
                 done += 1
+                submit_next()
                 if progress:
                     w = 30
                     f = done / len(todo)
@@ -636,15 +659,12 @@ def make(spec, out_dir, *, workers=None, scheduler=None, in_process=False, progr
             if cluster is not None:
                 cluster.close()
     made_seconds = time.perf_counter() - t0
-    rows = []
-    for k in range(n):
-        rows.extend(rows_by_shard[k] if k in rows_by_shard else _shard_manifest(_shard_path(out_dir, spec, k), spec))
-    _write_manifest(out_dir, rows)
+    pipeline_ms = _write_manifest(out_dir, spec, n)
     made = sum(len(_shard_range(spec, k)) for k in todo)
     summary = {"irs": spec["count"], "shards": n, "shards_made": len(todo), "shards_reused": n - len(todo),
                "irs_made": made, "seconds": made_seconds,
                "seconds_per_ir": made_seconds / made if made else None,
-               "median_pipeline_ms": float(np.median([r["time_ms"]["pipeline"] for r in rows]))}
+               "median_pipeline_ms": float(np.median(pipeline_ms))}
     log(f"made {made} IRs in {made_seconds:.1f} s ({summary['seconds_per_ir'] or 0:.3f} s per IR, median "
         f"pipeline {summary['median_pipeline_ms']:.1f} ms) in {out_dir}")
     return summary

@@ -295,3 +295,31 @@ def test_a_damaged_folder_is_a_clear_error_not_a_crash(reference, tmp_path):
         assert "garbage" not in str(e.value)
         with pytest.raises(ValueError, match=r"spec.json: not a dataset's record"):
             dataset.make(folder / "spec.json", out, in_process=True, progress=False)
+
+
+def test_a_cluster_holds_a_window_of_shards_not_all(tmp_path, monkeypatch):
+    # make() keeps at most max(16, 4 x the cluster's threads) shards in flight
+    # and releases each when done, so neither the command nor the cluster
+    # holds every shard's rows (~12 KiB an IR: 11 GiB for a million IRs).
+    # The client's live futures are counted at each submit.
+    from dask.distributed import Client, LocalCluster
+    spec = make_spec(tmp_path, rooms=[{"generator": "shoebox", "absorption": [0.3, 0.5]}], count=40,
+                     shard_size=1, receiver="omni", ir_options={"rays": 64, "length": 0.1})
+    live, submit = [], Client.submit
+
+    def counting_submit(self, *args, **kwargs):
+        live.append(len(self.futures))
+        return submit(self, *args, **kwargs)
+    monkeypatch.setattr(Client, "submit", counting_submit)
+    cluster = LocalCluster(n_workers=1, threads_per_worker=1, processes=True, scheduler_port=0,
+                           dashboard_address=":0", silence_logs=40)
+    try:
+        s = dataset.make(spec, tmp_path / "out", scheduler=cluster.scheduler_address, progress=False)
+    finally:
+        cluster.close()
+    assert s["irs_made"] == 40 and len(live) == 40
+    assert max(live) <= 16, live  # 39 without the window
+    dataset.make(spec, tmp_path / "ref", in_process=True, progress=False)
+    assert_same(loaded(tmp_path / "out"), loaded(tmp_path / "ref"))
+    rows = [json.loads(line) for line in (tmp_path / "out" / "manifest.jsonl").read_text().splitlines()]
+    assert [r["id"] for r in rows] == list(range(40))
