@@ -42,6 +42,7 @@ Ts), and DIR/spec.json the spec it was made from.
 """
 import hashlib
 import json
+from array import array
 import math
 import os
 import struct
@@ -71,6 +72,22 @@ _FORMAT_VERSION = 1
 
 class SpecError(ValueError):
     """The spec is invalid (the message names the field)."""
+
+
+class _Damaged(ValueError):
+    """What this module found wrong in a dataset's file (its message says
+    what, never the file's contents); other errors are named by their type."""
+
+
+def _why(e):
+    return str(e) if isinstance(e, _Damaged) else type(e).__name__
+
+
+def _check_size(nbytes, what):
+    """A file's claim of `nbytes` to read, against the memory limit, first."""
+    if nbytes > earshot.memory_limit():
+        raise _Damaged(f"{what}, over the memory limit of {earshot.memory_limit() / 2**20:.1f} MiB "
+                       "(set_memory_limit)")
 
 
 def _short(v, n=40):
@@ -515,7 +532,7 @@ def _folder_record(out_dir):
     path = os.path.join(out_dir, "spec.json")
     try:
         if os.path.getsize(path) > 16 << 20:
-            raise ValueError("over 16 MB")
+            raise _Damaged("over 16 MB")
         with open(path, "rb") as f:
             rec = json.loads(f.read())
         spec = rec["spec"]
@@ -523,11 +540,9 @@ def _folder_record(out_dir):
         if not (isinstance(rec, dict) and isinstance(rec.get("hash"), str) and isinstance(spec, dict)
                 and whole(spec.get("count"), _MAX_COUNT) and whole(spec.get("shard_size"), 100_000)
                 and spec.get("format") in ("hdf5", "wav")):
-            raise ValueError("not as make writes it")
+            raise _Damaged("not as make writes it")
     except (ValueError, RecursionError, KeyError, TypeError) as e:
-        why = str(e) if type(e) is ValueError and str(e) in ("over 16 MB", "not as make writes it") \
-            else type(e).__name__
-        raise ValueError(f"{path}: not a dataset's record ({why}); was the folder made by earshot.dataset, "
+        raise ValueError(f"{path}: not a dataset's record ({_why(e)}); was the folder made by earshot.dataset, "
                          "and changed since?") from None
     return rec
 
@@ -567,7 +582,6 @@ def _prepare_dir(spec, out_dir, spec_path_in=None):
 def _write_manifest(out_dir, spec, n):
     """DIR/manifest.jsonl from the n shards' own manifests, one shard at a
     time; returns every IR's pipeline time (ms, an array of doubles)."""
-    from array import array
     pipeline_ms = array("d")
     final = os.path.join(out_dir, "manifest.jsonl")
     tmp = final + f".tmp-{os.getpid()}"
@@ -676,45 +690,42 @@ def load(out_dir, *, partial=False):
     partial=True (then only its complete shards)."""
     out_dir = os.fspath(out_dir)
     spec = _folder_record(out_dir)["spec"]
+    damaged = (ValueError, KeyError, TypeError, OSError, struct.error, RecursionError)
+
+    def failure(p, i, e):
+        return ValueError(f"{p}: IR {i} is damaged ({_why(e)}); delete the shard and run make again to make it anew")
     for k in range(_shard_count(spec)):
         p = _shard_path(out_dir, spec, k)
         if not _shard_complete(out_dir, spec, k):
             if partial:
                 continue
             raise ValueError(f"{out_dir}: shard {k} is missing or incomplete (run make again to finish it)")
-        damaged = (ValueError, KeyError, TypeError, OSError, struct.error, RecursionError)
-
-        def failure(i, e):
-            why = str(e) if "memory limit" in str(e) or str(e) == "not an IR" else type(e).__name__
-            return ValueError(f"{p}: IR {i} is damaged ({why}); delete the shard and run make again to make it anew")
         ids = _shard_range(spec, k)
         if spec["format"] == "hdf5":
             import h5py
             try:
                 f = h5py.File(p, "r")
             except damaged as e:
-                raise failure(ids[0], e) from None
+                raise failure(p, ids[0], e) from None
             with f:
                 for i in ids:
                     try:
                         x, params = _read_hdf5_ir(f, i)
                     except damaged as e:
-                        raise failure(i, e) from None
+                        raise failure(p, i, e) from None
                     yield i, x, params
         else:
             try:
                 rows = {r["id"]: r for r in _shard_manifest(p, spec)}
             except damaged as e:
-                raise failure(ids[0], e) from None
+                raise failure(p, ids[0], e) from None
             for i in ids:
                 try:
                     w = os.path.join(p, f"ir-{i:08d}.wav")
-                    if os.path.getsize(w) > earshot.memory_limit():
-                        raise ValueError(f"{os.path.getsize(w)} bytes, over the memory limit of "
-                                         f"{earshot.memory_limit() / 2**20:.1f} MiB (set_memory_limit)")
+                    _check_size(os.path.getsize(w), f"{os.path.getsize(w)} bytes")
                     x, params = read_wav_float(w)[0], rows[i]
                 except damaged as e:
-                    raise failure(i, e) from None
+                    raise failure(p, i, e) from None
                 yield i, x, params
 
 
@@ -724,10 +735,8 @@ def _read_hdf5_ir(f, i):
     any shape."""
     ds = f[f"ir/{i:08d}"]
     if len(ds.shape) != 2 or ds.dtype != np.float32 or not 1 <= ds.shape[0] <= 16:
-        raise ValueError("not an IR")
-    if ds.shape[0] * ds.shape[1] * 4 > earshot.memory_limit():
-        raise ValueError(f"{ds.shape[0]} x {ds.shape[1]} samples, over the memory limit of "
-                         f"{earshot.memory_limit() / 2**20:.1f} MiB (set_memory_limit)")
+        raise _Damaged("not an IR")
+    _check_size(ds.shape[0] * ds.shape[1] * 4, f"{ds.shape[0]} x {ds.shape[1]} samples")
     return ds[()], json.loads(ds.attrs["params"])
 
 
