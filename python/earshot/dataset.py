@@ -65,6 +65,7 @@ _SPEC_KEYS = {"rooms", "description"} | set(DEFAULTS)
 _FILE_ROOM_KEYS = {"geometry", "materials", "material_map", "name"}
 _GEN_KEYS = {"generator", "rooms", "size_m", "materials", "absorption", "scattering", "name"}
 _MAX_COUNT = 10_000_000
+_MAX_SPEC_BYTES = 16 << 20  # a spec file, and the spec.json make writes beside its shards
 _MAX_ROOMS = 100_000
 _PLACEMENT_ATTEMPTS = 2000
 _FORMAT_VERSION = 1
@@ -87,7 +88,7 @@ def _check_size(nbytes, what):
     """A file's claim of `nbytes` to read, against the memory limit, first."""
     if nbytes > earshot.memory_limit():
         raise _Damaged(f"{what}, over the memory limit of {earshot.memory_limit() / 2**20:.1f} MiB "
-                       "(set_memory_limit)")
+                       "(earshot.set_memory_limit)")
 
 
 def _short(v, n=40):
@@ -104,7 +105,7 @@ def read_spec(path, *, allow_outside_paths=False):
     path = os.fspath(path)
     if not os.path.isfile(path):
         raise FileNotFoundError(f"{path}: no such spec file")
-    if os.path.getsize(path) > 16 << 20:
+    if os.path.getsize(path) > _MAX_SPEC_BYTES:
         raise SpecError(f"{path}: the spec is over 16 MB")
     try:
         with open(path, "rb") as f:
@@ -531,7 +532,7 @@ def _folder_record(out_dir):
     ValueError naming it (never its contents)."""
     path = os.path.join(out_dir, "spec.json")
     try:
-        if os.path.getsize(path) > 16 << 20:
+        if os.path.getsize(path) > _MAX_SPEC_BYTES:
             raise _Damaged("over 16 MB")
         with open(path, "rb") as f:
             rec = json.loads(f.read())
