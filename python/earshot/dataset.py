@@ -36,7 +36,8 @@ seed + i and positions drawn from a generator seeded by (seed, i): the same
 spec gives the same IRs whatever the number of workers. Shards are written
 to a temporary name and renamed when complete, so a killed run resumes where
 it stopped (`make` again on the same DIR) and never leaves a half-written
-shard that looks complete. DIR/manifest.jsonl lists every IR's parameters and
+shard that looks complete; a shard that lost or cut an IR since is made
+again. DIR/manifest.jsonl lists every IR's parameters and
 its ISO 3382-1 metrics (per channel, per band: EDT, T20, T30, C50, C80, D50,
 Ts), and DIR/spec.json the spec it was made from.
 """
@@ -391,13 +392,31 @@ def _shard_path(out_dir, spec, k):
 
 def _shard_complete(out_dir, spec, k):
     """A shard counts only under its final name, which it gets by rename
-    once it is whole and flushed; the manifest in it says how many IRs."""
+    once it is whole and flushed, and only while every IR its manifest lists
+    is there in the manifest's shape: one lost or cut since (a disk error, a
+    copy that stopped) makes the shard incomplete, so make makes it again.
+    Reads the files' sizes and the HDF5 datasets' shapes, not their samples."""
     p = _shard_path(out_dir, spec, k)
     try:
         rows = _shard_manifest(p, spec)
+        if [r["id"] for r in rows] != list(_shard_range(spec, k)):
+            return False
+        if spec["format"] == "hdf5":
+            import h5py
+            with h5py.File(p, "r") as f:
+                for r in rows:
+                    ds = f.get(f"ir/{r['id']:08d}")
+                    if (not isinstance(ds, h5py.Dataset) or ds.dtype != np.float32
+                            or ds.shape != (r["channels"], r["frames"])):
+                        return False
+        else:
+            for r in rows:
+                w = os.path.join(p, f"ir-{r['id']:08d}.wav")
+                if os.path.getsize(w) != _WAV_HEADER_BYTES + 4 * r["channels"] * r["frames"]:
+                    return False
     except Exception:
         return False
-    return [r["id"] for r in rows] == list(_shard_range(spec, k))
+    return True
 
 
 def _shard_manifest(path, spec):
@@ -470,13 +489,32 @@ def run_shard(spec, out_dir, k):
             f.flush()
             os.fsync(f.fileno())
         _fsync_dir(tmp)
-        if os.path.isdir(final):  # another worker finished it first: identical by construction
-            import shutil
-            shutil.rmtree(tmp, ignore_errors=True)
+        if _shard_complete(out_dir, spec, k):  # another worker finished it first: identical by construction
+            _remove(tmp)
         else:
+            if os.path.lexists(final):  # a damaged shard, made again: set aside, then removed
+                old = f"{final}.tmp-{os.getpid()}-damaged"
+                os.rename(final, old)
+                _remove(old)
             os.rename(tmp, final)
     _fsync_dir(os.path.dirname(final))
     return rows
+
+
+def _remove(path):
+    """Removes a file or a folder (a shard's leftovers); what cannot be
+    removed stays (a later make removes its .tmp- names)."""
+    import shutil
+    if os.path.isdir(path) and not os.path.islink(path):
+        shutil.rmtree(path, ignore_errors=True)
+    else:
+        try:
+            os.unlink(path)
+        except OSError:
+            pass
+
+
+_WAV_HEADER_BYTES = 56  # RIFF, fmt (16), fact and data chunk headers, as _write_wav_float writes them
 
 
 def _write_wav_float(path, samples, rate):
@@ -572,12 +610,7 @@ def _prepare_dir(spec, out_dir, spec_path_in=None):
     sd = os.path.join(out_dir, "shards")
     for n in os.listdir(sd):
         if ".tmp-" in n:
-            p = os.path.join(sd, n)
-            if os.path.isdir(p):
-                import shutil
-                shutil.rmtree(p, ignore_errors=True)
-            else:
-                os.unlink(p)
+            _remove(os.path.join(sd, n))
 
 
 def _write_manifest(out_dir, spec, n):
@@ -700,7 +733,8 @@ def load(out_dir, *, partial=False):
         if not _shard_complete(out_dir, spec, k):
             if partial:
                 continue
-            raise ValueError(f"{out_dir}: shard {k} is missing or incomplete (run make again to finish it)")
+            raise ValueError(f"{out_dir}: shard {k} is missing, incomplete or damaged (run make again to "
+                             "make it)")
         ids = _shard_range(spec, k)
         if spec["format"] == "hdf5":
             import h5py
