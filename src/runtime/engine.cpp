@@ -59,6 +59,10 @@ struct Engine::Slot {
     uint32_t denormalMode = 0;  // the one it was synthesised in (currentDenormalMode())
   };
   std::atomic<bool> active{false};
+  // Engine::mFramesProcessed when the slot's last source was removed: until
+  // its reverberation has rung out (ringOutFrames) a new source goes to
+  // another slot where one is free (addSource).
+  std::atomic<uint64_t> freedAtFrame{0};
   std::atomic<uint32_t> generation{0};           // bumped by add/remove
   std::atomic<uint32_t> simulatedGeneration{~0u};  // generation of the last simulation posted
   std::atomic<int> direct{0};
@@ -566,55 +570,96 @@ Result<size_t> Engine::sourceSlotBytes(const EngineSettings& settings) {
   return slotBytesOf(settings, **mixer, latencyOf(settings, (*mixer)->latencyFrames()));
 }
 
+size_t Engine::ringOutFrames() const {
+  // The IR's length after the output's latency, and a margin for the
+  // ambisonic decoder's own convolution and delay.
+  return mLatency + size_t(std::ceil((mSettings.maxIrSeconds + 0.1) * mSettings.sampleRateHz));
+}
+
 Result<uint32_t> Engine::addSource(const SourceSettings& settings) {
   EARSHOT_RETURN_IF_ERROR(validate(settings));
   std::lock_guard<std::mutex> lock(mAddMutex);
+  // Which slot. A removed source's reverberation rings out in its slot (what
+  // it played is still in the slot's convolution history, heard through its
+  // IR), and a new source in that slot would carry the rest of it through
+  // its own IR once simulated: the old sound's reflections from the new
+  // source's place. So a new source takes, in this order: a free slot whose
+  // last source has rung out; a slot never used (allocating its state,
+  // within the memory limit); the free slot freed longest ago.
+  const uint64_t now = mFramesProcessed.load(std::memory_order_relaxed);
+  const uint64_t ringOut = ringOutFrames();
+  int rungOut = -1, fresh = -1, ringing = -1;
   for (uint32_t i = 0; i < mSlots.size(); ++i) {
-    Slot& slot = *mSlots[i];
+    const Slot& slot = *mSlots[i];
     if (slot.active.load()) continue;
     if (!slot.voiceOwner) {
-      // The slot's first source: its state, published to the audio thread
-      // before the slot turns active; refused before it is allocated when
-      // the slots would pass the memory limit with their IRs.
-      auto model = this->model();
-      if (!model.isOk()) return model.status();
-      const size_t slots = mMixer->reservedSources() + 1;
-      EARSHOT_RETURN_IF_ERROR(checkMemoryEstimate(
-          double(slots) * double(sourceSlotBytes()),
-          "engine: " + std::to_string(slots) + " source slots with IRs of up to " + seconds(mSettings.maxIrSeconds)));
-      const DirectVoiceSettings ds = voiceSettingsOf(mSettings, mLatency);
-      if (mSettings.ambisonicOrder > 0 && mSettings.output == OutputFormat::kBinaural && !mDecoder)
-        EARSHOT_RETURN_IF_ERROR(createDecoder(**model));
-      auto voice = DirectVoice::create(ds, (*model)->hrtfPtr());
-      if (!voice.isOk()) return Status(voice.status().code(), "engine: " + voice.status().message());
-      EARSHOT_RETURN_IF_ERROR(mMixer->reserveSource(i));
-      try {
-        slot.scaled.assign(kProcessChunk, 0.0f);
-      } catch (const std::bad_alloc&) {
-        return outOfRange("engine: out of memory for a source slot");
-      }
-      slot.voiceOwner = std::move(voice.value());
-      slot.voice.store(slot.voiceOwner.get(), std::memory_order_release);
+      if (fresh < 0) fresh = int(i);
+      continue;
     }
-    slot.gain.store(dbToGain(settings.gainDb));
-    slot.gainDb.store(settings.gainDb);
-    slot.tailGain.store(0.0);  // until its first simulation
-    slot.direct.store(int(settings.direct));
-    storeControls(slot, settings);
-    for (auto& t : slot.transmission) t.store(1.0);
-    slot.audible.store(true);
-    slot.forward[0].store(0.0);
-    slot.forward[1].store(0.0);
-    slot.forward[2].store(-1.0);
-    slot.generation.fetch_add(1);
-    slot.active.store(true);
-    return i;
+    const uint64_t freed = slot.freedAtFrame.load();
+    if (now - std::min(now, freed) >= ringOut) {
+      if (rungOut < 0) rungOut = int(i);
+    } else if (ringing < 0 || freed < mSlots[size_t(ringing)]->freedAtFrame.load()) {
+      ringing = int(i);
+    }
   }
-  return Status(StatusCode::kOutOfRange, "all " + std::to_string(mSlots.size()) + " source slots are in use");
+  int chosen = rungOut;
+  if (chosen < 0 && fresh >= 0) {
+    const Status allocated = allocateSlot(uint32_t(fresh));
+    if (allocated.isOk())
+      chosen = fresh;
+    else if (ringing < 0 || allocated.code() != StatusCode::kOutOfRange)
+      return allocated;  // (a slot past the memory limit falls back on a ringing one)
+  }
+  if (chosen < 0) chosen = ringing;
+  if (chosen < 0)
+    return Status(StatusCode::kOutOfRange, "all " + std::to_string(mSlots.size()) + " source slots are in use");
+  Slot& slot = *mSlots[size_t(chosen)];
+  slot.gain.store(dbToGain(settings.gainDb));
+  slot.gainDb.store(settings.gainDb);
+  slot.tailGain.store(0.0);  // until its first simulation
+  slot.direct.store(int(settings.direct));
+  storeControls(slot, settings);
+  for (auto& t : slot.transmission) t.store(1.0);
+  slot.audible.store(true);
+  slot.forward[0].store(0.0);
+  slot.forward[1].store(0.0);
+  slot.forward[2].store(-1.0);
+  slot.generation.fetch_add(1);
+  slot.active.store(true);
+  return uint32_t(chosen);
+}
+
+Status Engine::allocateSlot(uint32_t i) {
+  // The slot's first source: its state, published to the audio thread
+  // before the slot turns active; refused before it is allocated when the
+  // slots would pass the memory limit with their IRs.
+  Slot& slot = *mSlots[i];
+  auto model = this->model();
+  if (!model.isOk()) return model.status();
+  const size_t slots = mMixer->reservedSources() + 1;
+  EARSHOT_RETURN_IF_ERROR(checkMemoryEstimate(
+      double(slots) * double(sourceSlotBytes()),
+      "engine: " + std::to_string(slots) + " source slots with IRs of up to " + seconds(mSettings.maxIrSeconds)));
+  const DirectVoiceSettings ds = voiceSettingsOf(mSettings, mLatency);
+  if (mSettings.ambisonicOrder > 0 && mSettings.output == OutputFormat::kBinaural && !mDecoder)
+    EARSHOT_RETURN_IF_ERROR(createDecoder(**model));
+  auto voice = DirectVoice::create(ds, (*model)->hrtfPtr());
+  if (!voice.isOk()) return Status(voice.status().code(), "engine: " + voice.status().message());
+  EARSHOT_RETURN_IF_ERROR(mMixer->reserveSource(i));
+  try {
+    slot.scaled.assign(kProcessChunk, 0.0f);
+  } catch (const std::bad_alloc&) {
+    return outOfRange("engine: out of memory for a source slot");
+  }
+  slot.voiceOwner = std::move(voice.value());
+  slot.voice.store(slot.voiceOwner.get(), std::memory_order_release);
+  return Status::ok();
 }
 
 Status Engine::removeSource(uint32_t s) {
   if (!validSource(s)) return invalidArgument("source " + std::to_string(s) + " does not exist");
+  mSlots[s]->freedAtFrame.store(mFramesProcessed.load(std::memory_order_relaxed));
   mSlots[s]->active.store(false);
   mSlots[s]->generation.fetch_add(1);
   return Status::ok();
@@ -1194,6 +1239,8 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
       mClearedOutputChunks.fetch_add(1, std::memory_order_relaxed);
     }
   }
+  // (One writer: a plain load and store, no read-modify-write.)
+  mFramesProcessed.store(mFramesProcessed.load(std::memory_order_relaxed) + frames, std::memory_order_relaxed);
 }
 
 void Engine::processAmbisonicBus(const ListenerOrientation& head, float* const* ears, size_t m, bool tailUsed) {

@@ -267,6 +267,122 @@ TEST(Engine, SharedTraceGivesEachSourceTheEnergiesOfItsOwnTrace) {
   }
 }
 
+// A removed source's reverberation rings out in its slot (its direct sound
+// stops at once). A source added meanwhile takes another slot: it neither
+// cuts that ring-out nor carries it through its own IR. (It took the lowest
+// free slot before, and once simulated played the removed source's last
+// sound through its own IR: its reflections from the new source's place.)
+TEST(Engine, ARemovedSourceRingsOutAndANewSourceTakesAnotherSlot) {
+  auto model = test::ku100();
+  ASSERT_TRUE(model);
+  test::Room room;
+  const size_t block = 256;
+  auto afterRemoval = [&](bool addAnother, uint32_t* removedSlot, uint32_t* newSlot) {
+    EngineSettings es = test::fastSettings();
+    es.ambisonicOrder = 0;  // binaural reflections: each source's whole IR in its slot (with ambisonic
+                            // ones the late part is one shared tail, made again at each simulation)
+    auto engine = Engine::create(es, model);
+    EXPECT_TRUE(engine.isOk());
+    Engine& e = **engine;
+    e.setScene(room.tracer, room.materials);
+    EXPECT_TRUE(e.setListener({7, 4, 1.6}, {{1, 0, 0}, {0, 0, 1}}).isOk());
+    auto a = e.addSource({});
+    EXPECT_TRUE(a.isOk());
+    *removedSlot = *a;
+    EXPECT_TRUE(e.setSourcePosition(*a, {2, 3, 1.5}).isOk());
+    EXPECT_TRUE(e.simulate().isOk());
+    std::vector<float> in(block), silence(block, 0.0f), l(block), r(block);
+    std::vector<const float*> inputs(size_t(es.maxSources), nullptr);
+    inputs[*a] = in.data();
+    Pcg32 rng(7, 1);
+    for (int b = 0; b < 94; ++b) {  // 0.5 s of noise
+      for (float& x : in) x = float(rng.uniformDouble() - 0.5);
+      e.process(inputs.data(), l.data(), r.data(), block);
+    }
+    EXPECT_TRUE(e.removeSource(*a).isOk());
+    inputs[*a] = silence.data();
+    if (addAnother) {
+      auto b = e.addSource({});
+      EXPECT_TRUE(b.isOk());
+      *newSlot = *b;
+      EXPECT_TRUE(e.setSourcePosition(*b, {8.5, 1.2, 1.1}).isOk());
+      inputs[*b] = silence.data();
+      EXPECT_TRUE(e.simulate().isOk());
+    }
+    std::vector<float> out;
+    for (int b = 0; b < 375; ++b) {  // 2 s
+      e.process(inputs.data(), l.data(), r.data(), block);
+      out.insert(out.end(), l.begin(), l.end());
+      out.insert(out.end(), r.begin(), r.end());
+    }
+    return out;
+  };
+  uint32_t slotA = 0, slotB = 0;
+  const std::vector<float> alone = afterRemoval(false, &slotA, &slotB);
+  auto energy = [&](double from, double to) {
+    double e = 0;
+    for (size_t k = size_t(from * kFs / block); k < size_t(to * kFs / block); ++k)
+      for (size_t i = 0; i < 2 * block; ++i) e += double(alone[k * 2 * block + i]) * alone[k * 2 * block + i];
+    return e;
+  };
+  EXPECT_GT(energy(0.0, 0.25), 10 * energy(0.5, 0.75)) << "a decay";
+  EXPECT_GT(energy(0.5, 0.75), 0.0) << "the reverberation rings out";
+  EXPECT_EQ(energy(1.7, 2.0), 0.0) << "and ends with the IR (1.5 s after the output's latency)";
+  const std::vector<float> withAnother = afterRemoval(true, &slotA, &slotB);
+  EXPECT_NE(slotA, slotB);
+  ASSERT_EQ(withAnother.size(), alone.size());
+  size_t differ = 0;
+  double ringOut = 0, difference = 0;
+  for (size_t i = 0; i < alone.size(); ++i) {
+    differ += alone[i] != withAnother[i];
+    ringOut += double(alone[i]) * alone[i];
+    difference += (double(withAnother[i]) - alone[i]) * (double(withAnother[i]) - alone[i]);
+  }
+  std::printf("slots %u and %u; the output's change with the new source: %.1f dB of the ring-out\n", slotA, slotB,
+              10 * std::log10(difference / ringOut + 1e-30));
+  EXPECT_EQ(differ, 0u) << "a silent new source changes nothing of the ring-out";
+}
+
+// Which slot a new source takes: one whose last source has rung out (the
+// lowest), else one never used, else the one freed longest ago.
+TEST(Engine, ANewSourceTakesARungOutSlotThenAnUnusedOneThenTheOneFreedLongestAgo) {
+  auto model = test::ku100();
+  ASSERT_TRUE(model);
+  EngineSettings es = test::fastSettings();
+  es.maxSources = 3;
+  es.maxIrSeconds = 0.2;
+  auto engine = Engine::create(es, model);
+  ASSERT_TRUE(engine.isOk());
+  Engine& e = **engine;
+  std::vector<float> l(256), r(256);
+  std::vector<const float*> inputs(3, nullptr);
+  auto play = [&](int blocks) {
+    for (int b = 0; b < blocks; ++b) e.process(inputs.data(), l.data(), r.data(), 256);
+  };
+  auto add = [&] {
+    auto id = e.addSource({});
+    EXPECT_TRUE(id.isOk()) << id.status().message();
+    return id.isOk() ? *id : ~0u;
+  };
+  const uint32_t a = add(), b = add();
+  EXPECT_EQ(a, 0u);
+  EXPECT_EQ(b, 1u);
+  play(10);
+  ASSERT_TRUE(e.removeSource(a).isOk());
+  play(10);
+  const uint32_t c = add();
+  EXPECT_EQ(c, 2u) << "slot 0 still rings: an unused slot";
+  play(10);
+  ASSERT_TRUE(e.removeSource(b).isOk());
+  ASSERT_TRUE(e.removeSource(c).isOk());
+  const uint32_t d = add();
+  EXPECT_EQ(d, 0u) << "every free slot rings: the one freed longest ago";
+  play(int(0.4 * kFs / 256));  // past 0.2 s, the latency and the margin
+  const uint32_t f = add();
+  EXPECT_EQ(f, 1u) << "rung out: the lowest such slot";
+  EXPECT_FALSE(e.addSource({}).isOk() && e.addSource({}).isOk()) << "three slots";
+}
+
 // Issue 6: motion to sound through the whole engine: after the listener
 // turns 90 degrees (a game-thread call between two audio blocks), the direct
 // sound's ILD has flipped sign within 2 blocks.

@@ -285,7 +285,9 @@ class Engine {
    *  use of a slot allocates its state (and waits for a loading model); it
    *  is refused (kOutOfRange) when the slots in use would hold more than
    *  the memory limit (defaultInputLimits().maxMemoryBytes) with their IRs:
-   *  sourceSlotBytes() each. */
+   *  sourceSlotBytes() each. The slot: a free one whose last source's
+   *  reverberation has rung out (removeSource), else one never used (within
+   *  the memory limit), else the one freed longest ago. */
   Result<uint32_t> addSource(const SourceSettings& settings);
   /** What one source slot may hold, from above: its direct voice, its
    *  convolution state, the three IRs the convolver may hold for it at
@@ -300,6 +302,12 @@ class Engine {
    *  to refuse a scene's sources before loading it). Error: settings the
    *  convolver refuses. */
   static Result<size_t> sourceSlotBytes(const EngineSettings& settings);
+  /** Frees the source's slot: its direct sound stops at the next process()
+   *  call; its reverberation (what it already played, through its IR) rings
+   *  out over up to maxIrSeconds, as a sound's reverberation does. Its
+   *  slot goes to a new source only once that has rung out, unless no other
+   *  slot can be had (addSource): a new source in a ringing slot carries
+   *  the rest of the ring-out through its own IR once simulated. */
   Status removeSource(uint32_t source);
   Status setSourcePosition(uint32_t source, const Vec3d& position);
   Status setSourceGainDb(uint32_t source, double gainDb);
@@ -360,6 +368,8 @@ class Engine {
   // within the memory limit; at least 1.
   size_t simulationGroupSize() const;
   Status createDecoder(const BinauralModel& model);  // under mAddMutex
+  Status allocateSlot(uint32_t slot);                // under mAddMutex: a slot's first source's state
+  size_t ringOutFrames() const;  // frames after which a removed source's slot has nothing left to play
   // Audio thread: the bus (mInputs convolved) rotated to the head and decoded into ears[0..1].
   // With OutputFormat::kAmbisonic, `ears` are the output's channels and the bus is not decoded.
   void processAmbisonicBus(const ListenerOrientation& head, float* const* ears, size_t m, bool tailUsed);
@@ -403,6 +413,7 @@ class Engine {
   uint32_t mNextRoundRobin = 0;
   SimulationStats mStats;
   std::atomic<uint64_t> mMutedSourceChunks{0}, mClearedOutputChunks{0};  // written by the audio thread
+  std::atomic<uint64_t> mFramesProcessed{0};  // written by the audio thread: frames process() has rendered
 
   std::vector<const float*> mInputs;  // audio thread scratch
 };
