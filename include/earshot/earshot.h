@@ -303,8 +303,13 @@ EARSHOT_API earshot_status earshot_context_set_scene(earshot_context* context, e
 
 /** Runs one simulation step: picks up the scene's latest commit, then
  *  traces, synthesises and posts the reflections of `source_count` active
- *  sources in round-robin order (0 or more than active: all of them) and
- *  updates their direct paths' occlusion, from the poses set so far. Takes
+ *  sources (0 or more than active: all of them) and updates their direct
+ *  paths' occlusion, from the poses set so far. Which sources: higher
+ *  `priority` first; then sources never simulated; then any not simulated
+ *  for twice a round (2 ceil(active / source_count) steps: a source standing
+ *  still is still updated, e.g. after a door opened); then those that moved
+ *  most (with the listener) since their last simulation; round robin among
+ *  equals. Takes
  *  time (milliseconds per source; see earshot_context_get_info) on the
  *  context's worker threads. A new source's direct sound plays from its
  *  first audio block (EARSHOT_DIRECT_PER_BLOCK; unoccluded until its first

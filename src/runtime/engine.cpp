@@ -104,6 +104,7 @@ struct Engine::Slot {
   // Poses of the last simulation (simulation thread only): how far the
   // source and the listener moved since orders the next simulations.
   Vec3d simulatedSource, simulatedListener;
+  uint64_t simulatedStep = 0;  // Engine::mSimulations when it was last simulated
   // The last IR posted (guarded by Engine::mIrMutex; never the audio thread).
   std::chrono::steady_clock::time_point lastIrPosed{};
   std::shared_ptr<const AudioBuffer> lastIr;
@@ -752,14 +753,20 @@ Status Engine::simulate(uint32_t count) {
     const uint32_t i = (mNextRoundRobin + k) % n;
     if (mSlots[i]->active.load()) order.push_back(i);
   }
-  // Higher priority first; then never simulated; then most changed since
-  // the last IR; round-robin order among equals (stable sort).
+  // Higher priority first; then never simulated; then waiting for over
+  // twice a round (what moved most would otherwise starve a source that
+  // stands still: its reflections would never follow a door that opened or
+  // its own turn); then most changed since the last IR; round-robin order
+  // among equals (stable sort).
   const Vec3d listenerNow{mListener[0].load(), mListener[1].load(), mListener[2].load()};
+  const uint64_t taken = count > 0 && count < order.size() ? count : std::max<size_t>(order.size(), 1);
+  const uint64_t patience = 2 * ((order.size() + taken - 1) / taken);
   std::vector<double> changed(n, 0.0);
-  std::vector<char> fresh(n, 0);
+  std::vector<char> fresh(n, 0), waiting(n, 0);
   for (uint32_t i : order) {
     const Slot& slot = *mSlots[i];
     fresh[i] = slot.simulatedGeneration.load() != slot.generation.load();
+    waiting[i] = mSimulations - slot.simulatedStep >= patience;
     const Vec3d p{slot.position[0].load(), slot.position[1].load(), slot.position[2].load()};
     changed[i] = length(p - slot.simulatedSource) + length(listenerNow - slot.simulatedListener);
   }
@@ -767,6 +774,7 @@ Status Engine::simulate(uint32_t count) {
     const int pa = mSlots[a]->priority.load(), pb = mSlots[b]->priority.load();
     if (pa != pb) return pa > pb;
     if (fresh[a] != fresh[b]) return fresh[a] > fresh[b];
+    if (waiting[a] != waiting[b]) return waiting[a] > waiting[b];
     return changed[a] > changed[b];
   });
   if (count > 0 && count < order.size()) order.resize(count);
@@ -808,6 +816,7 @@ size_t Engine::simulationGroupSize() const {
 
 Status Engine::simulateLocked(const std::vector<uint32_t>& order) {
   const auto t0 = std::chrono::steady_clock::now();
+  ++mSimulations;  // (each source taken below records this step)
   std::shared_ptr<const RayTracer> tracer;
   std::shared_ptr<const MaterialTable> materials;
   {
@@ -888,6 +897,7 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& order) {
             {slot.position[0].load(), slot.position[1].load(), slot.position[2].load()}, std::nullopt};
       slot.simulatedSource = j.source;
       slot.simulatedListener = listener;
+      slot.simulatedStep = mSimulations;
       j.settings.includeDirect = DirectMode(slot.direct.load()) == DirectMode::kInImpulseResponse;
       j.settings.directivity.alpha = slot.directivityAlpha.load();
       j.settings.directivity.sharpness = slot.directivitySharpness.load();

@@ -383,6 +383,46 @@ TEST(Engine, ANewSourceTakesARungOutSlotThenAnUnusedOneThenTheOneFreedLongestAgo
   EXPECT_FALSE(e.addSource({}).isOk() && e.addSource({}).isOk()) << "three slots";
 }
 
+// Moved most first, but not for ever: a source that stands still while two
+// others move every step is simulated again within twice a round (here
+// 2 x 3 steps of one source), so its reflections follow a door that opened
+// or its own turn. It was simulated once, at its start, and never again
+// while the others moved.
+TEST(Engine, ASourceStandingStillIsNotStarvedBySourcesThatMove) {
+  auto model = test::ku100();
+  ASSERT_TRUE(model);
+  test::Room room;
+  EngineSettings es = test::fastSettings();
+  es.simulation.rays = 300;
+  auto engine = Engine::create(es, model);
+  ASSERT_TRUE(engine.isOk());
+  Engine& e = **engine;
+  e.setScene(room.tracer, room.materials);
+  ASSERT_TRUE(e.setListener({7, 4, 1.6}, {{1, 0, 0}, {0, 0, 1}}).isOk());
+  const std::vector<Vec3d> at = {{2, 3, 1.5}, {8.5, 1.2, 1.1}, {3.5, 6.0, 2.2}};
+  std::vector<uint32_t> ids;
+  for (const Vec3d& p : at) {
+    auto id = e.addSource({});
+    ASSERT_TRUE(id.isOk());
+    ASSERT_TRUE(e.setSourcePosition(*id, p).isOk());
+    ids.push_back(*id);
+  }
+  for (int step = 0; step < 24; ++step) {
+    const double dx = step % 2 ? 0.5 : -0.5;
+    for (int k = 0; k < 2; ++k) ASSERT_TRUE(e.setSourcePosition(ids[k], at[k] + Vec3d{dx, 0, 0}).isOk());
+    ASSERT_TRUE(e.simulate(1).isOk());
+  }
+  std::vector<uint64_t> simulations;
+  for (uint32_t id : ids) simulations.push_back(e.sourceIrInfo(id).simulations);
+  std::printf("simulations of the moving sources %llu, %llu, of the still one %llu\n",
+              (unsigned long long)simulations[0], (unsigned long long)simulations[1],
+              (unsigned long long)simulations[2]);
+  EXPECT_EQ(simulations[0] + simulations[1] + simulations[2], 24u);
+  EXPECT_GE(simulations[2], 4u) << "at its start, then at least every 6 steps";
+  EXPECT_GE(simulations[0], 9u) << "the moving ones take the rest";
+  EXPECT_GE(simulations[1], 9u);
+}
+
 // Issue 6: motion to sound through the whole engine: after the listener
 // turns 90 degrees (a game-thread call between two audio blocks), the direct
 // sound's ILD has flipped sign within 2 blocks.

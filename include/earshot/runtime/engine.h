@@ -326,7 +326,10 @@ class Engine {
   /** Simulates `count` active sources (count 0 or >= active: all), from
    *  the poses set so far: traces, synthesises and posts their IRs, and
    *  updates their direct paths' occlusion. The order: higher priority
-   *  first; then sources never simulated; then those whose geometry changed
+   *  first; then sources never simulated; then sources waiting for twice a
+   *  round (2 ceil(active / count) steps since their last simulation: a
+   *  source that stands still while others move is still updated, e.g.
+   *  after a door opened or it turned); then those whose geometry changed
    *  most since their IR (the distance the source moved plus the distance
    *  the listener moved); equal ones in round-robin order from after the
    *  last simulated. */
@@ -411,6 +414,7 @@ class Engine {
   mutable std::shared_ptr<const AudioBuffer> mMadeIr;
   mutable std::weak_ptr<const void> mMadeIrFrom;
   uint32_t mNextRoundRobin = 0;
+  uint64_t mSimulations = 0;  // under mSimulationMutex: simulation steps so far
   SimulationStats mStats;
   std::atomic<uint64_t> mMutedSourceChunks{0}, mClearedOutputChunks{0};  // written by the audio thread
   std::atomic<uint64_t> mFramesProcessed{0};  // written by the audio thread: frames process() has rendered
