@@ -128,6 +128,36 @@ void delayedReads(const float* __restrict ring, size_t mask, const float* __rest
 }
 #pragma GCC diagnostic pop
 
+// A jump: the delay changes by more than this fraction of the block's frames
+// (a source or listener faster than half the speed of sound: a teleport,
+// not motion). Ramping the delay across it would read the line at many
+// times its rate, an aliased chirp; the block crossfades instead from the
+// line read at the old delay to the line read at the new one.
+constexpr double kJumpDelayPerFrame = 0.5;
+
+// Reads the line at both ends of a jump (each at its own fixed delay and
+// gain) and crossfades them into out0/out1, linearly over the block as the
+// ramp would have gone (weight (offset + i + 1) / total of the new end).
+// other0/other1: chunk-sized scratch.
+void jumpReads(const float* ring, size_t mask, const float* table, size_t base, const DelayRamp& r, float* out0,
+               float* out1, float* other0, float* other1, size_t frames) {
+  const DelayRamp from{{r.d0[0], r.d0[1]}, {0.0, 0.0}, r.g0, 0.0, r.offset, r.total};
+  const DelayRamp to{{r.d0[0] + r.dd[0], r.d0[1] + r.dd[1]}, {0.0, 0.0}, r.g0 + r.dg, 0.0, r.offset, r.total};
+  delayedReads(ring, mask, table, base, from, out0, out1, frames);
+  delayedReads(ring, mask, table, base, to, other0, out1 ? other1 : nullptr, frames);
+  for (size_t i = 0; i < frames; ++i) {
+    const float w = float(double(r.offset + i + 1) / double(r.total));
+    out0[i] += w * (other0[i] - out0[i]);
+    if (out1) out1[i] += w * (other1[i] - out1[i]);
+  }
+}
+
+bool isJump(const double from[2], const double to[2], size_t frames, int ears) {
+  for (int e = 0; e < ears; ++e)
+    if (std::fabs(to[e] - from[e]) > kJumpDelayPerFrame * double(frames)) return true;
+  return false;
+}
+
 // Shelf corners, Hz.
 constexpr double kLowShelfHz = 250.0, kHighShelfHz = 4000.0;
 
@@ -285,7 +315,7 @@ size_t DirectVoice::pushInput(const float* input, size_t frames) {
 }
 
 void DirectVoice::processChunk(const float* input, float* left, float* right, size_t frames, const Params& from,
-                               const Params& to, size_t offset, size_t total, bool crossfade) {
+                               const Params& to, size_t offset, size_t total, bool crossfade, bool jump) {
   const size_t base = pushInput(input, frames);
   const size_t taps = mTaps[0].size();
   float* out[2] = {left, right};
@@ -295,8 +325,12 @@ void DirectVoice::processChunk(const float* input, float* left, float* right, si
                        to.gain - from.gain,
                        offset,
                        total};
-  delayedReads(mRing.data(), mRingMask, &mSincTable->taps[0][0], base, ramp, mHistory[0].data() + taps - 1,
-               mHistory[1].data() + taps - 1, frames);
+  if (jump)
+    jumpReads(mRing.data(), mRingMask, &mSincTable->taps[0][0], base, ramp, mHistory[0].data() + taps - 1,
+              mHistory[1].data() + taps - 1, mScratch.data(), mScratchNext.data(), frames);
+  else
+    delayedReads(mRing.data(), mRingMask, &mSincTable->taps[0][0], base, ramp, mHistory[0].data() + taps - 1,
+                 mHistory[1].data() + taps - 1, frames);
   float* fade = mFade.data();  // the same weights for both ears
   if (crossfade)
     for (size_t i = 0; i < frames; ++i) fade[i] = float(double(offset + i + 1) / double(total));
@@ -332,9 +366,11 @@ void DirectVoice::process(const float* input, float* left, float* right, size_t 
     mStarted = true;
   }
   setShelves(to);
+  const bool jump = isJump(mCurrent.delay, to.delay, frames, 2);
   for (size_t off = 0; off < frames; off += kChunk) {
     const size_t n = std::min(kChunk, frames - off);
-    processChunk(input ? input + off : nullptr, left + off, right + off, n, mCurrent, to, off, frames, crossfade);
+    processChunk(input ? input + off : nullptr, left + off, right + off, n, mCurrent, to, off, frames, crossfade,
+                 jump);
   }
   mCurrent = to;
   mHeadDirection = head;
@@ -362,12 +398,17 @@ void DirectVoice::processAmbisonic(const float* input, float* const* out, int or
   }
   setShelves(to);
   float* y = mScratch.data();
+  const bool jump = isJump(mCurrent.delay, to.delay, frames, 1);
   for (size_t off = 0; off < frames; off += kChunk) {
     const size_t n = std::min(kChunk, frames - off);
     const size_t base = pushInput(input ? input + off : nullptr, n);
     const DelayRamp ramp{{mCurrent.delay[0], 0.0}, {to.delay[0] - mCurrent.delay[0], 0.0}, mCurrent.gain,
                          to.gain - mCurrent.gain, off, frames};
-    delayedReads(mRing.data(), mRingMask, &mSincTable->taps[0][0], base, ramp, y, nullptr, n);
+    if (jump)
+      jumpReads(mRing.data(), mRingMask, &mSincTable->taps[0][0], base, ramp, y, nullptr, mScratchNext.data(), nullptr,
+                n);
+    else
+      delayedReads(mRing.data(), mRingMask, &mSincTable->taps[0][0], base, ramp, y, nullptr, n);
     for (int c = 0; c < channels; ++c) {
       const float from = mHarmonics[c], step = (sh[c] - from) / float(frames);
       float* o = out[c] + off;

@@ -101,6 +101,61 @@ TEST(DirectVoice, MovingSourceGivesTheDopplerShift) {
   EXPECT_LT(recede, f0 * 0.96);
 }
 
+// A teleport (the source 3 m away, then 40 m in the next block: 5,200
+// samples of delay in a 256-frame block) is a crossfade across the block
+// from the line read at the old delay to the line read at the new one. A
+// ramp of the delay read the line at ~21 times its rate there: a 1 kHz
+// tone became an aliased chirp, all but 0.03 dB of the block's energy
+// above 3 kHz.
+TEST(DirectVoice, ATeleportCrossfadesInsteadOfChirping) {
+  auto model = test::ku100();
+  ASSERT_TRUE(model);
+  DirectVoiceSettings s;
+  auto voice = DirectVoice::create(s, model->hrtfPtr());
+  ASSERT_TRUE(voice.isOk());
+  const size_t block = 256, blocks = 80;
+  std::vector<float> in(block * blocks), l(block * blocks, 0.0f), r(block * blocks, 0.0f);
+  for (size_t i = 0; i < in.size(); ++i) in[i] = float(std::sin(2 * kPi * 1000.0 * double(i) / kFs));
+  // The same through the ambisonic path (W, the head centre's delay).
+  auto ambisonic = DirectVoice::create(s, model->hrtfPtr());
+  ASSERT_TRUE(ambisonic.isOk());
+  std::vector<std::vector<float>> bus(4, std::vector<float>(block * blocks, 0.0f));
+  DirectTarget t;
+  for (size_t b = 0; b < blocks; ++b) {
+    t.source = {1.0, 0.0, b < 40 ? -3.0 : -40.0};
+    (*voice)->process(in.data() + b * block, l.data() + b * block, r.data() + b * block, block, t);
+    float* outs[4] = {bus[0].data() + b * block, bus[1].data() + b * block, bus[2].data() + b * block,
+                      bus[3].data() + b * block};
+    (*ambisonic)->processAmbisonic(in.data() + b * block, outs, 1, block, t);
+  }
+  // Share of a block's energy above 3 kHz (Hann-windowed DFT over the block).
+  auto highShareOf = [&](const std::vector<float>& x, size_t b) {
+    double all = 0, high = 0;
+    for (size_t k = 1; k < block / 2; ++k) {
+      double re = 0, im = 0;
+      for (size_t i = 0; i < block; ++i) {
+        const double w = 0.5 - 0.5 * std::cos(2 * kPi * double(i) / double(block));
+        re += w * x[b * block + i] * std::cos(2 * kPi * double(k * i) / double(block));
+        im -= w * x[b * block + i] * std::sin(2 * kPi * double(k * i) / double(block));
+      }
+      all += re * re + im * im;
+      if (double(k) * kFs / double(block) >= 3000.0) high += re * re + im * im;
+    }
+    return energyToDb(high / all);
+  };
+  auto highShare = [&](size_t b) { return highShareOf(l, b); };
+  const double before = highShare(30), jump = highShare(40), after = highShare(50);
+  EXPECT_LT(highShareOf(bus[0], 40), -30.0) << "no chirp in W";
+  EXPECT_LT(highShareOf(bus[0], 30), -40.0);
+  std::printf("energy above 3 kHz: %.1f dB of the block before, %.1f in the jump's, %.1f after\n", before, jump, after);
+  EXPECT_LT(before, -40.0);
+  EXPECT_LT(after, -40.0);
+  EXPECT_LT(jump, -30.0) << "no chirp";
+  auto rms = [&](size_t b) { return std::sqrt(energy(l.data() + b * block, block) / double(block)); };
+  EXPECT_LE(rms(40), 1.05 * std::max(rms(39), rms(41))) << "no burst";
+  EXPECT_GE(rms(40), 0.95 * std::min(rms(39), rms(41))) << "no gap";
+}
+
 // Issue 6: after the listener turns 90 degrees, the direct sound's ILD has
 // flipped sign within 2 audio blocks.
 TEST(DirectVoice, HeadTurnFlipsTheIldWithinTwoBlocks) {

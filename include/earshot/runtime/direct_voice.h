@@ -2,7 +2,9 @@
 /** @file The direct sound of one moving source, rendered block by block on
  *  the audio thread from the latest poses: a delay line read at the
  *  propagation delay r/c (plus each ear's HRTF onset delay), interpolated
- *  across the block so that motion is heard as Doppler, never as a click;
+ *  across the block so that motion is heard as Doppler, never as a click
+ *  (a jump faster than half the speed of sound, a teleport, is a crossfade
+ *  across the block from the old delay to the new: no aliased chirp);
  *  1/r spreading; air absorption and transmission (occlusion) as a low and a
  *  high shelf around the 1 kHz band's gain; and each ear's minimum-phase HRIR
  *  for the current head-frame direction, crossfaded over the block when the
@@ -103,7 +105,7 @@ class DirectVoice {
   // centre: the head centre's delay for both "ears" (ambisonic output).
   Params paramsFor(const DirectTarget& t, Vec3f& headDirection, bool centre = false) const;
   void processChunk(const float* input, float* left, float* right, size_t frames, const Params& from,
-                    const Params& to, size_t offset, size_t total, bool crossfade);
+                    const Params& to, size_t offset, size_t total, bool crossfade, bool jump);
   // The shelves for `to` (air, transmission around the 1 kHz band).
   void setShelves(const Params& to);
   // `frames` of input (nullptr: silence) through the shelves into the delay
