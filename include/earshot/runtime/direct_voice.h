@@ -6,7 +6,8 @@
  *  (a jump faster than half the speed of sound, a teleport, is a crossfade
  *  across the block from the old delay to the new: no aliased chirp);
  *  1/r spreading; air absorption and transmission (occlusion) as a low and a
- *  high shelf around the 1 kHz band's gain; and each ear's minimum-phase HRIR
+ *  high shelf around the 1 kHz band's gain (a shelf change over 0.5 dB, an
+ *  occluder coming or going, crossfaded over the block); and each ear's minimum-phase HRIR
  *  for the current head-frame direction, crossfaded over the block when the
  *  direction changes (head rotation is heard within one block).
  *
@@ -108,9 +109,11 @@ class DirectVoice {
                     const Params& to, size_t offset, size_t total, bool crossfade, bool jump);
   // The shelves for `to` (air, transmission around the 1 kHz band).
   void setShelves(const Params& to);
+  // After a block whose shelves were crossfaded: the new ones go on.
+  void endShelfFade();
   // `frames` of input (nullptr: silence) through the shelves into the delay
   // line; returns the absolute index of the first.
-  size_t pushInput(const float* input, size_t frames);
+  size_t pushInput(const float* input, size_t frames, size_t offset, size_t total);
 
   DirectVoiceSettings mSettings;
   const SincTable* mSincTable = nullptr;
@@ -126,6 +129,9 @@ class DirectVoice {
   std::vector<float> mScratch, mScratchNext;  // per chunk: FIR outputs of the current and the next HRIR
   std::vector<float> mFade;                   // per chunk: the crossfade's weight of the next HRIR, both ears
   Biquad mLow, mHigh;
+  Biquad mLowNext, mHighNext;  // a block crossfading its shelves: the new ones (setShelves)
+  bool mShelfFade = false, mShelvesSet = false;
+  double mShelfDb[2] = {0, 0};  // the shelves' gains last set (low, high)
   Params mCurrent;
   Vec3f mHeadDirection;
   bool mStarted = false;
