@@ -646,9 +646,10 @@ EARSHOT_API earshot_status earshot_source_retain(earshot_source* source);
  *  already played, through its IR) rings out over up to max_ir_seconds, as
  *  a sound's reverberation does. The index may be reused by a later
  *  source: earshot_source_create gives a new source a slot whose last
- *  source has rung out, else a slot never used, and only when neither is
- *  free the one freed longest ago (the new source then carries the rest of
- *  that ring-out through its own IR). Game thread. */
+ *  source has rung out (or never played reflections), else a slot never
+ *  used, and only when neither is free the one that played longest ago
+ *  (the new source then carries the rest of that ring-out through its own
+ *  IR). Game thread. */
 EARSHOT_API earshot_status earshot_source_release(earshot_source* source);
 
 /** The source's slot index in [0, max_sources): its position in the

@@ -59,10 +59,11 @@ struct Engine::Slot {
     uint32_t denormalMode = 0;  // the one it was synthesised in (currentDenormalMode())
   };
   std::atomic<bool> active{false};
-  // Engine::mFramesProcessed when the slot's last source was removed: until
-  // its reverberation has rung out (ringOutFrames) a new source goes to
-  // another slot where one is free (addSource).
-  std::atomic<uint64_t> freedAtFrame{0};
+  // Engine::mFramesProcessed at the end of the last chunk this slot's
+  // source fed its reflections (0: never). Until that has rung out
+  // (ringOutFrames) a new source goes to another slot where one is free
+  // (addSource). Written by the audio thread.
+  std::atomic<uint64_t> fedUntilFrame{0};
   std::atomic<uint32_t> generation{0};           // bumped by add/remove
   std::atomic<uint32_t> simulatedGeneration{~0u};  // generation of the last simulation posted
   std::atomic<int> direct{0};
@@ -584,12 +585,14 @@ Result<uint32_t> Engine::addSource(const SourceSettings& settings) {
   // it played is still in the slot's convolution history, heard through its
   // IR), and a new source in that slot would carry the rest of it through
   // its own IR once simulated: the old sound's reflections from the new
-  // source's place. So a new source takes, in this order: a free slot whose
-  // last source has rung out; a slot never used (allocating its state,
-  // within the memory limit); the free slot freed longest ago.
+  // source's place. So a new source takes, in this order: a free slot that
+  // has rung out (or never played reflections); a slot never used
+  // (allocating its state, within the memory limit); the free slot that
+  // played longest ago.
   const uint64_t now = mFramesProcessed.load(std::memory_order_relaxed);
   const uint64_t ringOut = ringOutFrames();
   int rungOut = -1, fresh = -1, ringing = -1;
+  uint64_t ringingFed = 0;
   for (uint32_t i = 0; i < mSlots.size(); ++i) {
     const Slot& slot = *mSlots[i];
     if (slot.active.load()) continue;
@@ -597,11 +600,12 @@ Result<uint32_t> Engine::addSource(const SourceSettings& settings) {
       if (fresh < 0) fresh = int(i);
       continue;
     }
-    const uint64_t freed = slot.freedAtFrame.load();
-    if (now - std::min(now, freed) >= ringOut) {
+    const uint64_t fed = slot.fedUntilFrame.load(std::memory_order_relaxed);
+    if (fed == 0 || now - std::min(now, fed) >= ringOut) {
       if (rungOut < 0) rungOut = int(i);
-    } else if (ringing < 0 || freed < mSlots[size_t(ringing)]->freedAtFrame.load()) {
+    } else if (ringing < 0 || fed < ringingFed) {
       ringing = int(i);
+      ringingFed = fed;
     }
   }
   int chosen = rungOut;
@@ -660,7 +664,6 @@ Status Engine::allocateSlot(uint32_t i) {
 
 Status Engine::removeSource(uint32_t s) {
   if (!validSource(s)) return invalidArgument("source " + std::to_string(s) + " does not exist");
-  mSlots[s]->freedAtFrame.store(mFramesProcessed.load(std::memory_order_relaxed));
   mSlots[s]->active.store(false);
   mSlots[s]->generation.fetch_add(1);
   return Status::ok();
@@ -1076,6 +1079,7 @@ void Engine::process(const float* const* inputs, float* left, float* right, size
 
 void Engine::process(const float* const* inputs, float* const* outputs, size_t frames) {
   ScopedFlushDenormals ftz;
+  const uint64_t firstFrame = mFramesProcessed.load(std::memory_order_relaxed);
   const bool ambisonicOut = mSettings.output == OutputFormat::kAmbisonic;
   const size_t outChannels = mOutputChannels;
   const size_t n = mSlots.size();
@@ -1145,6 +1149,7 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
       slot.appliedReflectionsGain = slot.reflectionsGain.load(std::memory_order_relaxed);
       slot.appliedGain = to;
       mInputs[i] = slot.reflectionsLive ? g : nullptr;
+      if (slot.reflectionsLive) slot.fedUntilFrame.store(firstFrame + off + m, std::memory_order_relaxed);
       if (mTailMixer && slot.reflectionsLive) {
         // The shared tail's input: this source at its late level, ramped.
         const float t0 = float(slot.appliedTailGain), t1 = float(slot.tailGain.load(std::memory_order_relaxed));
@@ -1249,8 +1254,8 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
       mClearedOutputChunks.fetch_add(1, std::memory_order_relaxed);
     }
   }
-  // (One writer: a plain load and store, no read-modify-write.)
-  mFramesProcessed.store(mFramesProcessed.load(std::memory_order_relaxed) + frames, std::memory_order_relaxed);
+  // (One writer: a plain store, no read-modify-write.)
+  mFramesProcessed.store(firstFrame + frames, std::memory_order_relaxed);
 }
 
 void Engine::processAmbisonicBus(const ListenerOrientation& head, float* const* ears, size_t m, bool tailUsed) {

@@ -445,40 +445,51 @@ TEST(Engine, ARemovedSourceRingsOutAndANewSourceTakesAnotherSlot) {
   EXPECT_EQ(differ, 0u) << "a silent new source changes nothing of the ring-out";
 }
 
-// Which slot a new source takes: one whose last source has rung out (the
-// lowest), else one never used, else the one freed longest ago.
+// Which slot a new source takes: one whose last source has rung out or
+// never played reflections (the lowest), else one never used, else the one
+// that played longest ago.
 TEST(Engine, ANewSourceTakesARungOutSlotThenAnUnusedOneThenTheOneFreedLongestAgo) {
   auto model = test::ku100();
   ASSERT_TRUE(model);
+  test::Room room;
   EngineSettings es = test::fastSettings();
   es.maxSources = 3;
   es.maxIrSeconds = 0.2;
+  es.simulation.rays = 300;
   auto engine = Engine::create(es, model);
   ASSERT_TRUE(engine.isOk());
   Engine& e = **engine;
-  std::vector<float> l(256), r(256);
-  std::vector<const float*> inputs(3, nullptr);
+  e.setScene(room.tracer, room.materials);
+  std::vector<float> silence(256, 0.0f), l(256), r(256);
+  std::vector<const float*> inputs(3, silence.data());  // every slot fed (silence: what counts is that it plays)
   auto play = [&](int blocks) {
     for (int b = 0; b < blocks; ++b) e.process(inputs.data(), l.data(), r.data(), 256);
   };
   auto add = [&] {
     auto id = e.addSource({});
     EXPECT_TRUE(id.isOk()) << id.status().message();
+    if (id.isOk()) {
+      EXPECT_TRUE(e.setSourcePosition(*id, {2.0 + *id, 3, 1.5}).isOk());
+    }
     return id.isOk() ? *id : ~0u;
   };
   const uint32_t a = add(), b = add();
   EXPECT_EQ(a, 0u);
   EXPECT_EQ(b, 1u);
+  ASSERT_TRUE(e.removeSource(b).isOk());
+  EXPECT_EQ(add(), 1u) << "slot 1 never played: taken again";
+  ASSERT_TRUE(e.simulate().isOk());
   play(10);
   ASSERT_TRUE(e.removeSource(a).isOk());
   play(10);
   const uint32_t c = add();
   EXPECT_EQ(c, 2u) << "slot 0 still rings: an unused slot";
+  ASSERT_TRUE(e.simulate().isOk());
   play(10);
   ASSERT_TRUE(e.removeSource(b).isOk());
   ASSERT_TRUE(e.removeSource(c).isOk());
   const uint32_t d = add();
-  EXPECT_EQ(d, 0u) << "every free slot rings: the one freed longest ago";
+  EXPECT_EQ(d, 0u) << "every free slot rings: the one that played longest ago";
   play(int(0.4 * kFs / 256));  // past 0.2 s, the latency and the margin
   const uint32_t f = add();
   EXPECT_EQ(f, 1u) << "rung out: the lowest such slot";

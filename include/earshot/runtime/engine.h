@@ -286,8 +286,9 @@ class Engine {
    *  is refused (kOutOfRange) when the slots in use would hold more than
    *  the memory limit (defaultInputLimits().maxMemoryBytes) with their IRs:
    *  sourceSlotBytes() each. The slot: a free one whose last source's
-   *  reverberation has rung out (removeSource), else one never used (within
-   *  the memory limit), else the one freed longest ago. */
+   *  reverberation has rung out or never played (removeSource), else one
+   *  never used (within the memory limit), else the one that played
+   *  longest ago. */
   Result<uint32_t> addSource(const SourceSettings& settings);
   /** What one source slot may hold, from above: its direct voice, its
    *  convolution state, the three IRs the convolver may hold for it at
