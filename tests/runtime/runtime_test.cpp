@@ -45,6 +45,23 @@ double energy(const float* x, size_t n) {
   return e;
 }
 
+// Share of n samples' energy at or above `fromHz`, in dB (Hann-windowed DFT
+// over the n samples, DC left out): where a tick or a chirp shows.
+double highBandShareDb(const float* x, size_t n, double fromHz) {
+  double all = 0, high = 0;
+  for (size_t k = 1; k < n / 2; ++k) {
+    double re = 0, im = 0;
+    for (size_t i = 0; i < n; ++i) {
+      const double w = 0.5 - 0.5 * std::cos(2 * kPi * double(i) / double(n));
+      re += w * x[i] * std::cos(2 * kPi * double(k * i) / double(n));
+      im -= w * x[i] * std::sin(2 * kPi * double(k * i) / double(n));
+    }
+    all += re * re + im * im;
+    if (double(k) * kFs / double(n) >= fromHz) high += re * re + im * im;
+  }
+  return energyToDb(high / all);
+}
+
 }  // namespace
 
 // A static source: the voice's impulse response peaks at r/c plus the
@@ -128,20 +145,9 @@ TEST(DirectVoice, ATeleportCrossfadesInsteadOfChirping) {
                       bus[3].data() + b * block};
     (*ambisonic)->processAmbisonic(in.data() + b * block, outs, 1, block, t);
   }
-  // Share of a block's energy above 3 kHz (Hann-windowed DFT over the block).
+  // Share of a block's energy above 3 kHz.
   auto highShareOf = [&](const std::vector<float>& x, size_t b) {
-    double all = 0, high = 0;
-    for (size_t k = 1; k < block / 2; ++k) {
-      double re = 0, im = 0;
-      for (size_t i = 0; i < block; ++i) {
-        const double w = 0.5 - 0.5 * std::cos(2 * kPi * double(i) / double(block));
-        re += w * x[b * block + i] * std::cos(2 * kPi * double(k * i) / double(block));
-        im -= w * x[b * block + i] * std::sin(2 * kPi * double(k * i) / double(block));
-      }
-      all += re * re + im * im;
-      if (double(k) * kFs / double(block) >= 3000.0) high += re * re + im * im;
-    }
-    return energyToDb(high / all);
+    return highBandShareDb(x.data() + b * block, block, 3000.0);
   };
   auto highShare = [&](size_t b) { return highShareOf(l, b); };
   const double before = highShare(30), jump = highShare(40), after = highShare(50);
@@ -179,20 +185,7 @@ TEST(DirectVoice, AnOccluderComingOrGoingIsAFadeNotATick) {
     for (int k = 0; k < kNumBands; ++k) t.transmission[k] = closed ? door[k] : 1.0;
     (*voice)->process(in.data() + b * block, l.data() + b * block, r.data() + b * block, block, t);
   }
-  auto highShare = [&](size_t b) {  // above 2 kHz, Hann-windowed DFT over the block
-    double all = 0, high = 0;
-    for (size_t k = 1; k < block / 2; ++k) {
-      double re = 0, im = 0;
-      for (size_t i = 0; i < block; ++i) {
-        const double w = 0.5 - 0.5 * std::cos(2 * kPi * double(i) / double(block));
-        re += w * l[b * block + i] * std::cos(2 * kPi * double(k * i) / double(block));
-        im -= w * l[b * block + i] * std::sin(2 * kPi * double(k * i) / double(block));
-      }
-      all += re * re + im * im;
-      if (double(k) * kFs / double(block) >= 2000.0) high += re * re + im * im;
-    }
-    return energyToDb(high / all);
-  };
+  auto highShare = [&](size_t b) { return highBandShareDb(l.data() + b * block, block, 2000.0); };  // above 2 kHz
   double steady = -1e9, switching = -1e9;
   for (size_t b = 5; b < blocks; ++b) {
     const bool nearSwitch = b % 10 <= 3;  // the change reaches the output after the 9 ms delay
