@@ -289,9 +289,10 @@ EARSHOT_API earshot_status earshot_context_get_info(earshot_context* context, ea
 
 /** Sets the listener's pose: `position` (metres, finite), `forward` and `up`
  *  (finite, non-zero, not parallel; need not be unit length; up is made
- *  orthogonal to forward). The direct sound follows it at the next audio
- *  block; the reflections at the next simulation of each source. Game thread
- *  (any thread but the audio thread). */
+ *  orthogonal to forward). The direct sound follows a turn within the next
+ *  audio block, and a move as it follows a source's
+ *  (earshot_source_set_position); the reflections at the next simulation
+ *  of each source. Game thread (any thread but the audio thread). */
 EARSHOT_API earshot_status earshot_context_set_listener(earshot_context* context, earshot_vec3 position,
                                                         earshot_vec3 forward, earshot_vec3 up);
 
@@ -655,9 +656,15 @@ EARSHOT_API earshot_status earshot_source_release(earshot_source* source);
 /** The source's slot index in [0, max_sources): its position in the
  *  `inputs` array of earshot_process(). Fixed for the source's life. Any thread. */
 EARSHOT_API earshot_status earshot_source_get_index(earshot_source* source, uint32_t* index);
-/** Moves the source (metres, finite). The direct sound follows at the next
- *  audio block (with Doppler), the reflections at the source's next
- *  simulation. Game thread (any thread but the audio thread). */
+/** Moves the source (metres, finite). The direct sound follows from the
+ *  next audio block (with Doppler): a game that moves it every frame is
+ *  followed at the speed its positions give, the change spread over the
+ *  interval between its updates (a 60 Hz game's motion is steady Doppler,
+ *  not a staircase of delays; the direct sound runs one to two of the
+ *  game's frames behind). The first move after 0.1 s without one, and one
+ *  faster than half the speed of sound (a teleport, crossfaded), are
+ *  heard within the next block. The reflections follow at the source's
+ *  next simulation. Game thread (any thread but the audio thread). */
 EARSHOT_API earshot_status earshot_source_set_position(earshot_source* source, earshot_vec3 position);
 /** Sets the source's gain in dB, [-120, 40]; ramped over the next audio
  *  block. Game thread (any thread but the audio thread). */

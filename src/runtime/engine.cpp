@@ -16,6 +16,7 @@
 #include "earshot/dsp/prepared_ir.h"
 #include "earshot/io/input_file.h"
 #include "earshot/runtime/direct_voice.h"
+#include "earshot/runtime/pose_glide.h"
 #include "earshot/scene/ray_tracer.h"
 
 namespace earshot::runtime {
@@ -95,6 +96,8 @@ struct Engine::Slot {
   bool live = false;                   // audio thread: playing in this process() call
   bool reflectionsLive = false;        // audio thread: its IR is this source's (simulated since added)
   bool mutedChunk = false;             // audio thread: this chunk's input was not finite (muted)
+  bool wasLive = false;                // audio thread: live in the last process() call
+  PoseGlide glide;                     // audio thread: the position the direct voice follows
   double appliedGain = 1.0;            // audio thread: gain at the end of the last chunk
   double appliedReflectionsGain = 1.0; // audio thread: the reflections' gain at the end of the last chunk
   std::vector<float> scaled;           // audio thread: gained input for the mixer
@@ -1084,8 +1087,8 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
   const size_t outChannels = mOutputChannels;
   const size_t n = mSlots.size();
   DirectTarget target;
-  target.listener = {mListener[0].load(std::memory_order_relaxed), mListener[1].load(std::memory_order_relaxed),
-                     mListener[2].load(std::memory_order_relaxed)};
+  const Vec3d listenerSet{mListener[0].load(std::memory_order_relaxed), mListener[1].load(std::memory_order_relaxed),
+                          mListener[2].load(std::memory_order_relaxed)};
   target.orientation.forward = {mListener[3].load(std::memory_order_relaxed),
                                 mListener[4].load(std::memory_order_relaxed),
                                 mListener[5].load(std::memory_order_relaxed)};
@@ -1105,17 +1108,28 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
     const bool live = active && (simulated || perBlock);
     slot.live = live;
     slot.reflectionsLive = active && simulated;
+    // A source back from a pause (or a new one) starts where it is set now.
+    if (live && !slot.wasLive) slot.glide.reset();
+    slot.wasLive = live;
     if (live && slot.voiceGeneration != generation) {
       slot.voice.load(std::memory_order_relaxed)->reset();
+      slot.glide.reset();
       slot.voiceGeneration = generation;
       slot.appliedGain = slot.gain.load(std::memory_order_relaxed);
       slot.appliedReflectionsGain = slot.reflectionsGain.load(std::memory_order_relaxed);
       slot.appliedTailGain = slot.tailGain.load(std::memory_order_relaxed);
     }
   }
+  // The glides (PoseGlide): over at most kMaxGlideSeconds, never faster
+  // than half the speed of sound (the direct voice's jump).
+  const uint64_t maxGlide = uint64_t(kMaxGlideSeconds * mSettings.sampleRateHz);
+  const double maxGlideSpeed = 0.5 * mSettings.simulation.speedOfSound / mSettings.sampleRateHz;
   // Chunks bound the gain scratch buffers whatever the host block size.
   for (size_t off = 0; off < frames; off += kProcessChunk) {
     const size_t m = std::min(kProcessChunk, frames - off);
+    // The positions the direct sound follows: where the game set them,
+    // its changes spread over the interval it makes them at.
+    target.listener = mSettings.glidePoses ? mListenerGlide.next(listenerSet, m, maxGlide, maxGlideSpeed) : listenerSet;
     bool tailUsed = false;
     if (mTailMixer) std::fill(mTailInput.begin(), mTailInput.begin() + std::ptrdiff_t(m), 0.0f);
     // The gains' ramp across the chunk, once for every source (a division
@@ -1173,6 +1187,7 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
       target.source = {slot.position[0].load(std::memory_order_relaxed),
                        slot.position[1].load(std::memory_order_relaxed),
                        slot.position[2].load(std::memory_order_relaxed)};
+      if (mSettings.glidePoses) target.source = slot.glide.next(target.source, m, maxGlide, maxGlideSpeed);
       // The direct gain and the distance curve, relative to the voice's own
       // physical 1/r (ramped by the voice across the chunk).
       DistanceCurve curve;

@@ -559,6 +559,110 @@ TEST(Engine, ListenerTurnFlipsTheIldWithinTwoBlocks) {
   EXPECT_LT(ild(), -3.0) << "second block after the turn";
 }
 
+// Share of n samples' energy farther than `halfWidthHz` from a tone's
+// frequency `hz`, in dB (Hann window; the near bins' energy by DFT, the
+// whole by Parseval): how far a moving source's tone is from one pure
+// Doppler-shifted tone (a staircase of delays modulates it: sidebands).
+double offToneShareDb(const float* x, size_t n, double hz, double halfWidthHz) {
+  auto w = [&](size_t i) { return 0.5 - 0.5 * std::cos(2 * kPi * double(i) / double(n)); };
+  double all = 0;
+  for (size_t i = 0; i < n; ++i) all += w(i) * w(i) * double(x[i]) * x[i];
+  double near = 0;  // the one-sided spectrum's bins within the band, twice (the mirror)
+  const long k0 = long(std::ceil((hz - halfWidthHz) * double(n) / kFs)),
+             k1 = long(std::floor((hz + halfWidthHz) * double(n) / kFs));
+  for (long k = k0; k <= k1; ++k) {
+    double re = 0, im = 0;
+    for (size_t i = 0; i < n; ++i) {
+      const double a = 2 * kPi * double(k) * double(i) / double(n);
+      re += w(i) * x[i] * std::cos(a);
+      im -= w(i) * x[i] * std::sin(a);
+    }
+    near += 2 * (re * re + im * im) / double(n);
+  }
+  return energyToDb(std::max(all - near, 1e-30 * all) / all);
+}
+
+// A game moves its sources and its listener at its own frame rate (60 Hz:
+// every 800 frames at 48 kHz), while the audio thread runs blocks of 256.
+// Following each new position within the next block made a staircase of
+// delays: the Doppler shift three times over for one block, none for the
+// next two, a 60 Hz modulation of the tone (-5.0 dB of a receding 1 kHz
+// tone's energy off the Doppler-shifted tone). The engine spreads a pose's
+// changes over the interval at which the game makes them (PoseGlide), so
+// a source or listener receding at 10 m/s is heard as one tone at
+// f c / (c + v), within -20 dB, whether the game updates it at 60 Hz with
+// blocks of 256, at 90 Hz (a head tracker) with blocks of 128, or at 60 Hz
+// with blocks of 1,024 (-16 dB; it was -12.2, the game's updates falling
+// one or two to a block). A teleport in the middle of such motion is still
+// one crossfade (DirectVoice), not a glide.
+TEST(Engine, APoseUpdatedAtTheGamesFrameRateIsHeardAsSteadyDoppler) {
+  auto model = test::ku100();
+  ASSERT_TRUE(model);
+  const size_t n = size_t(2.0 * kFs);
+  const double f0 = 1000.0, v = 10.0, c = 343.0;
+  // The left ear's output as the source (or the listener) recedes at v,
+  // the game setting its position every `gameFrames`, the host processing
+  // blocks of `block`; at `teleportFrame` the source jumps 30 m away.
+  auto render = [&](bool moveListener, size_t block, size_t gameFrames, size_t teleportFrame = SIZE_MAX) {
+    EngineSettings es = test::fastSettings();
+    auto engine = Engine::create(es, model);
+    EXPECT_TRUE(engine.isOk());
+    Engine& e = **engine;  // free field: the direct sound alone
+    auto id = e.addSource({});
+    EXPECT_TRUE(id.isOk());
+    const ListenerOrientation o{{0, 0, -1}, {0, 1, 0}};
+    const Vec3d start{-1, 0, -3};  // ahead and a little to the left
+    auto poseAt = [&](size_t frame) {
+      const double d = v * double(frame) / kFs + (frame >= teleportFrame ? 30.0 : 0.0);
+      if (moveListener) {
+        EXPECT_TRUE(e.setSourcePosition(*id, start).isOk());
+        EXPECT_TRUE(e.setListener({0, 0, d}, o).isOk());
+      } else {
+        EXPECT_TRUE(e.setSourcePosition(*id, start + Vec3d{0, 0, -d}).isOk());
+        EXPECT_TRUE(e.setListener({0, 0, 0}, o).isOk());
+      }
+    };
+    std::vector<float> in(n), l(n, 0.0f), r(n, 0.0f);
+    for (size_t i = 0; i < n; ++i) in[i] = float(0.5 * std::sin(2 * kPi * f0 * double(i) / kFs));
+    std::vector<const float*> inputs(es.maxSources, nullptr);
+    size_t nextGameFrame = 0;
+    for (size_t off = 0; off < n; off += block) {
+      for (; nextGameFrame <= off; nextGameFrame += gameFrames) poseAt(nextGameFrame);
+      inputs[*id] = in.data() + off;
+      e.process(inputs.data(), l.data() + off, r.data() + off, std::min(block, n - off));
+    }
+    return l;
+  };
+  const double doppler = f0 * c / (c + v);
+  const size_t from = size_t(0.5 * kFs), m = size_t(kFs);  // 0.5-1.5 s: steady
+  struct Case {
+    bool listener;
+    size_t block, gameFrames;
+    double limitDb;
+  };
+  for (const Case& k : {Case{false, 256, 800, -20.0}, Case{true, 256, 800, -20.0}, Case{true, 128, 533, -20.0},
+                        Case{false, 1024, 800, -16.0}}) {
+    const std::vector<float> everyBlock = render(k.listener, k.block, k.block),
+                             gameRate = render(k.listener, k.block, k.gameFrames);
+    const double ideal = offToneShareDb(everyBlock.data() + from, m, doppler, 20.0);
+    const double heard = offToneShareDb(gameRate.data() + from, m, doppler, 20.0);
+    std::printf("%s receding at %.0f m/s, blocks of %zu: energy off the %.1f Hz tone, updated every block %.1f dB, "
+                "at %.0f Hz %.1f dB\n",
+                k.listener ? "listener" : "source", v, k.block, doppler, ideal, kFs / double(k.gameFrames), heard);
+    EXPECT_LT(ideal, -40.0);
+    EXPECT_LT(heard, k.limitDb);
+  }
+  // The teleport: 30 m at 1.0 s (a game frame), heard from the first block after it.
+  const size_t jump = 60 * 800, block = 256;
+  const std::vector<float> t = render(false, block, 800, jump);
+  const size_t jumpBlock = (jump + block - 1) / block * block;
+  const double steady = highBandShareDb(t.data() + jumpBlock - 4 * block, block, 3000.0);
+  const double atJump = highBandShareDb(t.data() + jumpBlock, block, 3000.0);
+  std::printf("teleport while moving at 60 Hz: energy above 3 kHz, steady block %.1f dB, the jump's block %.1f dB\n",
+              steady, atJump);
+  EXPECT_LT(atJump, -30.0);
+}
+
 // Round robin: simulate(1) visits the active sources in turn.
 TEST(Engine, RoundRobinSimulatesOneSourceAtATime) {
   auto model = test::ku100();

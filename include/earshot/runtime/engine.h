@@ -39,6 +39,7 @@
 #include "earshot/ir/ir_pipeline.h"
 #include "earshot/ir/spherical_harmonics.h"
 #include "earshot/materials/material.h"
+#include "earshot/runtime/pose_glide.h"
 
 namespace earshot {
 class RayTracer;
@@ -146,6 +147,13 @@ struct EngineSettings {
    *  (the same IRs). The two modes give the
    *  same energies (the regression suite runs with both). */
   TraceMode traceMode = TraceMode::kAuto;
+  /** The direct sound follows the source and listener positions the game
+   *  sets with their changes spread over the interval the game makes them
+   *  at (PoseGlide: a game's 60 Hz updates are heard as steady Doppler,
+   *  not a staircase of delays; one to two update intervals late). false:
+   *  each position is reached within the block that first sees it, for a
+   *  caller that sets exact poses at every block's end (`earshot render`). */
+  bool glidePoses = true;
 };
 
 enum class DirectMode {
@@ -310,6 +318,9 @@ class Engine {
    *  slot can be had (addSource): a new source in a ringing slot carries
    *  the rest of the ring-out through its own IR once simulated. */
   Status removeSource(uint32_t source);
+  /** The direct sound follows from the next process() call, gliding as
+   *  EngineSettings::glidePoses says; the reflections at the source's next
+   *  simulation. */
   Status setSourcePosition(uint32_t source, const Vec3d& position);
   Status setSourceGainDb(uint32_t source, double gainDb);
   /** Every control but the direct mode (fixed at addSource). Gains and the
@@ -401,6 +412,7 @@ class Engine {
   bool mHaveRotation = false;         // audio thread
   std::vector<std::unique_ptr<Slot>> mSlots;
   std::atomic<double> mListener[9];  // position, forward, up
+  PoseGlide mListenerGlide;          // audio thread: the listener position the direct sound follows
 
   std::mutex mSceneMutex;  // game and simulation threads only
   std::shared_ptr<const RayTracer> mTracer;
