@@ -337,7 +337,9 @@ EARSHOT_API earshot_status earshot_context_stop_simulation(earshot_context* cont
  *  EARSHOT_OUTPUT_BINAURAL; INVALID_STATE otherwise): inputs[i] is the dry mono
  *  signal (`frames` floats) of the source whose index
  *  (earshot_source_get_index) is i, for i < input_count; a NULL entry, an
- *  index with no source and every index >= input_count play silence.
+ *  index with no source and every index >= input_count play silence (what
+ *  a source played before still arrives: its direct sound in flight, its
+ *  reverberation).
  *  `inputs` may be NULL when input_count is 0. input_count is at most
  *  max_sources. `left` and `right` (`frames` floats each, distinct) are
  *  overwritten; frames may be any number, 0 included. The output lags the
@@ -642,15 +644,17 @@ EARSHOT_API earshot_status earshot_source_create(earshot_context* context, const
                                                  earshot_source** out);
 /** Adds a reference. Game thread. */
 EARSHOT_API earshot_status earshot_source_retain(earshot_source* source);
-/** Drops a reference; the last one frees the slot: the source's direct
- *  sound stops at the next audio block, and its reverberation (what it
- *  already played, through its IR) rings out over up to max_ir_seconds, as
- *  a sound's reverberation does. The index may be reused by a later
- *  source: earshot_source_create gives a new source a slot whose last
- *  source has rung out (or never played reflections), else a slot never
- *  used, and only when neither is free the one that played longest ago
- *  (the new source then carries the rest of that ring-out through its own
- *  IR). Game thread. */
+/** Drops a reference; the last one frees the slot: the source plays no
+ *  more from the next audio block, and what it already played still
+ *  arrives: its direct sound in flight (a source 34 m away is heard 0.1 s
+ *  after it plays) and its reverberation, which rings out through its IR
+ *  over up to max_ir_seconds. So a one-shot may be released as soon as its
+ *  last sample has been passed to earshot_process. The index may be reused
+ *  by a later source: earshot_source_create gives a new source a slot
+ *  whose last source has rung out (or never played), else a slot never
+ *  used, and only when neither is free the one whose ring-out ends first
+ *  (the new source then cuts that direct sound and carries the rest of
+ *  the reverberation through its own IR). Game thread. */
 EARSHOT_API earshot_status earshot_source_release(earshot_source* source);
 
 /** The source's slot index in [0, max_sources): its position in the

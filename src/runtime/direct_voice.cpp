@@ -255,6 +255,11 @@ Result<std::unique_ptr<DirectVoice>> DirectVoice::create(const DirectVoiceSettin
   return v;
 }
 
+size_t DirectVoice::ringOutFrames() const {
+  if (!mStarted) return 0;
+  return size_t(std::ceil(std::max(mDelay[0], mDelay[1]))) + size_t(kTaps) + mTaps[0].size();
+}
+
 void DirectVoice::reset() {
   std::fill(mRing.begin(), mRing.end(), 0.0f);
   for (auto& h : mHistory) std::fill(h.begin(), h.end(), 0.0f);

@@ -65,6 +65,9 @@ struct Engine::Slot {
   // (ringOutFrames) a new source goes to another slot where one is free
   // (addSource). Written by the audio thread.
   std::atomic<uint64_t> fedUntilFrame{0};
+  // The frame by which the direct voice's sound in flight has all come out
+  // (0: it never played). Written by the audio thread.
+  std::atomic<uint64_t> voiceUntilFrame{0};
   std::atomic<uint32_t> generation{0};           // bumped by add/remove
   std::atomic<uint32_t> simulatedGeneration{~0u};  // generation of the last simulation posted
   std::atomic<int> direct{0};
@@ -96,7 +99,14 @@ struct Engine::Slot {
   bool live = false;                   // audio thread: playing in this process() call
   bool reflectionsLive = false;        // audio thread: its IR is this source's (simulated since added)
   bool mutedChunk = false;             // audio thread: this chunk's input was not finite (muted)
-  bool wasLive = false;                // audio thread: live in the last process() call
+  // Audio thread: the direct voice played (live, per block) in the last
+  // process() call; it ran at all (playing or running out).
+  bool voicePlayed = false, voiceRan = false;
+  // Audio thread: frames the voice still runs on silence after its source
+  // stopped playing (input NULL, or released): its sound in flight; and
+  // the generation it runs out for (a new source in the slot ends it).
+  size_t drainLeft = 0;
+  uint32_t drainGeneration = 0;
   PoseGlide glide;                     // audio thread: the position the direct voice follows
   double appliedGain = 1.0;            // audio thread: gain at the end of the last chunk
   double appliedReflectionsGain = 1.0; // audio thread: the reflections' gain at the end of the last chunk
@@ -588,14 +598,14 @@ Result<uint32_t> Engine::addSource(const SourceSettings& settings) {
   // it played is still in the slot's convolution history, heard through its
   // IR), and a new source in that slot would carry the rest of it through
   // its own IR once simulated: the old sound's reflections from the new
-  // source's place. So a new source takes, in this order: a free slot that
-  // has rung out (or never played reflections); a slot never used
-  // (allocating its state, within the memory limit); the free slot that
-  // played longest ago.
+  // source's place; and its direct sound still in flight would be cut. So
+  // a new source takes, in this order: a free slot that has rung out (or
+  // never played); a slot never used (allocating its state, within the
+  // memory limit); the free slot whose ring-out ends first.
   const uint64_t now = mFramesProcessed.load(std::memory_order_relaxed);
   const uint64_t ringOut = ringOutFrames();
   int rungOut = -1, fresh = -1, ringing = -1;
-  uint64_t ringingFed = 0;
+  uint64_t ringingEnds = 0;
   for (uint32_t i = 0; i < mSlots.size(); ++i) {
     const Slot& slot = *mSlots[i];
     if (slot.active.load()) continue;
@@ -604,11 +614,12 @@ Result<uint32_t> Engine::addSource(const SourceSettings& settings) {
       continue;
     }
     const uint64_t fed = slot.fedUntilFrame.load(std::memory_order_relaxed);
-    if (fed == 0 || now - std::min(now, fed) >= ringOut) {
+    const uint64_t ends = std::max(fed == 0 ? 0 : fed + ringOut, slot.voiceUntilFrame.load(std::memory_order_relaxed));
+    if (now >= ends) {
       if (rungOut < 0) rungOut = int(i);
-    } else if (ringing < 0 || fed < ringingFed) {
+    } else if (ringing < 0 || ends < ringingEnds) {
       ringing = int(i);
-      ringingFed = fed;
+      ringingEnds = ends;
     }
   }
   int chosen = rungOut;
@@ -1108,9 +1119,25 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
     const bool live = active && (simulated || perBlock);
     slot.live = live;
     slot.reflectionsLive = active && simulated;
-    // A source back from a pause (or a new one) starts where it is set now.
-    if (live && !slot.wasLive) slot.glide.reset();
-    slot.wasLive = live;
+    // Sound in flight: a direct voice whose source stops playing (its input
+    // NULL, or the source released) runs on silence until what it played
+    // has arrived (DirectVoice::ringOutFrames), unless a new source takes
+    // the slot (its generation changes, the slot active again).
+    const bool plays = live && perBlock;
+    if (plays) {
+      slot.drainLeft = 0;
+    } else if (slot.voicePlayed &&
+               (generation == slot.voiceGeneration || !slot.active.load(std::memory_order_acquire))) {
+      slot.drainLeft = slot.voice.load(std::memory_order_relaxed)->ringOutFrames();
+      slot.drainGeneration = generation;
+    } else if (slot.drainGeneration != generation) {
+      slot.drainLeft = 0;
+    }
+    slot.voicePlayed = plays;
+    // A voice that starts again (or anew) starts where its source is set now.
+    const bool runs = plays || slot.drainLeft > 0;
+    if (runs && !slot.voiceRan) slot.glide.reset();
+    slot.voiceRan = runs;
     if (live && slot.voiceGeneration != generation) {
       slot.voice.load(std::memory_order_relaxed)->reset();
       slot.glide.reset();
@@ -1183,7 +1210,10 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
     }
     for (size_t i = 0; i < n; ++i) {
       Slot& slot = *mSlots[i];
-      if (!slot.live || DirectMode(slot.direct.load(std::memory_order_relaxed)) != DirectMode::kPerBlock) continue;
+      const bool draining = !slot.live && slot.drainLeft > 0;
+      if (!draining &&
+          (!slot.live || DirectMode(slot.direct.load(std::memory_order_relaxed)) != DirectMode::kPerBlock))
+        continue;
       target.source = {slot.position[0].load(std::memory_order_relaxed),
                        slot.position[1].load(std::memory_order_relaxed),
                        slot.position[2].load(std::memory_order_relaxed)};
@@ -1247,12 +1277,16 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
           return false;
         }();
       }
-      // A muted chunk feeds the voice the zeros the mixer got.
-      const float* voiceIn = slot.mutedChunk ? slot.scaled.data() : inputs[i] + off;
+      // A muted chunk feeds the voice the zeros the mixer got; one running
+      // out, silence.
+      const float* voiceIn = draining ? nullptr : slot.mutedChunk ? slot.scaled.data() : inputs[i] + off;
+      if (draining) slot.drainLeft -= std::min(slot.drainLeft, m);
+      DirectVoice* voice = slot.voice.load(std::memory_order_relaxed);
       if (ambisonicOut)
-        slot.voice.load(std::memory_order_relaxed)->processAmbisonic(voiceIn, outs, mSettings.ambisonicOrder, m, target);
+        voice->processAmbisonic(voiceIn, outs, mSettings.ambisonicOrder, m, target);
       else
-        slot.voice.load(std::memory_order_relaxed)->process(voiceIn, outs[0], outs[1], m, target);
+        voice->process(voiceIn, outs[0], outs[1], m, target);
+      slot.voiceUntilFrame.store(firstFrame + off + m + voice->ringOutFrames(), std::memory_order_relaxed);
     }
     // Containment of an overflow anywhere in the state: never a non-finite
     // sample out, and no state that stays poisoned.

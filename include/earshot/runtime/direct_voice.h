@@ -83,6 +83,12 @@ class DirectVoice {
   /** Forgets the signal history and parameters (next call starts afresh). Thread: audio. */
   void reset();
 
+  /** Frames of silent input after which everything already put in has
+   *  come out (the longer ear's delay at the end of the last call, the
+   *  interpolator's reach and the HRIR): how long a voice whose source
+   *  stopped playing still sounds. 0 before the first call. Thread: audio. */
+  size_t ringOutFrames() const;
+
   /** The total delay (seconds, including extraDelayFrames) each ear used at the end of the last call. */
   double lastDelaySeconds(int ear) const { return mDelay[ear] / mSettings.sampleRateHz; }
 

@@ -311,12 +311,15 @@ class Engine {
    *  to refuse a scene's sources before loading it). Error: settings the
    *  convolver refuses. */
   static Result<size_t> sourceSlotBytes(const EngineSettings& settings);
-  /** Frees the source's slot: its direct sound stops at the next process()
-   *  call; its reverberation (what it already played, through its IR) rings
-   *  out over up to maxIrSeconds, as a sound's reverberation does. Its
+  /** Frees the source's slot: it plays no more from the next process()
+   *  call, and what it already played still arrives: its direct sound in
+   *  flight (DirectVoice::ringOutFrames: its delay, up to maxDistanceMeters
+   *  / c) and its reverberation, which rings out through its IR over up to
+   *  maxIrSeconds. A NULL input in process() is silence the same way. Its
    *  slot goes to a new source only once that has rung out, unless no other
-   *  slot can be had (addSource): a new source in a ringing slot carries
-   *  the rest of the ring-out through its own IR once simulated. */
+   *  slot can be had (addSource): a new source in a ringing slot cuts the
+   *  direct sound in flight and carries the rest of the reverberation
+   *  through its own IR once simulated. */
   Status removeSource(uint32_t source);
   /** The direct sound follows from the next process() call, gliding as
    *  EngineSettings::glidePoses says; the reflections at the source's next
