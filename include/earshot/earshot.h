@@ -671,7 +671,9 @@ EARSHOT_API earshot_status earshot_source_get_index(earshot_source* source, uint
  *  next simulation. Game thread (any thread but the audio thread). */
 EARSHOT_API earshot_status earshot_source_set_position(earshot_source* source, earshot_vec3 position);
 /** Sets the source's gain in dB, [-120, 40]; ramped over the next audio
- *  block. Game thread (any thread but the audio thread). */
+ *  block, or, set once a game frame (a fade), glided over the interval
+ *  between the game's updates as positions are (a smooth fade, not a
+ *  staircase). Game thread (any thread but the audio thread). */
 EARSHOT_API earshot_status earshot_source_set_gain_db(earshot_source* source, float gain_db);
 /** Turns the source: `forward` (world frame, finite, non-zero) is the axis
  *  of its directivity. Default (0, 0, -1). The direct sound follows at the

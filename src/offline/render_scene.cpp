@@ -105,7 +105,7 @@ Result<RenderResult> renderScene(const SceneDescription& scene, const RenderOpti
   es.threads = options.threads > 0 ? options.threads : std::max(1u, std::thread::hardware_concurrency());
   es.workerNice = 0;
   es.fadeFrames = kRenderFadeFrames;
-  es.glidePoses = false;  // every block is given the exact poses at its end (setPoses below)
+  es.glideGameUpdates = false;  // every block is given the exact poses at its end (setPoses below)
   es.ambisonicOrder = options.ambisonicOrder.value_or(ss.ambisonicOrder);
   auto traceMode = traceModeFromString(options.trace.value_or(ss.trace));
   if (!traceMode.isOk()) return traceMode.status();

@@ -6,6 +6,7 @@
 #include <thread>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <optional>
 #include <string>
 
@@ -16,7 +17,7 @@
 #include "earshot/dsp/prepared_ir.h"
 #include "earshot/io/input_file.h"
 #include "earshot/runtime/direct_voice.h"
-#include "earshot/runtime/pose_glide.h"
+#include "earshot/runtime/glide.h"
 #include "earshot/scene/ray_tracer.h"
 
 namespace earshot::runtime {
@@ -108,6 +109,8 @@ struct Engine::Slot {
   size_t drainLeft = 0;
   uint32_t drainGeneration = 0;
   PoseGlide glide;                     // audio thread: the position the direct voice follows
+  GainGlide gainGlide;                 // audio thread: the gain it and the reflections follow
+  bool lastLive = false;               // audio thread: live in the last process() call
   double appliedGain = 1.0;            // audio thread: gain at the end of the last chunk
   double appliedReflectionsGain = 1.0; // audio thread: the reflections' gain at the end of the last chunk
   std::vector<float> scaled;           // audio thread: gained input for the mixer
@@ -1138,9 +1141,12 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
     const bool runs = plays || slot.drainLeft > 0;
     if (runs && !slot.voiceRan) slot.glide.reset();
     slot.voiceRan = runs;
+    if (live && !slot.lastLive) slot.gainGlide.reset();
+    slot.lastLive = live;
     if (live && slot.voiceGeneration != generation) {
       slot.voice.load(std::memory_order_relaxed)->reset();
       slot.glide.reset();
+      slot.gainGlide.reset();
       slot.voiceGeneration = generation;
       slot.appliedGain = slot.gain.load(std::memory_order_relaxed);
       slot.appliedReflectionsGain = slot.reflectionsGain.load(std::memory_order_relaxed);
@@ -1156,7 +1162,7 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
     const size_t m = std::min(kProcessChunk, frames - off);
     // The positions the direct sound follows: where the game set them,
     // its changes spread over the interval it makes them at.
-    target.listener = mSettings.glidePoses ? mListenerGlide.next(listenerSet, m, maxGlide, maxGlideSpeed) : listenerSet;
+    target.listener = mSettings.glideGameUpdates ? mListenerGlide.next(listenerSet, m, maxGlide, maxGlideSpeed) : listenerSet;
     bool tailUsed = false;
     if (mTailMixer) std::fill(mTailInput.begin(), mTailInput.begin() + std::ptrdiff_t(m), 0.0f);
     // The gains' ramp across the chunk, once for every source (a division
@@ -1169,7 +1175,10 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
       if (!slot.live) continue;
       // The source gain, ramped per chunk, on the reflections' input (the
       // direct voice applies it itself).
-      const float from = float(slot.appliedGain), to = float(slot.gain.load(std::memory_order_relaxed));
+      double gainSet = slot.gain.load(std::memory_order_relaxed);
+      if (mSettings.glideGameUpdates)
+        gainSet = slot.gainGlide.next(gainSet, m, maxGlide, std::numeric_limits<double>::infinity());
+      const float from = float(slot.appliedGain), to = float(gainSet);
       const float* in = inputs[i] + off;
       float* g = slot.scaled.data();
       // Containment: a NaN, Inf or absurd sample mutes this source for the
@@ -1217,7 +1226,7 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
       target.source = {slot.position[0].load(std::memory_order_relaxed),
                        slot.position[1].load(std::memory_order_relaxed),
                        slot.position[2].load(std::memory_order_relaxed)};
-      if (mSettings.glidePoses) target.source = slot.glide.next(target.source, m, maxGlide, maxGlideSpeed);
+      if (mSettings.glideGameUpdates) target.source = slot.glide.next(target.source, m, maxGlide, maxGlideSpeed);
       // The direct gain and the distance curve, relative to the voice's own
       // physical 1/r (ramped by the voice across the chunk).
       DistanceCurve curve;

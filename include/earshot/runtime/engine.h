@@ -39,7 +39,7 @@
 #include "earshot/ir/ir_pipeline.h"
 #include "earshot/ir/spherical_harmonics.h"
 #include "earshot/materials/material.h"
-#include "earshot/runtime/pose_glide.h"
+#include "earshot/runtime/glide.h"
 
 namespace earshot {
 class RayTracer;
@@ -147,13 +147,14 @@ struct EngineSettings {
    *  (the same IRs). The two modes give the
    *  same energies (the regression suite runs with both). */
   TraceMode traceMode = TraceMode::kAuto;
-  /** The direct sound follows the source and listener positions the game
-   *  sets with their changes spread over the interval the game makes them
-   *  at (PoseGlide: a game's 60 Hz updates are heard as steady Doppler,
-   *  not a staircase of delays; one to two update intervals late). false:
-   *  each position is reached within the block that first sees it, for a
-   *  caller that sets exact poses at every block's end (`earshot render`). */
-  bool glidePoses = true;
+  /** The source and listener positions the direct sound follows, and each
+   *  source's gain, are followed with their changes spread over the
+   *  interval at which the game makes them (glide.h: a game's 60 Hz updates
+   *  are heard as steady Doppler and smooth fades, not staircases of delay
+   *  and level; one to two update intervals late). false: each value is
+   *  reached within the block that first sees it, for a caller that sets
+   *  exact values at every block's end (`earshot render`). */
+  bool glideGameUpdates = true;
 };
 
 enum class DirectMode {
@@ -322,7 +323,7 @@ class Engine {
    *  through its own IR once simulated. */
   Status removeSource(uint32_t source);
   /** The direct sound follows from the next process() call, gliding as
-   *  EngineSettings::glidePoses says; the reflections at the source's next
+   *  EngineSettings::glideGameUpdates says; the reflections at the source's next
    *  simulation. */
   Status setSourcePosition(uint32_t source, const Vec3d& position);
   Status setSourceGainDb(uint32_t source, double gainDb);

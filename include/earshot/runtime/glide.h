@@ -1,6 +1,6 @@
 #pragma once
-/** @file A position the game sets at its own rate, as the audio thread
- *  follows it block by block.
+/** @file A position (or a gain) the game sets at its own rate, as the
+ *  audio thread follows it block by block.
  *
  *  A game sets poses once a frame (60 Hz: every 800 frames at 48 kHz); an
  *  audio thread of 256-frame blocks sees a new one every third block or so.
@@ -25,6 +25,11 @@
  *  to follow), or when following it would be faster than the given speed
  *  (a teleport; the direct voice crossfades it).
  *
+ *  A source's gain, faded by the game at its frame rate, made the same
+ *  staircase in level (a 60 Hz modulation: -28 dB of a 1 kHz tone's energy
+ *  off the tone in a fade of 100 dB/s); it glides the same way, with no
+ *  speed limit (GainGlide).
+ *
  *  Thread: the audio thread's state; no allocation, lock or exception. */
 #include <algorithm>
 #include <cmath>
@@ -39,13 +44,17 @@ namespace earshot::runtime {
  *  followed as motion (a game or network tick of 10 Hz). */
 constexpr double kMaxGlideSeconds = 0.1;
 
-class PoseGlide {
+inline double glideDistance(const Vec3d& d) { return length(d); }
+inline double glideDistance(double d) { return std::fabs(d); }
+
+template <class T>
+class Glide {
  public:
-  /** The position to use at the end of the next `frames` frames, given the
+  /** The value to use at the end of the next `frames` frames, given the
    *  one the game has set now. `maxFrames`: the longest interval followed
-   *  as motion (kMaxGlideSeconds in frames); `maxMetersPerFrame`: a faster
+   *  as motion (kMaxGlideSeconds in frames); `maxChangePerFrame`: a faster
    *  change is reached at once. */
-  Vec3d next(const Vec3d& set, size_t frames, uint64_t maxFrames, double maxMetersPerFrame) {
+  T next(const T& set, size_t frames, uint64_t maxFrames, double maxChangePerFrame) {
     if (!mStarted) {
       mHeard = mSet = set;
       mLeft = 0;
@@ -53,10 +62,10 @@ class PoseGlide {
       mStarted = true;
     } else if (!(set == mSet)) {
       const uint64_t interval = mSince;
-      const Vec3d d = set - mHeard;
+      const T d = set - mHeard;
       mSet = set;
       mSince = 0;
-      if (interval > maxFrames || length(d) > maxMetersPerFrame * double(interval)) {
+      if (interval > maxFrames || glideDistance(d) > maxChangePerFrame * double(interval)) {
         mHeard = set;
         mLeft = 0;
         mInterval = -1.0;  // the next interval starts the mean afresh
@@ -83,15 +92,18 @@ class PoseGlide {
     }
     return mHeard;
   }
-  /** The next call starts at the position it is given. */
+  /** The next call starts at the value it is given. */
   void reset() { mStarted = false; }
 
  private:
   static constexpr double kMeanWeight = 0.125;  // of each new interval in the running means
-  Vec3d mHeard, mSet, mStep;
+  T mHeard{}, mSet{}, mStep{};
   uint64_t mLeft = 0, mSince = 0;
   double mInterval = -1.0, mDeviation = 0.0;  // frames; mInterval < 0: no mean yet
   bool mStarted = false;
 };
+
+using PoseGlide = Glide<Vec3d>;
+using GainGlide = Glide<double>;
 
 }  // namespace earshot::runtime
