@@ -672,21 +672,26 @@ TEST(Engine, APoseUpdatedAtTheGamesFrameRateIsHeardAsSteadyDoppler) {
 // burst from 34.3 m was not heard). A voice with sound in flight now runs
 // on silence until that has arrived, and a new source takes another slot
 // meanwhile where one is free: the output is the one with zeros, but
-// for the shelves' IIR tail beyond that (-140 dB; it was 0 dB: all missing).
+// for the shelves' IIR tail beyond that (-140 dB; it was 0 dB: all
+// missing), with binaural and with AmbiX output.
 TEST(Engine, SoundInFlightArrivesAfterTheInputStopsOrTheSourceIsReleased) {
   auto model = test::ku100();
   ASSERT_TRUE(model);
   const size_t block = 256, burst = size_t(0.05 * kFs), n = size_t(0.6 * kFs);
   enum class After { kZeros, kNull, kRelease, kReleaseAndAdd };
-  auto render = [&](After after) {
+  // The output's channels one after the other: two ears, or the 4 AmbiX
+  // channels (the direct voice's ambisonic path).
+  auto render = [&](After after, OutputFormat format) {
     EngineSettings es = test::fastSettings();
+    es.output = format;
+    const size_t channels = format == OutputFormat::kBinaural ? 2 : 4;
     auto engine = Engine::create(es, model);
     EXPECT_TRUE(engine.isOk());
     Engine& e = **engine;  // free field: the direct sound alone
     auto id = e.addSource({});
     EXPECT_TRUE(id.isOk());
     EXPECT_TRUE(e.setSourcePosition(*id, {-3, 0, -34.17}).isOk());  // 34.3 m: 100 ms
-    std::vector<float> in(n, 0.0f), l(n, 0.0f), r(n, 0.0f);
+    std::vector<float> in(n, 0.0f), out(channels * n, 0.0f);
     Pcg32 rng(5, 3);
     for (size_t i = 0; i < burst; ++i) in[i] = rng.uniform() - 0.5f;
     std::vector<const float*> inputs(es.maxSources, nullptr);
@@ -702,25 +707,29 @@ TEST(Engine, SoundInFlightArrivesAfterTheInputStopsOrTheSourceIsReleased) {
           EXPECT_TRUE(e.setSourcePosition(*other, {3, 0, -2}).isOk());
         }
       }
-      e.process(inputs.data(), l.data() + off, r.data() + off, std::min(block, n - off));
+      float* outs[4];
+      for (size_t c = 0; c < channels; ++c) outs[c] = out.data() + c * n + off;
+      e.process(inputs.data(), outs, std::min(block, n - off));
     }
-    l.insert(l.end(), r.begin(), r.end());
-    return l;
+    return out;
   };
-  const std::vector<float> zeros = render(After::kZeros);
-  const double all = energy(zeros.data(), zeros.size());
-  EXPECT_GT(all, 0.0);
-  for (After after : {After::kNull, After::kRelease, After::kReleaseAndAdd}) {
-    const std::vector<float> out = render(after);
-    ASSERT_EQ(out.size(), zeros.size());
-    double difference = 0;
-    for (size_t i = 0; i < out.size(); ++i) difference += (double(out[i]) - zeros[i]) * (double(out[i]) - zeros[i]);
-    std::printf("%s: the output's difference from zeros' %.1f dB of its energy\n",
-                after == After::kNull      ? "NULL input"
-                : after == After::kRelease ? "released"
-                                           : "released, a new source added",
-                energyToDb(difference / all + 1e-30));
-    EXPECT_LT(energyToDb(difference / all + 1e-30), -100.0);
+  for (OutputFormat format : {OutputFormat::kBinaural, OutputFormat::kAmbisonic}) {
+    const std::vector<float> zeros = render(After::kZeros, format);
+    const double all = energy(zeros.data(), zeros.size());
+    EXPECT_GT(all, 0.0);
+    for (After after : {After::kNull, After::kRelease, After::kReleaseAndAdd}) {
+      const std::vector<float> out = render(after, format);
+      ASSERT_EQ(out.size(), zeros.size());
+      double difference = 0;
+      for (size_t i = 0; i < out.size(); ++i) difference += (double(out[i]) - zeros[i]) * (double(out[i]) - zeros[i]);
+      std::printf("%s, %s: the output's difference from zeros' %.1f dB of its energy\n",
+                  format == OutputFormat::kBinaural ? "binaural" : "ambisonic",
+                  after == After::kNull      ? "NULL input"
+                  : after == After::kRelease ? "released"
+                                             : "released, a new source added",
+                  energyToDb(difference / all + 1e-30));
+      EXPECT_LT(energyToDb(difference / all + 1e-30), -100.0);
+    }
   }
 }
 
