@@ -128,6 +128,11 @@ void delayedReads(const float* __restrict ring, size_t mask, const float* __rest
 }
 #pragma GCC diagnostic pop
 
+// The smallest turn of a source's direction (in the head's frame) that
+// changes its HRIR: 0.25 degrees, a quarter of the smallest angle a
+// listener tells apart (about 1 degree, straight ahead).
+const double kMinHrirTurnCos = std::cos(0.25 * kPi / 180.0);
+
 // A jump: the delay changes by more than this fraction of the block's frames
 // (a source or listener faster than half the speed of sound: a teleport,
 // not motion). Ramping the delay across it would read the line at many
@@ -406,9 +411,14 @@ void DirectVoice::process(const float* input, float* left, float* right, size_t 
     mTapsNext[0][j] = mHrirNext->left[taps - 1 - j];
     mTapsNext[1][j] = mHrirNext->right[taps - 1 - j];
   }
-  bool crossfade = mStarted && !(head == mHeadDirection);
+  // A turn of less than kMinHrirTurn keeps the HRIR (the ears' onset
+  // delays follow every change): a source gliding across the blocks would
+  // otherwise crossfade two HRIRs every block for changes far below what
+  // anyone hears; the HRIR follows once the turn adds up.
+  const bool crossfade = mStarted && double(dot(head, mHeadDirection)) < kMinHrirTurnCos;
   if (!mStarted) {
     mCurrent = to;
+    mHeadDirection = head;
     mTaps[0] = mTapsNext[0];  // same size: no allocation
     mTaps[1] = mTapsNext[1];
     mStarted = true;
@@ -422,8 +432,8 @@ void DirectVoice::process(const float* input, float* left, float* right, size_t 
   }
   endShelfFade();
   mCurrent = to;
-  mHeadDirection = head;
   if (crossfade) {
+    mHeadDirection = head;
     std::swap(mTaps[0], mTapsNext[0]);
     std::swap(mTaps[1], mTapsNext[1]);
   }

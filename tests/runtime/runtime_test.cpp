@@ -223,6 +223,49 @@ TEST(DirectVoice, HeadTurnFlipsTheIldWithinTwoBlocks) {
   EXPECT_LT(ildOfNextBlock(), -3.0) << "block 2: the ILD has flipped";
 }
 
+// A turn far below what anyone hears (under 0.25 degrees a block, a
+// source gliding past) keeps the HRIR, which follows once the turn adds
+// up: a source turned 0.1 degrees a block from ahead to 60 degrees left
+// ends with the HRIR of 60 degrees (its ILD within 0.2 dB of a source
+// standing there, the same noise), not the one it started with.
+TEST(DirectVoice, ASlowTurnAddsUpToTheHrirOfWhereItEnds) {
+  auto model = test::ku100();
+  ASSERT_TRUE(model);
+  DirectVoiceSettings s;
+  s.air.enabled = false;
+  const size_t block = 256, blocks = 640;
+  auto at = [](double degrees) {
+    const double a = degrees * kPi / 180.0;
+    return Vec3d{-2.0 * std::sin(a), 0.0, -2.0 * std::cos(a)};  // forward is -z, left -x
+  };
+  // The ILD of the last 40 blocks (the same noise for both voices).
+  auto ild = [&](bool turning) {
+    auto voice = DirectVoice::create(s, model->hrtfPtr());
+    EXPECT_TRUE(voice.isOk());
+    Pcg32 rng(3, 9);
+    std::vector<float> in(block), l(block), r(block);
+    double el = 0, er = 0;
+    DirectTarget t;
+    for (size_t b = 0; b <= blocks; ++b) {
+      t.source = at(turning ? std::min(0.1 * double(b), 60.0) : 60.0);  // the last 40 blocks at 60
+      for (float& x : in) x = rng.uniform() - 0.5f;
+      std::fill(l.begin(), l.end(), 0.0f);
+      std::fill(r.begin(), r.end(), 0.0f);
+      (*voice)->process(in.data(), l.data(), r.data(), block, t);
+      if (b + 40 > blocks) {
+        el += energy(l.data(), block);
+        er += energy(r.data(), block);
+      }
+    }
+    return energyToDb(el / er);
+  };
+  const double turned = ild(true), standing = ild(false);
+  std::printf("ILD at 60 degrees: turned there 0.1 degrees a block %.2f dB, standing there %.2f dB\n", turned,
+              standing);
+  EXPECT_GT(standing, 6.0);
+  EXPECT_NEAR(turned, standing, 0.2);
+}
+
 // Any host block size gives the same output (parameters fixed).
 TEST(DirectVoice, BlockSizeDoesNotChangeTheOutputOfAStaticSource) {
   auto model = test::ku100();

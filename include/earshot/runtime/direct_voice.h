@@ -9,7 +9,8 @@
  *  high shelf around the 1 kHz band's gain (a shelf change over 0.5 dB, an
  *  occluder coming or going, crossfaded over the block); and each ear's minimum-phase HRIR
  *  for the current head-frame direction, crossfaded over the block when the
- *  direction changes (head rotation is heard within one block).
+ *  direction has changed by 0.25 degrees or more since the HRIR was last
+ *  changed (head rotation is heard within one block; smaller turns add up).
  *
  *  Why shelves and not the seven bands: per-block filtering must be cheap
  *  (dozens of sources on one core). Air absorption and wall transmission are
