@@ -411,7 +411,7 @@ void DirectVoice::process(const float* input, float* left, float* right, size_t 
     mTapsNext[0][j] = mHrirNext->left[taps - 1 - j];
     mTapsNext[1][j] = mHrirNext->right[taps - 1 - j];
   }
-  // A turn of less than kMinHrirTurn keeps the HRIR (the ears' onset
+  // A turn of less than 0.25 degrees (kMinHrirTurnCos) keeps the HRIR (the ears' onset
   // delays follow every change): a source gliding across the blocks would
   // otherwise crossfade two HRIRs every block for changes far below what
   // anyone hears; the HRIR follows once the turn adds up.

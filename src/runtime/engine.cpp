@@ -1133,8 +1133,8 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
                (generation == slot.voiceGeneration || !slot.active.load(std::memory_order_acquire))) {
       slot.drainLeft = slot.voice.load(std::memory_order_relaxed)->ringOutFrames();
       slot.drainGeneration = generation;
-    } else if (slot.drainGeneration != generation) {
-      slot.drainLeft = 0;
+    } else if (slot.drainGeneration != generation && slot.active.load(std::memory_order_acquire)) {
+      slot.drainLeft = 0;  // a new source in the slot (a release alone lets it run out)
     }
     slot.voicePlayed = plays;
     // A voice that starts again (or anew) starts where its source is set now.

@@ -721,7 +721,7 @@ TEST(Engine, SoundInFlightArrivesAfterTheInputStopsOrTheSourceIsReleased) {
   auto model = test::ku100();
   ASSERT_TRUE(model);
   const size_t block = 256, burst = size_t(0.05 * kFs), n = size_t(0.6 * kFs);
-  enum class After { kZeros, kNull, kRelease, kReleaseAndAdd };
+  enum class After { kZeros, kNull, kNullThenRelease, kRelease, kReleaseAndAdd };
   // The output's channels one after the other: two ears, or the 4 AmbiX
   // channels (the direct voice's ambisonic path).
   auto render = [&](After after, OutputFormat format) {
@@ -741,6 +741,8 @@ TEST(Engine, SoundInFlightArrivesAfterTheInputStopsOrTheSourceIsReleased) {
     for (size_t off = 0; off < n; off += block) {
       const bool playing = off < burst;
       inputs[*id] = playing || after == After::kZeros ? in.data() + off : nullptr;
+      if (after == After::kNullThenRelease && off == burst / block * block + 5 * block)
+        EXPECT_TRUE(e.removeSource(*id).isOk());  // a one-shot released a little after its end
       if (after >= After::kRelease && off == burst / block * block + block) {
         EXPECT_TRUE(e.removeSource(*id).isOk());
         if (after == After::kReleaseAndAdd) {  // takes another slot: this one's sound is in flight
@@ -760,16 +762,17 @@ TEST(Engine, SoundInFlightArrivesAfterTheInputStopsOrTheSourceIsReleased) {
     const std::vector<float> zeros = render(After::kZeros, format);
     const double all = energy(zeros.data(), zeros.size());
     EXPECT_GT(all, 0.0);
-    for (After after : {After::kNull, After::kRelease, After::kReleaseAndAdd}) {
+    for (After after : {After::kNull, After::kNullThenRelease, After::kRelease, After::kReleaseAndAdd}) {
       const std::vector<float> out = render(after, format);
       ASSERT_EQ(out.size(), zeros.size());
       double difference = 0;
       for (size_t i = 0; i < out.size(); ++i) difference += (double(out[i]) - zeros[i]) * (double(out[i]) - zeros[i]);
       std::printf("%s, %s: the output's difference from zeros' %.1f dB of its energy\n",
                   format == OutputFormat::kBinaural ? "binaural" : "ambisonic",
-                  after == After::kNull      ? "NULL input"
-                  : after == After::kRelease ? "released"
-                                             : "released, a new source added",
+                  after == After::kNull              ? "NULL input"
+                  : after == After::kNullThenRelease ? "NULL input, then released"
+                  : after == After::kRelease         ? "released"
+                                                     : "released, a new source added",
                   energyToDb(difference / all + 1e-30));
       EXPECT_LT(energyToDb(difference / all + 1e-30), -100.0);
     }
