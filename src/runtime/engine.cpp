@@ -100,9 +100,7 @@ struct Engine::Slot {
   bool live = false;                   // audio thread: playing in this process() call
   bool reflectionsLive = false;        // audio thread: its IR is this source's (simulated since added)
   bool mutedChunk = false;             // audio thread: this chunk's input was not finite (muted)
-  // Audio thread: the direct voice played (live, per block) in the last
-  // process() call; it ran at all (playing or running out).
-  bool voicePlayed = false, voiceRan = false;
+  bool voicePlayed = false;            // audio thread: the direct voice played (live, per block) in the last call
   // Audio thread: frames the voice still runs on silence after its source
   // stopped playing (input NULL, or released): its sound in flight; and
   // the generation it runs out for (a new source in the slot ends it).
@@ -110,7 +108,6 @@ struct Engine::Slot {
   uint32_t drainGeneration = 0;
   PoseGlide glide;                     // audio thread: the position the direct voice follows
   GainGlide gainGlide;                 // audio thread: the gain it and the reflections follow
-  bool lastLive = false;               // audio thread: live in the last process() call
   double appliedGain = 1.0;            // audio thread: gain at the end of the last chunk
   double appliedReflectionsGain = 1.0; // audio thread: the reflections' gain at the end of the last chunk
   std::vector<float> scaled;           // audio thread: gained input for the mixer
@@ -1120,6 +1117,8 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
     const bool simulated = slot.simulatedGeneration.load(std::memory_order_acquire) == generation;
     const bool perBlock = DirectMode(slot.direct.load(std::memory_order_relaxed)) == DirectMode::kPerBlock;
     const bool live = active && (simulated || perBlock);
+    // What the slot did in the last call (the glides restart with it).
+    const bool wasLive = slot.live, voiceRan = slot.voicePlayed || slot.drainLeft > 0;
     slot.live = live;
     slot.reflectionsLive = active && simulated;
     // Sound in flight: a direct voice whose source stops playing (its input
@@ -1137,12 +1136,10 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
       slot.drainLeft = 0;  // a new source in the slot (a release alone lets it run out)
     }
     slot.voicePlayed = plays;
-    // A voice that starts again (or anew) starts where its source is set now.
-    const bool runs = plays || slot.drainLeft > 0;
-    if (runs && !slot.voiceRan) slot.glide.reset();
-    slot.voiceRan = runs;
-    if (live && !slot.lastLive) slot.gainGlide.reset();
-    slot.lastLive = live;
+    // A voice that starts again (or anew) starts where its source is set
+    // now, and a source's gain where it is set now.
+    if ((plays || slot.drainLeft > 0) && !voiceRan) slot.glide.reset();
+    if (live && !wasLive) slot.gainGlide.reset();
     if (live && slot.voiceGeneration != generation) {
       slot.voice.load(std::memory_order_relaxed)->reset();
       slot.glide.reset();
