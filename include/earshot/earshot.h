@@ -676,14 +676,17 @@ EARSHOT_API earshot_status earshot_source_set_position(earshot_source* source, e
  *  staircase). Game thread (any thread but the audio thread). */
 EARSHOT_API earshot_status earshot_source_set_gain_db(earshot_source* source, float gain_db);
 /** Turns the source: `forward` (world frame, finite, non-zero) is the axis
- *  of its directivity. Default (0, 0, -1). The direct sound follows at the
- *  next audio block, the reflections at the next simulation. Game thread. */
+ *  of its directivity. Default (0, 0, -1). The direct sound follows from
+ *  the next audio block, a turn set once a game frame glided as positions
+ *  are (a smooth turn, not a staircase of levels); the reflections at the
+ *  next simulation. Game thread. */
 EARSHOT_API earshot_status earshot_source_set_orientation(earshot_source* source, earshot_vec3 forward);
 /** Replaces the source's controls with `settings` (all fields but `direct`,
- *  which must equal the source's: it is fixed at creation). Gains and the
- *  distance curve ramp over the next audio block (no clicks);
- *  EARSHOT_OCCLUSION_OFF applies from the next block, the other occlusion
- *  modes, `radius` and `transmission` at the source's next simulation.
+ *  which must equal the source's: it is fixed at creation). Gains glide as
+ *  earshot_source_set_gain_db's does; the distance curve ramps over the
+ *  next audio block (no clicks); EARSHOT_OCCLUSION_OFF applies from the
+ *  next block, the other occlusion modes, `radius` and `transmission` at
+ *  the source's next simulation.
  *  Errors: INVALID_ARGUMENT (naming the field). Game thread. */
 EARSHOT_API earshot_status earshot_source_set_settings(earshot_source* source,
                                                        const earshot_source_settings* settings);

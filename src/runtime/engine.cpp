@@ -106,8 +106,21 @@ struct Engine::Slot {
   // the generation it runs out for (a new source in the slot ends it).
   size_t drainLeft = 0;
   uint32_t drainGeneration = 0;
-  PoseGlide glide;                     // audio thread: the position the direct voice follows
-  GainGlide gainGlide;                 // audio thread: the gain it and the reflections follow
+  // Audio thread: what the game sets once a frame, as the audio follows
+  // it (glide.h): the position and facing the direct voice follows, the
+  // source's gain (the voice's and the reflections'), the direct sound's
+  // gain and the reflections' gain.
+  PoseGlide glide, facingGlide;
+  GainGlide gainGlide, directGlide, reflectionsGlide;
+  void resetVoiceGlides() {  // the direct voice's: it starts where they are set now
+    glide.reset();
+    facingGlide.reset();
+    directGlide.reset();
+  }
+  void resetInputGlides() {  // the source's input: its gains start where they are set now
+    gainGlide.reset();
+    reflectionsGlide.reset();
+  }
   double appliedGain = 1.0;            // audio thread: gain at the end of the last chunk
   double appliedReflectionsGain = 1.0; // audio thread: the reflections' gain at the end of the last chunk
   std::vector<float> scaled;           // audio thread: gained input for the mixer
@@ -1138,12 +1151,12 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
     slot.voicePlayed = plays;
     // A voice that starts again (or anew) starts where its source is set
     // now, and a source's gain where it is set now.
-    if ((plays || slot.drainLeft > 0) && !voiceRan) slot.glide.reset();
-    if (live && !wasLive) slot.gainGlide.reset();
+    if ((plays || slot.drainLeft > 0) && !voiceRan) slot.resetVoiceGlides();
+    if (live && !wasLive) slot.resetInputGlides();
     if (live && slot.voiceGeneration != generation) {
       slot.voice.load(std::memory_order_relaxed)->reset();
-      slot.glide.reset();
-      slot.gainGlide.reset();
+      slot.resetVoiceGlides();
+      slot.resetInputGlides();
       slot.voiceGeneration = generation;
       slot.appliedGain = slot.gain.load(std::memory_order_relaxed);
       slot.appliedReflectionsGain = slot.reflectionsGain.load(std::memory_order_relaxed);
@@ -1154,6 +1167,7 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
   // than half the speed of sound (the direct voice's jump).
   const uint64_t maxGlide = uint64_t(kMaxGlideSeconds * mSettings.sampleRateHz);
   const double maxGlideSpeed = 0.5 * mSettings.simulation.speedOfSound / mSettings.sampleRateHz;
+  constexpr double kAnySpeed = std::numeric_limits<double>::infinity();  // gains and facing: no teleport
   // Chunks bound the gain scratch buffers whatever the host block size.
   for (size_t off = 0; off < frames; off += kProcessChunk) {
     const size_t m = std::min(kProcessChunk, frames - off);
@@ -1173,8 +1187,11 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
       // The source gain, ramped per chunk, on the reflections' input (the
       // direct voice applies it itself).
       double gainSet = slot.gain.load(std::memory_order_relaxed);
-      if (mSettings.glideGameUpdates)
-        gainSet = slot.gainGlide.next(gainSet, m, maxGlide, std::numeric_limits<double>::infinity());
+      double reflectionsSet = slot.reflectionsGain.load(std::memory_order_relaxed);
+      if (mSettings.glideGameUpdates) {
+        gainSet = slot.gainGlide.next(gainSet, m, maxGlide, kAnySpeed);
+        reflectionsSet = slot.reflectionsGlide.next(reflectionsSet, m, maxGlide, kAnySpeed);
+      }
       const float from = float(slot.appliedGain), to = float(gainSet);
       const float* in = inputs[i] + off;
       float* g = slot.scaled.data();
@@ -1189,11 +1206,11 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
       } else {
         // The source gain and the reflections' gain, both ramped.
         const float rFrom = from * float(slot.appliedReflectionsGain);
-        const float rTo = to * float(slot.reflectionsGain.load(std::memory_order_relaxed));
+        const float rTo = to * float(reflectionsSet);
         const float rStep = rTo - rFrom;
         for (size_t k = 0; k < m; ++k) g[k] = in[k] * (rFrom + rStep * ramp[k]);
       }
-      slot.appliedReflectionsGain = slot.reflectionsGain.load(std::memory_order_relaxed);
+      slot.appliedReflectionsGain = reflectionsSet;
       slot.appliedGain = to;
       mInputs[i] = slot.reflectionsLive ? g : nullptr;
       if (slot.reflectionsLive) slot.fedUntilFrame.store(firstFrame + off + m, std::memory_order_relaxed);
@@ -1249,7 +1266,9 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
         }
         shape = g * std::max(r, DirectVoiceSettings{}.minDistanceMeters);
       }
-      target.gain = slot.appliedGain * slot.directGain.load(std::memory_order_relaxed) * shape;
+      double directSet = slot.directGain.load(std::memory_order_relaxed);
+      if (mSettings.glideGameUpdates) directSet = slot.directGlide.next(directSet, m, maxGlide, kAnySpeed);
+      target.gain = slot.appliedGain * directSet * shape;
       if (OcclusionMode(slot.occlusion.load(std::memory_order_relaxed)) == OcclusionMode::kOff) {
         target.transmission = filledBands(1.0);
         target.audible = true;
@@ -1258,14 +1277,21 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
           target.transmission[b] = slot.transmission[b].load(std::memory_order_relaxed);
         target.audible = slot.audible.load(std::memory_order_relaxed);
       }
+      // The way the source faces, glided along the chord and brought back
+      // to unit length (a half turn within one update, through the centre,
+      // is reached at once); followed whether or not it is directional.
+      Vec3d f{slot.forward[0].load(std::memory_order_relaxed), slot.forward[1].load(std::memory_order_relaxed),
+              slot.forward[2].load(std::memory_order_relaxed)};
+      if (mSettings.glideGameUpdates) {
+        const Vec3d glided = slot.facingGlide.next(f, m, maxGlide, kAnySpeed);
+        if (length(glided) > 1e-6) f = normalize(glided);
+      }
       // Directivity toward the listener, per band: sqrt(D_b) = g_b / sqrt(<g_b^2>),
       // through the voice's band shelves (as occlusion).
       const bool perBand = slot.directivityPerBand.load(std::memory_order_relaxed);
       if (perBand || slot.directivityAlpha.load(std::memory_order_relaxed) > 0.0) {
         const Vec3d toListener = target.listener - target.source;
         const double r = length(toListener);
-        const Vec3d f{slot.forward[0].load(std::memory_order_relaxed), slot.forward[1].load(std::memory_order_relaxed),
-                      slot.forward[2].load(std::memory_order_relaxed)};
         const double c = r > 1e-9 ? std::clamp(dot(f, toListener) / r, -1.0, 1.0) : 1.0;
         const double k = slot.directivitySharpness.load(std::memory_order_relaxed);
         // One pattern for every band unless the table differs per band.

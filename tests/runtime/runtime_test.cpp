@@ -791,40 +791,94 @@ TEST(Engine, SoundInFlightArrivesAfterTheInputStopsOrTheSourceIsReleased) {
 // and held for the two after it, a 60 Hz staircase in level (a 1 kHz
 // tone faded at 100 dB/s had -28.4 dB of its energy off the tone, at
 // 30 dB/s -38.9 dB; set every block, -48 and -60 dB). The gain glides as
-// the poses do (GainGlide): within 4 dB of the every-block fade.
-TEST(Engine, AGainFadedAtTheGamesFrameRateIsSmooth) {
+// the poses do (GainGlide): within 4 dB of the every-block fade. So do the
+// other controls a game sets once a frame: the direct sound's gain (a
+// game's own occlusion), the reflections' gain (a zone's reverberation
+// faded), and the direction a directional source faces (a character
+// turning), whose level toward the listener made the same staircase.
+TEST(Engine, ControlsSetAtTheGamesFrameRateAreSmooth) {
   auto model = test::ku100();
   ASSERT_TRUE(model);
-  const size_t n = size_t(0.4 * kFs);
+  test::Room room;
   const double f0 = 1000.0;
-  auto render = [&](size_t block, size_t gameFrames, double dbPerSecond) {
+  enum class Control { kGain, kDirectGain, kReflectionsGain, kFacing };
+  // `rate`: dB/s for the gains, degrees/s for the facing.
+  auto render = [&](Control control, size_t block, size_t gameFrames, double rate, size_t n) {
     EngineSettings es = test::fastSettings();
     auto engine = Engine::create(es, model);
     EXPECT_TRUE(engine.isOk());
-    Engine& e = **engine;  // free field: the direct sound alone
-    auto id = e.addSource({});
+    Engine& e = **engine;  // free field but for the reflections' case
+    SourceSettings ss;
+    if (control == Control::kReflectionsGain) ss.directGainDb = -120.0;  // the reflections alone
+    if (control == Control::kFacing) ss.directivityAlpha = 0.5;          // a cardioid
+    auto id = e.addSource(ss);
     EXPECT_TRUE(id.isOk());
-    EXPECT_TRUE(e.setSourcePosition(*id, {-1, 0, -3}).isOk());
+    if (control == Control::kReflectionsGain) {
+      e.setScene(room.tracer, room.materials);
+      EXPECT_TRUE(e.setSourcePosition(*id, {2, 3, 1.5}).isOk());
+      EXPECT_TRUE(e.setListener({7, 4, 1.6}, {{1, 0, 0}, {0, 0, 1}}).isOk());
+      EXPECT_TRUE(e.simulate().isOk());
+    } else {
+      EXPECT_TRUE(e.setSourcePosition(*id, {-1, 0, -3}).isOk());
+    }
     std::vector<float> in(n), l(n, 0.0f), r(n, 0.0f);
     for (size_t i = 0; i < n; ++i) in[i] = float(0.5 * std::sin(2 * kPi * f0 * double(i) / kFs));
     std::vector<const float*> inputs(es.maxSources, nullptr);
     size_t next = 0;
     for (size_t off = 0; off < n; off += block) {
-      for (; next <= off; next += gameFrames)
-        EXPECT_TRUE(e.setSourceGainDb(*id, -dbPerSecond * double(next) / kFs).isOk());
+      for (; next <= off; next += gameFrames) {
+        const double t = double(next) / kFs;
+        SourceSettings now = ss;
+        switch (control) {
+          case Control::kGain:
+            EXPECT_TRUE(e.setSourceGainDb(*id, -rate * t).isOk());
+            break;
+          case Control::kDirectGain:
+            now.directGainDb = -rate * t;
+            EXPECT_TRUE(e.setSourceControls(*id, now).isOk());
+            break;
+          case Control::kReflectionsGain:
+            now.reflectionsGainDb = -rate * t;
+            EXPECT_TRUE(e.setSourceControls(*id, now).isOk());
+            break;
+          case Control::kFacing: {
+            // From facing the listener (at (1, 0, 3) from the source) about
+            // the vertical, turning away.
+            const double a = std::atan2(1.0, 3.0) + rate * t * kPi / 180.0;
+            EXPECT_TRUE(e.setSourceOrientation(*id, {std::sin(a), 0.0, std::cos(a)}).isOk());
+            break;
+          }
+        }
+      }
       inputs[*id] = in.data() + off;
       e.process(inputs.data(), l.data() + off, r.data() + off, std::min(block, n - off));
     }
     return l;
   };
-  const size_t from = size_t(0.1 * kFs), m = size_t(0.25 * kFs);
-  for (double rate : {30.0, 100.0}) {
-    const std::vector<float> everyBlock = render(256, 256, rate), gameRate = render(256, 800, rate);
+  struct Case {
+    Control control;
+    const char* name;
+    double rate;
+    const char* unit;
+    double seconds, from, to;  // rendered, and the window measured
+  };
+  const Case cases[] = {
+      {Control::kGain, "source gain", 30.0, "dB/s", 0.4, 0.1, 0.35},
+      {Control::kGain, "source gain", 100.0, "dB/s", 0.4, 0.1, 0.35},
+      {Control::kDirectGain, "direct gain", 100.0, "dB/s", 0.4, 0.1, 0.35},
+      {Control::kReflectionsGain, "reflections gain", 30.0, "dB/s", 0.8, 0.3, 0.8},
+      {Control::kFacing, "cardioid facing", 180.0, "deg/s", 0.4, 0.1, 0.35},
+  };
+  for (const Case& c : cases) {
+    const size_t n = size_t(std::lround(c.seconds * kFs)), from = size_t(std::lround(c.from * kFs)),
+                 m = size_t(std::lround((c.to - c.from) * kFs));
+    const std::vector<float> everyBlock = render(c.control, 256, 256, c.rate, n),
+                             gameRate = render(c.control, 256, 800, c.rate, n);
     const double ideal = offToneShareDb(everyBlock.data() + from, m, f0, 20.0);
     const double heard = offToneShareDb(gameRate.data() + from, m, f0, 20.0);
-    std::printf("fade of %.0f dB/s: energy off the tone, set every block %.1f dB, at 60 Hz %.1f dB\n", rate, ideal,
-                heard);
-    EXPECT_LT(heard, ideal + 4.0);
+    std::printf("%s at %.0f %s: energy off the tone, set every block %.1f dB, at 60 Hz %.1f dB\n", c.name, c.rate,
+                c.unit, ideal, heard);
+    EXPECT_LT(heard, ideal + 4.0) << c.name;
   }
 }
 

@@ -147,11 +147,13 @@ struct EngineSettings {
    *  (the same IRs). The two modes give the
    *  same energies (the regression suite runs with both). */
   TraceMode traceMode = TraceMode::kAuto;
-  /** The source and listener positions the direct sound follows, and each
-   *  source's gain, are followed with their changes spread over the
+  /** The source and listener positions the direct sound follows, each
+   *  source's gains (its own, its direct sound's and its reflections') and
+   *  the way it faces are followed with their changes spread over the
    *  interval at which the game makes them (glide.h: a game's 60 Hz updates
-   *  are heard as steady Doppler and smooth fades, not staircases of delay
-   *  and level; one to two update intervals late). false: each value is
+   *  are heard as steady Doppler and smooth fades and turns, not staircases
+   *  of delay and level; one to two update intervals late). The listener's
+   *  orientation is not (head tracking). false: each value is
    *  reached within the block that first sees it, for a caller that sets
    *  exact values at every block's end (`earshot render`). */
   bool glideGameUpdates = true;
@@ -327,13 +329,15 @@ class Engine {
    *  simulation. */
   Status setSourcePosition(uint32_t source, const Vec3d& position);
   Status setSourceGainDb(uint32_t source, double gainDb);
-  /** Every control but the direct mode (fixed at addSource). Gains and the
-   *  distance curve ramp over the next block; the occlusion mode kOff
+  /** Every control but the direct mode (fixed at addSource). Gains glide
+   *  as positions do (EngineSettings::glideGameUpdates), the distance
+   *  curve ramps over the next block; the occlusion mode kOff
    *  applies from the next block, the others (and transmission) at the
    *  source's next simulation. */
   Status setSourceControls(uint32_t source, const SourceSettings& settings);
   /** The source's forward vector (world frame; finite, non-zero): the axis
-   *  of its directivity. Default (0, 0, -1). */
+   *  of its directivity. Default (0, 0, -1). The direct sound follows it
+   *  gliding as positions do; the reflections at the next simulation. */
   Status setSourceOrientation(uint32_t source, const Vec3d& forward);
   Result<SourceSettings> sourceControls(uint32_t source) const;
   Status setListener(const Vec3d& position, const ListenerOrientation& orientation);

@@ -28,7 +28,9 @@
  *  A source's gain, faded by the game at its frame rate, made the same
  *  staircase in level (a 60 Hz modulation: -28 dB of a 1 kHz tone's energy
  *  off the tone in a fade of 100 dB/s); it glides the same way, with no
- *  speed limit (GainGlide).
+ *  speed limit (GainGlide), and so do the direct sound's and the
+ *  reflections' gains, and the way a directional source faces (its level
+ *  toward the listener, a staircase as it turned: Engine.ControlsSetAtTheGamesFrameRateAreSmooth).
  *
  *  Thread: the audio thread's state; no allocation, lock or exception. */
 #include <algorithm>
