@@ -342,7 +342,10 @@ EARSHOT_API earshot_status earshot_context_stop_simulation(earshot_context* cont
  *  reverberation).
  *  `inputs` may be NULL when input_count is 0. input_count is at most
  *  max_sources. `left` and `right` (`frames` floats each, distinct) are
- *  overwritten; frames may be any number, 0 included. The output lags the
+ *  overwritten; an input may be one of them (processing in place: the
+ *  source's samples in the buffer its output replaces), and may not
+ *  overlap them otherwise (INVALID_ARGUMENT); frames may be any number, 0
+ *  included. The output lags the
  *  input by latency_frames. No allocation, lock, log or system call;
  *  arguments are checked but not logged. Audio thread (one thread at a
  *  time per context). */

@@ -438,6 +438,17 @@ earshot_status earshot_process_channels(earshot_context* c, const float* const* 
       if ((x < y ? y - x : x - y) < bytes) return EARSHOT_ERROR_INVALID_ARGUMENT;  // overlapping outputs
     }
   }
+  // An input may be an output (in place: the engine reads each chunk's
+  // input before it writes that chunk); any other overlap would be read
+  // after it was written.
+  for (size_t i = 0; i < inputCount; ++i) {
+    if (!inputs[i]) continue;
+    const uintptr_t x = reinterpret_cast<uintptr_t>(inputs[i]);
+    for (size_t a = 0; a < outputCount; ++a) {
+      const uintptr_t y = reinterpret_cast<uintptr_t>(outputs[a]);
+      if (x != y && (x < y ? y - x : x - y) < bytes) return EARSHOT_ERROR_INVALID_ARGUMENT;
+    }
+  }
   for (size_t i = 0; i < c->maxSources; ++i) c->inputs[i] = i < inputCount ? inputs[i] : nullptr;
   c->engine->process(c->inputs.data(), outputs, frames);
   return EARSHOT_OK;

@@ -124,6 +124,10 @@ struct Engine::Slot {
   double appliedGain = 1.0;            // audio thread: gain at the end of the last chunk
   double appliedReflectionsGain = 1.0; // audio thread: the reflections' gain at the end of the last chunk
   std::vector<float> scaled;           // audio thread: gained input for the mixer
+  // Audio thread: the chunk's input as given, for the direct voice, which
+  // runs after the mixer has written the outputs (an input may be one of
+  // them: a host processing in place).
+  std::vector<float> input;
   // Shared tail: the source's late level (sqrt of its tail's W energy),
   // written by the simulation, ramped by the audio thread.
   std::atomic<double> tailGain{0.0};
@@ -233,7 +237,8 @@ size_t slotBytesOf(const EngineSettings& s, const ConvolutionMixer& mixer, size_
           ? size_t(histogramBytes(simulatedSeconds(sim), sim.binSeconds))
           : size_t(std::ceil(s.maxIrSeconds * s.sampleRateHz)) * channels * sizeof(float);
   return DirectVoice::stateBytes(voiceSettingsOf(s, latencyFrames)) + mixer.sourceStateBytes() +
-         3 * PreparedIr::bytesFor(mixer.layout(), channels) + kept;
+         3 * PreparedIr::bytesFor(mixer.layout(), channels) + kept +
+         2 * kProcessChunk * sizeof(float);  // the chunk's input, gained and as given
 }
 
 /** The pattern of a source's settings (its axis is set apart: orientation). */
@@ -681,6 +686,7 @@ Status Engine::allocateSlot(uint32_t i) {
   EARSHOT_RETURN_IF_ERROR(mMixer->reserveSource(i));
   try {
     slot.scaled.assign(kProcessChunk, 0.0f);
+    slot.input.assign(kProcessChunk, 0.0f);
   } catch (const std::bad_alloc&) {
     return outOfRange("engine: out of memory for a source slot");
   }
@@ -1209,6 +1215,7 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
         const float rTo = to * float(reflectionsSet);
         const float rStep = rTo - rFrom;
         for (size_t k = 0; k < m; ++k) g[k] = in[k] * (rFrom + rStep * ramp[k]);
+        std::copy(in, in + m, slot.input.data());
       }
       slot.appliedReflectionsGain = reflectionsSet;
       slot.appliedGain = to;
@@ -1311,7 +1318,7 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
       }
       // A muted chunk feeds the voice the zeros the mixer got; one running
       // out, silence.
-      const float* voiceIn = draining ? nullptr : slot.mutedChunk ? slot.scaled.data() : inputs[i] + off;
+      const float* voiceIn = draining ? nullptr : slot.mutedChunk ? slot.scaled.data() : slot.input.data();
       if (draining) slot.drainLeft -= std::min(slot.drainLeft, m);
       DirectVoice* voice = slot.voice.load(std::memory_order_relaxed);
       if (ambisonicOut)

@@ -828,6 +828,56 @@ TEST(CApiAudio, AnyBlockSizeGivesTheSameOutput) {
   EXPECT_EQ(earshot_process(b.context, nullptr, 0, lb.data(), rb.data(), 0), EARSHOT_OK);
 }
 
+// A host that processes in place passes an output buffer, already holding
+// the source's samples, as its input (one scratch buffer per source): the
+// output is the one from separate buffers, bit for bit, at any block size.
+// An input that overlaps an output any other way is refused, outputs
+// untouched. (The direct sound read its input after the reflections had
+// been mixed into the outputs: in place, it spatialised the mix.)
+TEST(CApiAudio, AnInputMayBeAnOutputBufferProcessedInPlace) {
+  Room a, b, c;
+  ASSERT_TRUE(a.source && b.source && c.source);
+  uint32_t index = 99;
+  ASSERT_EQ(earshot_source_get_index(b.source, &index), EARSHOT_OK);
+  ASSERT_EQ(index, 0u);
+  const size_t frames = 24000, block = 2500;  // blocks span several of the engine's chunks (1,024)
+  std::vector<float> la, ra;
+  render(a.context, frames, block, la, ra);
+  const std::vector<float> dry = impulses(frames);
+  std::vector<float> lb(frames), rb(frames), lc(frames), rc(frames);
+  for (size_t off = 0; off < frames; off += block) {
+    const size_t n = std::min(block, frames - off);
+    std::copy(dry.begin() + std::ptrdiff_t(off), dry.begin() + std::ptrdiff_t(off + n), lb.begin() + std::ptrdiff_t(off));
+    const float* inLeft[1] = {lb.data() + off};
+    ASSERT_EQ(earshot_process(b.context, inLeft, 1, lb.data() + off, rb.data() + off, n), EARSHOT_OK);
+    std::copy(dry.begin() + std::ptrdiff_t(off), dry.begin() + std::ptrdiff_t(off + n), rc.begin() + std::ptrdiff_t(off));
+    const float* inRight[1] = {rc.data() + off};
+    ASSERT_EQ(earshot_process(c.context, inRight, 1, lc.data() + off, rc.data() + off, n), EARSHOT_OK);
+  }
+  double maxDiff = 0, peak = 0;
+  for (size_t i = 0; i < frames; ++i) {
+    maxDiff = std::max({maxDiff, double(std::fabs(la[i] - lb[i])), double(std::fabs(ra[i] - rb[i])),
+                        double(std::fabs(la[i] - lc[i])), double(std::fabs(ra[i] - rc[i]))});
+    peak = std::max(peak, double(std::fabs(la[i])));
+  }
+  EXPECT_GT(peak, 0.0);
+  EXPECT_EQ(maxDiff, 0.0) << "peak " << peak;
+
+  // Overlaps other than the same start: refused, nothing written.
+  std::vector<float> wide(3 * block, 0.25f), right(block, 0.25f);
+  for (const float* in : {wide.data() + block - 1, wide.data() + block + 1, wide.data() + 2 * block - 1}) {
+    const float* inputs[1] = {in};
+    EXPECT_EQ(earshot_process(b.context, inputs, 1, wide.data() + block, right.data(), block),
+              EARSHOT_ERROR_INVALID_ARGUMENT)
+        << (in - wide.data());
+  }
+  EXPECT_TRUE(std::all_of(wide.begin(), wide.end(), [](float v) { return v == 0.25f; }));
+  EXPECT_TRUE(std::all_of(right.begin(), right.end(), [](float v) { return v == 0.25f; }));
+  // Beside an output: fine.
+  const float* beside[1] = {wide.data() + 2 * block};
+  EXPECT_EQ(earshot_process(b.context, beside, 1, wide.data() + block, right.data(), block), EARSHOT_OK);
+}
+
 // The built-in simulation thread makes a new source audible, runs at its
 // rate, and excludes earshot_simulate while it runs.
 TEST(CApiThreads, BuiltInSimulationThreadUpdatesSources) {

@@ -373,7 +373,9 @@ class Engine {
   // ---- audio thread ----
   /** Renders `frames` frames: inputs[s] is source slot s's dry mono input
    *  (maxSources pointers; nullptr or an inactive slot: silence); left and
-   *  right are overwritten. No allocation, lock, log or exception. */
+   *  right are overwritten. An input may be one of the outputs (the same
+   *  start: processing in place); no other overlap. No allocation, lock,
+   *  log or exception. */
   void process(const float* const* inputs, float* left, float* right, size_t frames);
   /** As above into outputChannels() buffers (binaural: left, right; ambisonic
    *  output: the AmbiX channels in ACN order), each overwritten. */
