@@ -1285,8 +1285,9 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
         target.audible = slot.audible.load(std::memory_order_relaxed);
       }
       // The way the source faces, glided along the chord and brought back
-      // to unit length (a half turn within one update, through the centre,
-      // is reached at once); followed whether or not it is directional.
+      // to unit length (a half turn within one update, whose chord passes
+      // the centre, flips halfway); followed whether or not it is
+      // directional, so a pattern switched on starts where it faces.
       Vec3d f{slot.forward[0].load(std::memory_order_relaxed), slot.forward[1].load(std::memory_order_relaxed),
               slot.forward[2].load(std::memory_order_relaxed)};
       if (mSettings.glideGameUpdates) {
