@@ -52,6 +52,11 @@ def _samples(name, x, channels=None):
         a = a[None, :]
     if a.ndim != 2:
         raise ValueError(f"{name}: expected shape (frames,) or (channels, frames), got {a.shape}")
+    if a.shape[0] > a.shape[1]:
+        # (frames, channels), as soundfile and scipy read a WAV: analysed as
+        # it stands it was thousands of channels of a few samples each.
+        raise ValueError(f"{name}: shape {a.shape} has more channels than frames; expected (channels, frames) "
+                         f"(for a (frames, channels) array, as soundfile reads a WAV, pass {name}.T)")
     if channels is not None and a.shape[0] != channels:
         raise ValueError(f"{name}: expected {channels} channels, got {a.shape[0]}")
     if a.shape[1] == 0:

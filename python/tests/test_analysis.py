@@ -129,6 +129,21 @@ def test_bad_input_raises(x, rate, exc):
         analysis.analyze(x, rate)
 
 
+def test_frames_by_channels_is_refused_with_the_fix():
+    # soundfile and scipy read a WAV as (frames, channels); taken as it
+    # stands that was 48,000 channels of 2 samples (12 s of NaNs, no error).
+    ir = np.zeros((2, 4800), dtype=np.float32)
+    ir[:, 10] = 1.0
+    ir[:, 11:] = np.exp(-np.arange(4789) / 500.0) * 0.1
+    for call in (lambda x: analysis.analyze(x, 48000), lambda x: analysis.binaural(x, 48000),
+                 lambda x: analysis.compare(x, ir, 48000)):
+        with pytest.raises(ValueError, match=r"more channels than frames.*\.T"):
+            call(ir.T)
+    assert analysis.analyze(ir, 48000).channels == 2
+    with pytest.raises(ValueError, match=r"reference: shape \(4800, 2\)"):
+        analysis.compare(ir, ir.T, 48000)
+
+
 def test_binaural_needs_two_channels():
     with pytest.raises(ValueError, match="2 channels"):
         analysis.binaural(np.ones((1, 100)), 48000)
