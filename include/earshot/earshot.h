@@ -315,9 +315,13 @@ EARSHOT_API earshot_status earshot_context_set_scene(earshot_context* context, e
  *  context's worker threads. A new source's direct sound plays from its
  *  first audio block (EARSHOT_DIRECT_PER_BLOCK; unoccluded until its first
  *  simulation has traced the path); its reflections join when its first
- *  simulation lands. Errors: INVALID_ARGUMENT, INVALID_STATE (the built-in
- *  simulation thread is running), OUT_OF_MEMORY, INTERNAL. Simulation thread
- *  (any thread but the audio thread; one at a time). */
+ *  simulation lands. A step goes through its sources in groups of 8 and
+ *  posts each group's reflections as soon as it is done; a source created
+ *  while a step runs joins the step's next group (a one-shot waits for a
+ *  group, not for the whole step: 0.08 s against 0.39 s with 32 sources in
+ *  the furnished sample room). Errors: INVALID_ARGUMENT, INVALID_STATE
+ *  (the built-in simulation thread is running), OUT_OF_MEMORY, INTERNAL.
+ *  Simulation thread (any thread but the audio thread; one at a time). */
 EARSHOT_API earshot_status earshot_simulate(earshot_context* context, uint32_t source_count);
 
 /** Starts the built-in simulation thread: it calls earshot_simulate(context,

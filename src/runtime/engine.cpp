@@ -486,6 +486,9 @@ Result<std::unique_ptr<Engine>> Engine::create(const EngineSettings& settings, B
     EARSHOT_RETURN_IF_ERROR(checkModel(model.get(), s.sampleRateHz));
   if (s.maxSources < 1 || s.maxSources > 4096)
     return invalidArgument("engine: maxSources " + std::to_string(s.maxSources) + " is outside [1, 4096]");
+  if (s.simulationGroupSources < 1 || s.simulationGroupSources > 4096)
+    return invalidArgument("engine: simulationGroupSources " + std::to_string(s.simulationGroupSources) +
+                           " is outside [1, 4096]");
   if (!(s.maxIrSeconds > 0 && s.maxIrSeconds <= 60))
     return invalidArgument("engine: maxIrSeconds " + std::to_string(s.maxIrSeconds) + " is outside (0, 60]");
   if (!(s.simulation.maxLengthSeconds >= 0 && s.simulation.maxLengthSeconds <= 600))
@@ -822,14 +825,14 @@ Status Engine::simulate(uint32_t count) {
       if (rank(i) > rank(last)) last = i;
     mNextRoundRobin = (last + 1) % n;
   }
-  return simulateLocked(order);
+  return simulateLocked(order, /*takeNewcomers=*/true);
 }
 
 Status Engine::simulate(const std::vector<uint32_t>& sources) {
   for (uint32_t s : sources)
     if (!validSource(s)) return invalidArgument("source " + std::to_string(s) + " does not exist");
   std::lock_guard<std::mutex> simLock(mSimulationMutex);
-  return simulateLocked(sources);
+  return simulateLocked(sources, /*takeNewcomers=*/false);
 }
 
 size_t Engine::simulationGroupSize() const {
@@ -850,7 +853,8 @@ size_t Engine::simulationGroupSize() const {
   return size_t(std::clamp(std::floor(left / perSource), 1.0, 4096.0));
 }
 
-Status Engine::simulateLocked(const std::vector<uint32_t>& order) {
+Status Engine::simulateLocked(const std::vector<uint32_t>& requested, bool takeNewcomers) {
+  std::vector<uint32_t> order = requested;
   const auto t0 = std::chrono::steady_clock::now();
   ++mSimulations;  // (each source taken below records this step)
   std::shared_ptr<const RayTracer> tracer;
@@ -914,14 +918,32 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& order) {
   // The last source synthesised in part that has a tail: the shared tail's
   // if the last source has none.
   std::shared_ptr<const Slot::WholeIr> tailFallback;
-  // The sources in groups whose IRs in the making fit what the memory
-  // limit leaves beside the slots (simulationGroupSize): a group's results
-  // are all held until its IRs are posted. The IRs are the same bits
+  // The sources in groups of at most simulationGroupSources whose IRs in
+  // the making fit what the memory limit leaves beside the slots
+  // (simulationGroupSize): a group's results are all held until its IRs
+  // are posted, each group's as soon as it is done. The IRs are the same bits
   // however the sources are grouped (the trace mode is the whole
   // simulation's; kept paths give what a trace gives).
   const TraceMode traceMode = effectiveTraceMode(mSettings.traceMode, order.size());
-  const size_t group = simulationGroupSize();
+  const size_t group = std::min(simulationGroupSize(), mSettings.simulationGroupSources);
+  // The slots' sources when the simulation began: one added since joins
+  // its next group (a one-shot waits for a group, not for a whole round).
+  std::vector<uint32_t> startGeneration(mSlots.size());
+  for (size_t i = 0; i < mSlots.size(); ++i) startGeneration[i] = mSlots[i]->generation.load();
   for (size_t g0 = 0; g0 < order.size(); g0 += group) {
+    if (takeNewcomers && g0 > 0) {
+      std::vector<uint32_t> newcomers;
+      for (uint32_t i = 0; i < uint32_t(mSlots.size()); ++i) {
+        const Slot& slot = *mSlots[i];
+        const uint32_t generation = slot.generation.load();
+        if (generation == startGeneration[i] || !slot.active.load() || slot.simulatedGeneration.load() == generation ||
+            std::find(order.begin() + std::ptrdiff_t(g0), order.end(), i) != order.end())
+          continue;
+        startGeneration[i] = generation;
+        newcomers.push_back(i);
+      }
+      order.insert(order.begin() + std::ptrdiff_t(g0), newcomers.begin(), newcomers.end());
+    }
     const size_t g1 = std::min(order.size(), g0 + group);
     const auto tGroup = g0 == 0 ? t0 : std::chrono::steady_clock::now();
     ++stats.groups;

@@ -73,6 +73,34 @@ TEST(CliBenchRuntime, ReportsTheWorstBlocksWallAndCpuTimeAndTheMachinesSteal) {
   EXPECT_GT(f.at("of_blocks"), 0.0);
 }
 
+// --one-shots-hz: sources the game adds from the first second on, each
+// released once its first IR lands; every one is counted, simulated or
+// missed, and the waits are ordered.
+TEST(CliBenchRuntime, OneShotsReportHowLongTheyWaitedForTheirFirstReflections) {
+  const std::string shoebox = std::string(EARSHOT_SOURCE_DIR) + "/samples/shoebox/shoebox.gltf";
+  Ran r = runCli("bench runtime '" + shoebox +
+                 "' --sources 2 --seconds 2.5 --quality draft --ir-seconds 0.5 --one-shots-hz 4 --group-sources 1");
+  ASSERT_EQ(r.code, 0) << r.out;
+  const size_t at = r.out.find("one_shot_first_reflections_s");
+  ASSERT_NE(at, std::string::npos) << r.out;
+  const auto f = figures(r.out.substr(at, r.out.find('\n', at) - at));  // that line's: ir_age_s has a median too
+  for (const char* key : {"median", "p95", "max", "simulated", "missed", "group_sources"})
+    ASSERT_EQ(f.count(key), 1u) << key << " missing in\n" << r.out;
+  // One every 0.25 s from 1.0 s to 2.5 s: 6 (7 if the last block lands on 2.5 s).
+  EXPECT_GE(f.at("simulated") + f.at("missed"), 6.0) << r.out;
+  EXPECT_LE(f.at("simulated") + f.at("missed"), 7.0) << r.out;
+  EXPECT_GE(f.at("simulated"), 1.0) << r.out;
+  EXPECT_GT(f.at("median"), 0.0);
+  EXPECT_LE(f.at("median"), f.at("p95"));
+  EXPECT_LE(f.at("p95"), f.at("max"));
+  EXPECT_LT(f.at("max"), 3.0);  // a one-shot not simulated in 3 s is counted missed
+  EXPECT_EQ(f.at("group_sources"), 1.0);
+  // Without one-shots the line is not printed.
+  Ran plain = runCli("bench runtime '" + shoebox + "' --sources 1 --seconds 0.5 --quality draft --ir-seconds 0.5");
+  ASSERT_EQ(plain.code, 0) << plain.out;
+  EXPECT_EQ(plain.out.find("one_shot"), std::string::npos);
+}
+
 }  // namespace
 
 // `bench trace --shared-sources N --no-per-source`: the shared trace and

@@ -6,7 +6,9 @@
 // audio thread's own CPU time in it (worst_block_cpu_pct; the difference is
 // time the thread waited for the CPU) and in the block that took the most
 // (max_block_cpu_pct), and the page faults the audio thread took in
-// engine.process after the first second.
+// engine.process after the first second. With --one-shots-hz, the game also
+// adds sources now and then (each released once simulated), and the time
+// each waited for its first reflections is reported.
 #include <pthread.h>
 #include <sys/resource.h>
 #include <time.h>
@@ -48,7 +50,12 @@ struct BenchRuntimeOptions {
   double irSeconds = 0.0;   // 0: the engine's default maxIrSeconds
   double turnDegreesPerSecond = 90.0;
   double sharedTail = -1.0;  // < 0: the engine's default
+  size_t groupSources = 0;   // 0: the engine's default
+  double oneShotsHz = 0.0;   // sources added by the game per second (0: none)
 };
+
+// One-shots live at once at most (the slots kept for them).
+constexpr unsigned kMaxOneShots = 16;
 
 double threadCpuSeconds() {
   timespec ts{};
@@ -91,7 +98,8 @@ int run(const BenchRuntimeOptions& o) {
   if (!check(preset.status())) return 2;
   apply(*preset, es.simulation);
   es.blockFrames = o.block;
-  es.maxSources = o.sources;
+  es.maxSources = o.sources + (o.oneShotsHz > 0 ? kMaxOneShots : 0);
+  if (o.groupSources > 0) es.simulationGroupSources = o.groupSources;
   es.threads = o.threads;
   es.maxPartitionFrames = o.maxPartition;
   if (o.ambisonicOrder >= 0) es.ambisonicOrder = o.ambisonicOrder;
@@ -149,7 +157,7 @@ int run(const BenchRuntimeOptions& o) {
   const double fs = es.sampleRateHz, period = double(o.block) / fs;
   const size_t blocks = size_t(o.seconds / period);
   std::vector<std::vector<float>> in(o.sources, std::vector<float>(o.block));
-  std::vector<const float*> inputs(o.sources);
+  std::vector<const float*> inputs(es.maxSources, nullptr);
   for (unsigned s = 0; s < o.sources; ++s) {
     for (size_t k = 0; k < o.block; ++k) in[s][k] = float(0.1 * std::sin(0.01 * double(k * (s + 3))));
     inputs[s] = in[s].data();
@@ -168,6 +176,11 @@ int run(const BenchRuntimeOptions& o) {
   }
   const size_t ageEvery = std::max<size_t>(1, size_t(0.1 / (double(o.block) / es.sampleRateHz)));
   double audioCpu = 0, gameCpu = 0;
+  std::vector<std::pair<uint32_t, double>> oneShots;  // live: slot, when added (s)
+  oneShots.reserve(kMaxOneShots);
+  std::vector<double> oneShotWaits;
+  double nextOneShot = 1.0;
+  size_t oneShotCount = 0, oneShotsMissed = 0;
   const double steal0 = stealSeconds();
   const auto start = std::chrono::steady_clock::now();
   for (size_t b = 0; b < blocks; ++b) {
@@ -179,6 +192,30 @@ int run(const BenchRuntimeOptions& o) {
       // The head turns about the up axis (z) of the samples.
       const double a = o.turnDegreesPerSecond * kPi / 180.0 * t;
       (void)engine.setListener(centre, {{std::cos(a), std::sin(a), 0.0}, {0.0, 0.0, 1.0}});
+    }
+    // One-shots: added from the first second on, released once their
+    // first IR has landed (they play nothing: what is measured is the wait).
+    if (o.oneShotsHz > 0 && t >= nextOneShot) {
+      nextOneShot += 1.0 / o.oneShotsHz;
+      auto id = oneShots.size() < kMaxOneShots ? engine.addSource({}) : Result<uint32_t>(outOfRange("no slot"));
+      if (id.isOk()) {
+        (void)engine.setSourcePosition(*id, sourceAt(unsigned(oneShotCount * 7 + 3), t));
+        oneShots.push_back({*id, t});
+      } else {
+        ++oneShotsMissed;
+      }
+      ++oneShotCount;
+    }
+    for (size_t k = 0; k < oneShots.size();) {
+      const bool simulated = engine.sourceIrInfo(oneShots[k].first).simulations > 0;
+      if (simulated || t - oneShots[k].second > 3.0) {
+        if (simulated) oneShotWaits.push_back(t - oneShots[k].second);
+        else ++oneShotsMissed;
+        (void)engine.removeSource(oneShots[k].first);
+        oneShots.erase(oneShots.begin() + std::ptrdiff_t(k));
+      } else {
+        ++k;
+      }
     }
     gameCpu += threadCpuSeconds() - g0;
     if (b % ageEvery == 0 && double(b) * period >= 1.0) {
@@ -241,6 +278,16 @@ int run(const BenchRuntimeOptions& o) {
   std::printf("ir_age_s median=%.3f p95=%.3f max=%.3f (per source, sampled every 100 ms after the first second)\n",
               ageAt(0.5), ageAt(0.95), ageAt(1.0));
   const double perUpdate = updates.load() > 0 ? 1.0 / double(updates.load()) : 0.0;
+  if (o.oneShotsHz > 0) {
+    std::sort(oneShotWaits.begin(), oneShotWaits.end());
+    auto waitAt = [&](double q) {
+      return oneShotWaits.empty() ? 0.0 : oneShotWaits[size_t(q * double(oneShotWaits.size() - 1))];
+    };
+    std::printf("one_shot_first_reflections_s median=%.3f p95=%.3f max=%.3f simulated=%zu missed=%zu (a source added "
+                "by the game, until its first IR landed; group_sources=%zu)\n",
+                waitAt(0.5), waitAt(0.95), waitAt(1.0), oneShotWaits.size(), oneShotsMissed,
+                engine.settings().simulationGroupSources);
+  }
   std::printf("sim_ms_per_source_update trace_and_image_sources=%.1f synthesis=%.1f prepare=%.1f wall=%.1f\n",
               simTotals.traceMs * perUpdate, simTotals.synthesisMs * perUpdate, simTotals.prepareMs * perUpdate,
               simTotals.totalMs * perUpdate);
@@ -293,6 +340,16 @@ const Registrar registrar([](CLI::App& root) {
       ->capture_default_str();
   cmd->add_option("--turn-dps", o->turnDegreesPerSecond, "Head turn, degrees per second (0: still)")
       ->check(CLI::Range(0.0, 3600.0))
+      ->capture_default_str();
+  cmd->add_option("--group-sources", o->groupSources,
+                  "Sources per group of a simulation step: each group's IRs land when it is done, and a source "
+                  "added meanwhile joins the next (0: the engine's default, 8)")
+      ->check(CLI::Range(size_t(0), size_t(4096)))
+      ->capture_default_str();
+  cmd->add_option("--one-shots-hz", o->oneShotsHz,
+                  "The game also adds this many sources a second from the first second on (each released once "
+                  "its first IR lands; up to 16 at once); reports how long each waited for its first reflections")
+      ->check(CLI::Range(0.0, 100.0))
       ->capture_default_str();
   cmd->add_option("--threads", o->threads, "Simulation threads (0: the cores less one, the engine's default)")->check(CLI::Range(0u, 256u))->capture_default_str();
   cmd->callback([o] { setExitCode(run(*o)); });
