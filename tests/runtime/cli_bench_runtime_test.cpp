@@ -12,6 +12,7 @@
 #include <sys/resource.h>
 #include <sys/wait.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <map>
 #include <regex>
@@ -148,7 +149,11 @@ TEST(CliBenchTrace, SharedSourcesWithoutPerSourceTraces) {
 // mallopt): repeated traces in one process take no new pages. With glibc's
 // defaults each 16k x 12 shoebox trace re-faulted its histograms, ~760 page
 // faults a trace on one thread (~12 us each on a virtual machine). Not under
-// the sanitizers, whose allocators are their own.
+// the sanitizers, whose allocators are their own. Each count is the median
+// of three processes: under load, about one process in 40 takes ~765 more
+// faults once (seen with 2 and with 7 traces alike, single-threaded; the
+// cause is outside the trace's allocations, not found), which would
+// count as 150 a trace in the 7-trace process.
 TEST(CliBenchTrace, RepeatedTracesTakeNoNewPages) {
 #if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__) || !defined(__GLIBC__)
   GTEST_SKIP() << "glibc's allocator only";
@@ -163,15 +168,22 @@ TEST(CliBenchTrace, RepeatedTracesTakeNoNewPages) {
   const std::string common = "bench trace '" + shoebox + "' --material-map '" + EARSHOT_SOURCE_DIR +
                              "/samples/shoebox/materials_map.json' --threads 1 --no-embree-limit --runs ";
   long faults[2];
+  std::string counted;
   const int runs[2] = {2, 7};
   for (int k = 0; k < 2; ++k) {
-    const long before = childPageFaults();
-    Ran r = runCli(common + std::to_string(runs[k]));
-    ASSERT_EQ(r.code, 0) << r.out;
-    faults[k] = childPageFaults() - before;
+    long each[3];
+    for (long& f : each) {
+      const long before = childPageFaults();
+      Ran r = runCli(common + std::to_string(runs[k]));
+      ASSERT_EQ(r.code, 0) << r.out;
+      f = childPageFaults() - before;
+      counted += " " + std::to_string(f);
+    }
+    std::sort(each, each + 3);
+    faults[k] = each[1];
+    counted += k == 0 ? " with " + std::to_string(runs[0]) + " traces;" : " with " + std::to_string(runs[1]);
   }
   const double perExtraTrace = double(faults[1] - faults[0]) / double(runs[1] - runs[0]);
-  EXPECT_LT(perExtraTrace, 50.0) << faults[0] << " page faults with " << runs[0] << " traces, " << faults[1]
-                                 << " with " << runs[1];
+  EXPECT_LT(perExtraTrace, 50.0) << "page faults:" << counted;
 #endif
 }
