@@ -927,13 +927,16 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& requested, bool takeN
   const TraceMode traceMode = effectiveTraceMode(mSettings.traceMode, order.size());
   const size_t group = std::min(simulationGroupSize(), mSettings.simulationGroupSources);
   // The slots' sources when the simulation began: one added since joins
-  // its next group (a one-shot waits for a group, not for a whole round).
+  // its next group (a one-shot waits for a group, not for a whole round),
+  // at most as many as there are slots in one step (a game that adds and
+  // releases sources without end does not keep a step from ending).
   std::vector<uint32_t> startGeneration(mSlots.size());
   for (size_t i = 0; i < mSlots.size(); ++i) startGeneration[i] = mSlots[i]->generation.load();
+  size_t newcomersLeft = mSlots.size();
   for (size_t g0 = 0; g0 < order.size(); g0 += group) {
     if (takeNewcomers && g0 > 0) {
       std::vector<uint32_t> newcomers;
-      for (uint32_t i = 0; i < uint32_t(mSlots.size()); ++i) {
+      for (uint32_t i = 0; i < uint32_t(mSlots.size()) && newcomers.size() < newcomersLeft; ++i) {
         const Slot& slot = *mSlots[i];
         const uint32_t generation = slot.generation.load();
         if (generation == startGeneration[i] || !slot.active.load() || slot.simulatedGeneration.load() == generation ||
@@ -942,6 +945,7 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& requested, bool takeN
         startGeneration[i] = generation;
         newcomers.push_back(i);
       }
+      newcomersLeft -= newcomers.size();
       order.insert(order.begin() + std::ptrdiff_t(g0), newcomers.begin(), newcomers.end());
     }
     const size_t g1 = std::min(order.size(), g0 + group);
