@@ -238,7 +238,9 @@ struct SimulationStats {
   double traceMs = 0, synthesisMs = 0, prepareMs = 0, totalMs = 0;
   bool pathsReused = false;  ///< a shared trace that reused the listener's kept paths (no ray traced)
   /** Groups the sources went through, each group's IRs in the making held
-   *  at once: 1 unless the memory limit parted them (the same IRs). */
+   *  at once and posted when it was done: ceil(sources /
+   *  simulationGroupSources), more where the memory limit parted them (the
+   *  same IRs). */
   uint32_t groups = 0;
 };
 
