@@ -830,7 +830,8 @@ TEST(CApiAudio, AnyBlockSizeGivesTheSameOutput) {
 
 // A host that processes in place passes an output buffer, already holding
 // the source's samples, as its input (one scratch buffer per source): the
-// output is the one from separate buffers, bit for bit, at any block size.
+// output is the one from separate buffers, bit for bit, in blocks that span
+// several of the engine's chunks.
 // An input that overlaps an output any other way is refused, outputs
 // untouched. (The direct sound read its input after the reflections had
 // been mixed into the outputs: in place, it spatialised the mix.)

@@ -151,9 +151,9 @@ TEST(CliBenchTrace, SharedSourcesWithoutPerSourceTraces) {
 // faults a trace on one thread (~12 us each on a virtual machine). Not under
 // the sanitizers, whose allocators are their own. Each count is the median
 // of three processes: under load, about one process in 40 takes ~765 more
-// faults once (seen with 2 and with 7 traces alike, single-threaded; the
-// cause is outside the trace's allocations, not found), which would
-// count as 150 a trace in the 7-trace process.
+// faults once (seen in a 2-trace process, single-threaded; the cause is
+// outside the trace's allocations, not found), which in a 7-trace process
+// counts as 150 a trace (the suite failed so twice).
 TEST(CliBenchTrace, RepeatedTracesTakeNoNewPages) {
 #if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__) || !defined(__GLIBC__)
   GTEST_SKIP() << "glibc's allocator only";

@@ -261,7 +261,10 @@ int run(const BenchRuntimeOptions& o) {
   const double worst = steady.back(), p99 = steady[size_t(0.99 * double(steady.size() - 1))];
   const double perSourceHz = double(updates.load()) / wall / o.sources;
   std::sort(irAges.begin(), irAges.end());
-  auto ageAt = [&](double q) { return irAges.empty() ? 0.0 : irAges[size_t(q * double(irAges.size() - 1))]; };
+  // The value at quantile q of sorted values (0 when there are none).
+  auto quantile = [](const std::vector<double>& sorted, double q) {
+    return sorted.empty() ? 0.0 : sorted[size_t(q * double(sorted.size() - 1))];
+  };
   std::printf("runtime reflections=%s ir_seconds=%.1f shared_tail_s=%.2f head_turn_dps=%.0f trace=%s\n",
               es.ambisonicOrder > 0 ? ("ambisonic order " + std::to_string(es.ambisonicOrder)).c_str() : "binaural",
               es.maxIrSeconds, es.ambisonicOrder > 0 ? engine.settings().sharedTailSeconds : 0.0, o.turnDegreesPerSecond,
@@ -276,16 +279,14 @@ int run(const BenchRuntimeOptions& o) {
               100.0 * worstFirstSecond / (period * 1000.0), 100.0 * worstCpu / (period * 1000.0),
               100.0 * maxCpu / (period * 1000.0), double(updates.load()) / wall, perSourceHz, 100.0 * simCpu / wall, 100.0 * gameCpu / wall);
   std::printf("ir_age_s median=%.3f p95=%.3f max=%.3f (per source, sampled every 100 ms after the first second)\n",
-              ageAt(0.5), ageAt(0.95), ageAt(1.0));
+              quantile(irAges, 0.5), quantile(irAges, 0.95), quantile(irAges, 1.0));
   const double perUpdate = updates.load() > 0 ? 1.0 / double(updates.load()) : 0.0;
   if (o.oneShotsHz > 0) {
     std::sort(oneShotWaits.begin(), oneShotWaits.end());
-    auto waitAt = [&](double q) {
-      return oneShotWaits.empty() ? 0.0 : oneShotWaits[size_t(q * double(oneShotWaits.size() - 1))];
-    };
     std::printf("one_shot_first_reflections_s median=%.3f p95=%.3f max=%.3f simulated=%zu missed=%zu (a source added "
                 "by the game, until its first IR landed; group_sources=%zu)\n",
-                waitAt(0.5), waitAt(0.95), waitAt(1.0), oneShotWaits.size(), oneShotsMissed,
+                quantile(oneShotWaits, 0.5), quantile(oneShotWaits, 0.95), quantile(oneShotWaits, 1.0),
+                oneShotWaits.size(), oneShotsMissed,
                 engine.settings().simulationGroupSources);
   }
   std::printf("sim_ms_per_source_update trace_and_image_sources=%.1f synthesis=%.1f prepare=%.1f wall=%.1f\n",
