@@ -1241,7 +1241,10 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
         const float rTo = to * float(reflectionsSet);
         const float rStep = rTo - rFrom;
         for (size_t k = 0; k < m; ++k) g[k] = in[k] * (rFrom + rStep * ramp[k]);
-        std::copy(in, in + m, slot.input.data());
+        // For the direct voice (per block only: an IR's own direct sound
+        // needs none).
+        if (DirectMode(slot.direct.load(std::memory_order_relaxed)) == DirectMode::kPerBlock)
+          std::copy(in, in + m, slot.input.data());
       }
       slot.appliedReflectionsGain = reflectionsSet;
       slot.appliedGain = to;
