@@ -728,6 +728,35 @@ void ConvolutionMixer::clearState() {
   }
 }
 
+bool ConvolutionMixer::holdsIr(size_t source) const {
+  const Impl& m = *mImpl;
+  if (source >= m.sources.size() || !m.sources[source]) return false;
+  const Source& s = *m.sources[source];
+  auto has = [](const Holder* h) { return h && h->ir; };
+  if (has(s.latest)) return true;
+  for (const SourceLevel& sl : s.levels)
+    if (has(sl.cur) || (sl.fading && has(sl.prev))) return true;
+  return false;
+}
+
+void ConvolutionMixer::resetSource(size_t source) {
+  Impl& m = *mImpl;
+  if (source >= m.sources.size() || !m.sources[source]) return;
+  Source& s = *m.sources[source];
+  // Released to the control side's queue, which always has room for every
+  // holder the audio thread holds (takePending).
+  m.release(s.latest);
+  s.latest = nullptr;
+  for (SourceLevel& sl : s.levels) {
+    m.release(sl.cur);
+    if (sl.prev) m.release(sl.prev);
+    sl.cur = sl.prev = nullptr;
+    sl.fading = false;
+    std::fill(sl.fdl.data(), sl.fdl.data() + sl.fdl.size(), 0.0f);
+  }
+  std::fill(s.history.data(), s.history.data() + s.history.size(), 0.0f);
+}
+
 size_t ConvolutionMixer::countSubnormalsInState() const {
   size_t count = 0;
   auto scan = [&](const AlignedFloats& a) {

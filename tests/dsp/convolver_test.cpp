@@ -402,6 +402,69 @@ TEST(ConvolutionMixer, EqualsSumOfConvolvers) {
   EXPECT_LE(worst, 1e-5 * peak);
 }
 
+// resetSource() (a slot taken by a new source): the source's IR is dropped
+// at once and what it was fed is forgotten, the other sources untouched.
+// Two sources play noise through their IRs; source 0 is reset and goes
+// silent, with a new IR posted at once: from the reset on, the output is
+// source 1's alone (as a mixer in which source 0 never played) within float
+// rounding, nothing of the noise through either IR; an impulse through the
+// new IR then gives that IR at the latency. holdsIr() says when a source
+// has an IR.
+TEST(ConvolutionMixer, AResetSourceForgetsItsIrAndWhatItPlayed) {
+  const size_t irLen = 9000, block = 256, frames = 188 * block, resetAt = 80 * block, impulseAt = 120 * block;
+  ConvolverSettings s;
+  s.latencyFrames = block;
+  s.maxIrFrames = irLen;
+  s.channels = 1;
+  auto both = ConvolutionMixer::create(s, 2), alone = ConvolutionMixer::create(s, 2);
+  ASSERT_TRUE(both.isOk() && alone.isOk());
+  const std::vector<std::vector<float>> irA = {decayingNoise(irLen, 71)}, irB = {decayingNoise(irLen, 72)},
+                                        irC = {decayingNoise(irLen, 73)};
+  ASSERT_TRUE((*both)->setIr(0, prepare(irA, (*both)->layout())).isOk());
+  ASSERT_TRUE((*both)->setIr(1, prepare(irB, (*both)->layout())).isOk());
+  ASSERT_TRUE((*alone)->setIr(1, prepare(irB, (*alone)->layout())).isOk());
+  EXPECT_FALSE((*both)->holdsIr(0)) << "not taken up before the first block";
+  const std::vector<float> noise0 = decayingNoise(frames, 74, 0.0), noise1 = decayingNoise(frames, 75, 0.0);
+  std::vector<float> zeros(block, 0.0f), impulse(block, 0.0f), outBoth(frames), outAlone(frames);
+  impulse[0] = 1.0f;
+  for (size_t pos = 0; pos < frames; pos += block) {
+    if (pos == resetAt) {
+      EXPECT_TRUE((*both)->holdsIr(0));
+      (*both)->resetSource(0);
+      EXPECT_FALSE((*both)->holdsIr(0)) << "dropped at once";
+      EXPECT_TRUE((*both)->holdsIr(1));
+      // A new IR at once: had the noise stayed in source 0's history, it
+      // would be heard through this IR as it fades in.
+      ASSERT_TRUE((*both)->setIr(0, prepare(irC, (*both)->layout())).isOk());
+    }
+    const float* source0 = pos < resetAt ? noise0.data() + pos : pos >= impulseAt + block ? impulse.data() : zeros.data();
+    if (pos >= impulseAt + 2 * block) source0 = zeros.data();
+    const float* insBoth[2] = {source0, noise1.data() + pos};
+    const float* insAlone[2] = {nullptr, noise1.data() + pos};
+    float* ob[1] = {outBoth.data() + pos};
+    float* oa[1] = {outAlone.data() + pos};
+    (*both)->process(insBoth, ob, block);
+    (*alone)->process(insAlone, oa, block);
+  }
+  // From the reset (and its latency) to the impulse: source 1 alone.
+  double peak = 0, worst = 0;
+  for (size_t t = resetAt + block; t < impulseAt; ++t) {
+    peak = std::max(peak, std::fabs(double(outAlone[t])));
+    worst = std::max(worst, std::fabs(double(outBoth[t]) - outAlone[t]));
+  }
+  EXPECT_GT(peak, 0.1);
+  EXPECT_LE(worst, 1e-5 * peak) << "nothing of source 0 after its reset";
+  // The impulse, fed once the new IR has faded in, through irC: what source
+  // 0 adds to source 1 is irC at the latency.
+  const size_t at = impulseAt + block + block;  // the impulse's block, and the latency
+  double irPeak = 0, irWorst = 0;
+  for (size_t i = 0; i < irLen && at + i < frames; ++i) {
+    irPeak = std::max(irPeak, std::fabs(double(irC[0][i])));
+    irWorst = std::max(irWorst, std::fabs(double(outBoth[at + i]) - outAlone[at + i] - irC[0][i]));
+  }
+  EXPECT_LE(irWorst, 1e-4 * irPeak + 1e-5 * peak);
+}
+
 // Several sources in a layout of more than one level, as the engine's
 // ambisonic bus (short 4-channel IRs, many sources: the layout's levels are
 // 256 and 1024 frames), each IR starting with silence of its own length (a

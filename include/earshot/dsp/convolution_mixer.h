@@ -74,6 +74,24 @@ class ConvolutionMixer {
    *  Thread: the audio thread only. Real-time safe. */
   void process(const float* const* inputs, float* const* outputs, size_t frames);
 
+  /** Whether `source`'s convolution uses an IR now or is to use one at its
+   *  levels' next blocks (the latest IR the audio thread took, or a level's
+   *  current or fading one): false for a source with no state or whose IR
+   *  is silence (nullptr) and has faded in everywhere. An IR posted but
+   *  not yet taken up does not count. Thread: the audio thread only.
+   *  Real-time safe. */
+  bool holdsIr(size_t source) const;
+
+  /** Starts `source` anew: its IRs are dropped at once (no fade; an IR
+   *  posted but not yet taken up stays posted) and its input history and
+   *  spectra zeroed, as a source that was never fed. What its convolution
+   *  would still have played stops at once, so call it when that is
+   *  silence (every input within its IR's length was silent) or when its
+   *  IR has faded out (holdsIr() false). For a source whose slot is taken
+   *  by another. Thread: the audio thread only. Real-time safe (no
+   *  allocation or lock; time in proportion to the source's state). */
+  void resetSource(size_t source);
+
   /** Zeroes every source's input history and spectra and every pending
    *  output (the IRs stay): the mixer continues as if all inputs had been
    *  silent. For the engine's containment of a state that became non-finite.
