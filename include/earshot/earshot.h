@@ -315,7 +315,10 @@ EARSHOT_API earshot_status earshot_context_set_scene(earshot_context* context, e
  *  context's worker threads. A new source's direct sound plays from its
  *  first audio block (EARSHOT_DIRECT_PER_BLOCK; unoccluded until its first
  *  simulation has traced the path); its reflections join when its first
- *  simulation lands. A step goes through its sources in groups of 8 and
+ *  simulation lands, and bring those of what it played meanwhile (its
+ *  input feeds its convolution from its first block, and the shared late
+ *  tail at the other sources' late level: a one-shot is not heard dry,
+ *  only its first reflections are missed). A step goes through its sources in groups of 8 and
  *  posts each group's reflections as soon as it is done; a source created
  *  while a step runs joins the step's next group (a one-shot waits for a
  *  group, not for the whole step: 0.08 s against 0.39 s with 32 sources in
@@ -660,8 +663,9 @@ EARSHOT_API earshot_status earshot_source_retain(earshot_source* source);
  *  by a later source: earshot_source_create gives a new source a slot
  *  whose last source has rung out (or never played), else a slot never
  *  used, and only when neither is free the one whose ring-out ends first
- *  (the new source then cuts that direct sound and carries the rest of
- *  the reverberation through its own IR). Game thread. */
+ *  (the new source then cuts that direct sound, and the reverberation
+ *  fades out within ~0.2 s; nothing of it goes through the new source's
+ *  IR). Game thread. */
 EARSHOT_API earshot_status earshot_source_release(earshot_source* source);
 
 /** The source's slot index in [0, max_sources): its position in the

@@ -99,6 +99,12 @@ struct Engine::Slot {
   uint32_t voiceGeneration = ~0u;      // audio thread
   bool live = false;                   // audio thread: playing in this process() call
   bool reflectionsLive = false;        // audio thread: its IR is this source's (simulated since added)
+  // Audio thread: a per-block source not yet simulated feeds its
+  // convolution (no IR of its own yet) so that its first IR brings the
+  // reflections of what it played meanwhile (feedsEarly), once the
+  // convolution holds nothing of the slot's last source (startsAnew until then).
+  bool feedsEarly = false;
+  bool startsAnew = false;
   bool mutedChunk = false;             // audio thread: this chunk's input was not finite (muted)
   bool voicePlayed = false;            // audio thread: the direct voice played (live, per block) in the last call
   // Audio thread: frames the voice still runs on silence after its source
@@ -657,7 +663,21 @@ Result<uint32_t> Engine::addSource(const SourceSettings& settings) {
   Slot& slot = *mSlots[size_t(chosen)];
   slot.gain.store(dbToGain(settings.gainDb));
   slot.gainDb.store(settings.gainDb);
-  slot.tailGain.store(0.0);  // until its first simulation
+  // The source's late level until its first simulation: the other
+  // simulated sources' (their power mean). What it plays before its first
+  // IR goes into the shared tail at this level (in a room whose late
+  // field is diffuse every source's is the same), and into its own
+  // convolution's history, so that its first IR brings the reflections of
+  // what it played while it waited (a one-shot is not heard dry).
+  double lateEnergy = 0;
+  int lateCount = 0;
+  for (const auto& other : mSlots) {
+    if (!other->active.load() || other->simulatedGeneration.load() != other->generation.load()) continue;
+    const double t = other->tailGain.load();
+    lateEnergy += t * t;
+    ++lateCount;
+  }
+  slot.tailGain.store(lateCount > 0 ? std::sqrt(lateEnergy / lateCount) : 0.0);
   slot.direct.store(int(settings.direct));
   storeControls(slot, settings);
   for (auto& t : slot.transmission) t.store(1.0);
@@ -665,7 +685,15 @@ Result<uint32_t> Engine::addSource(const SourceSettings& settings) {
   slot.forward[0].store(0.0);
   slot.forward[1].store(0.0);
   slot.forward[2].store(-1.0);
-  slot.generation.fetch_add(1);
+  {
+    // A slot used before still holds its last source's IR: silence takes
+    // its place (the audio thread drops it at once where the slot has rung
+    // out, or lets it fade out), in the order of the IRs the simulation
+    // posts, which posts none for a source no longer in its slot.
+    std::lock_guard<std::mutex> irLock(mIrMutex);
+    if (chosen != fresh) EARSHOT_RETURN_IF_ERROR(mMixer->setIr(size_t(chosen), nullptr));
+    slot.generation.fetch_add(1);
+  }
   slot.active.store(true);
   return uint32_t(chosen);
 }
@@ -1031,14 +1059,19 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& requested, bool takeN
         for (size_t c = 0; c < ir.channelCount(); ++c)
           for (size_t i = 0; i < ownFrames; ++i) own.channels[c][i] = ir.channels[c][i] * (1.0f - tailWeight(i));
         const double energy = tailEnergy(ir);  // W whole also when in part
-        slot.tailGain.store(std::sqrt(energy));
+        if (slot.generation.load() == j.generation) slot.tailGain.store(std::sqrt(energy));
         hasTail = energy > 0;
         if (!partial && hasTail) sharedTail = normalisedTail(ir, energy);
         convolved = &own;
       }
       auto prepared = PreparedIr::create(*convolved, mMixer->layout(), mPool.get());
       if (!prepared.isOk()) return prepared.status();
-      EARSHOT_RETURN_IF_ERROR(mMixer->setIr(j.slot, *prepared));
+      {
+        // Not into a slot released or taken by another source meanwhile
+        // (addSource() posts silence there, under the same lock).
+        std::lock_guard<std::mutex> lock(mIrMutex);
+        if (slot.generation.load() == j.generation) EARSHOT_RETURN_IF_ERROR(mMixer->setIr(j.slot, *prepared));
+      }
       {
         // Kept for sourceIr(), unless the slot was released or reused
         // meanwhile: the IR, or with a shared tail what sourceIr() makes it
@@ -1193,7 +1226,27 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
       slot.appliedGain = slot.gain.load(std::memory_order_relaxed);
       slot.appliedReflectionsGain = slot.reflectionsGain.load(std::memory_order_relaxed);
       slot.appliedTailGain = slot.tailGain.load(std::memory_order_relaxed);
+      slot.startsAnew = true;
     }
+    // Before its first IR, a per-block source's input goes into its
+    // convolution's history (and into the shared tail at the late level
+    // addSource() estimated), so that its first IR, fading in, brings the
+    // reflections of what it played while it waited: a one-shot is not heard
+    // dry. First the slot's convolution starts anew, at once where the last
+    // source's sound has rung out (nothing of it would be heard), else once
+    // its IR has faded out (addSource() posted silence), so that nothing of
+    // the last source's sound goes through this source's IR, nor this
+    // source's through the last one's.
+    const bool early = active && perBlock && !simulated;
+    if (early && slot.startsAnew) {
+      const uint64_t fed = slot.fedUntilFrame.load(std::memory_order_relaxed);
+      const bool rungOut = fed == 0 || firstFrame >= fed + ringOutFrames();
+      if (rungOut || !mMixer->holdsIr(i)) {
+        mMixer->resetSource(i);
+        slot.startsAnew = false;
+      }
+    }
+    slot.feedsEarly = early && !slot.startsAnew;
   }
   // The glides (PoseGlide): over at most kMaxGlideSeconds, never faster
   // than half the speed of sound (the direct voice's jump).
@@ -1248,9 +1301,10 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
       }
       slot.appliedReflectionsGain = reflectionsSet;
       slot.appliedGain = to;
-      mInputs[i] = slot.reflectionsLive ? g : nullptr;
-      if (slot.reflectionsLive) slot.fedUntilFrame.store(firstFrame + off + m, std::memory_order_relaxed);
-      if (mTailMixer && slot.reflectionsLive) {
+      const bool feeds = slot.reflectionsLive || slot.feedsEarly;
+      mInputs[i] = feeds ? g : nullptr;
+      if (feeds) slot.fedUntilFrame.store(firstFrame + off + m, std::memory_order_relaxed);
+      if (mTailMixer && feeds) {
         // The shared tail's input: this source at its late level, ramped.
         const float t0 = float(slot.appliedTailGain), t1 = float(slot.tailGain.load(std::memory_order_relaxed));
         float* tail = mTailInput.data();

@@ -101,13 +101,37 @@ void tenSecondsWithUpdatesAndSceneEdits(int ambisonicOrder) {
       updatesDone.store(++done);
     }
   });
-  // Game thread: moves the sources and turns the listener continuously.
+  // Game thread: moves the sources and turns the listener continuously,
+  // and plays one-shots of 0.15 s in the fourth slot: each a new source,
+  // released once played; the next one 0.4 s later (the slot still rings:
+  // its IR fades out, then its convolution starts anew) or 1.3 s later (it
+  // has rung out: dropped at once).
+  const std::vector<double> shots = {1.0, 1.55, 3.0, 3.55, 5.0, 5.55, 7.0, 7.55};
+  std::atomic<int> oneShot{-1};
+  std::atomic<size_t> shotsPlayed{0};
   std::thread game([&] {
+    size_t next = 0;
+    uint32_t shot = 0;
+    bool playing = false;
     while (!stop.load()) {
       const double t = double(audioBlock.load()) * block / fs;
       for (size_t i = 0; i < ids.size(); ++i)
         (void)engine.setSourcePosition(ids[i], {5 + 3 * std::cos(t + i), 3.5 + 2 * std::sin(t + i), 1.5});
       (void)engine.setListener({5, 3.5, 1.6}, {{std::cos(0.5 * t), std::sin(0.5 * t), 0}, {0, 0, 1}});
+      if (!playing && next < shots.size() && t >= shots[next]) {
+        auto id = engine.addSource({});
+        if (id.isOk()) {
+          shot = *id;
+          (void)engine.setSourcePosition(shot, {3.0 + 0.5 * double(next), 5.0, 1.2});
+          oneShot.store(int(shot));
+          playing = true;
+        }
+      } else if (playing && t >= shots[next] + 0.15) {
+        oneShot.store(-1);
+        (void)engine.removeSource(shot);
+        playing = false;
+        shotsPlayed.store(++next);
+      }
       std::this_thread::yield();
     }
   });
@@ -117,13 +141,21 @@ void tenSecondsWithUpdatesAndSceneEdits(int ambisonicOrder) {
     for (size_t k = 0; k < block; ++k) in[s][k] = float(std::sin(0.05 * double(k * (s + 1))));
   std::vector<const float*> inputs(es.maxSources, nullptr);
   for (size_t s = 0; s < ids.size(); ++s) inputs[ids[s]] = in[s].data();
-  std::vector<float> left(block), right(block);
+  std::vector<float> left(block), right(block), shotIn(block);
+  for (size_t k = 0; k < block; ++k) shotIn[k] = float(0.5 * std::sin(0.3 * double(k)));
+  int fedShot = -1;  // the slot given the one-shot's input
   double sumSquares = 0;
   long allocations = 0, releases = 0, locks = 0, steadyFaults = 0, firstSecondFaults = 0;
   const size_t warmBlocks = size_t(fs / block);
   {
     earshot::test::AllocationCounter counter;
     for (size_t b = 0; b < blocks; ++b) {
+      const int playing = oneShot.load();
+      if (playing != fedShot) {
+        if (fedShot >= 0) inputs[size_t(fedShot)] = nullptr;
+        if (playing >= 0) inputs[size_t(playing)] = shotIn.data();
+        fedShot = playing;
+      }
       const long f0 = threadPageFaults();
       engine.process(inputs.data(), left.data(), right.data(), block);
       (b < warmBlocks ? firstSecondFaults : steadyFaults) += threadPageFaults() - f0;
@@ -142,6 +174,7 @@ void tenSecondsWithUpdatesAndSceneEdits(int ambisonicOrder) {
   game.join();
   EXPECT_FALSE(simFailed.load());
   EXPECT_GE(updatesDone.load(), 90u) << "IR updates at 10 Hz over 10 s";
+  EXPECT_EQ(shotsPlayed.load(), shots.size()) << "one-shots played";
   EXPECT_GT(sumSquares, 0.0) << "the run produced sound";
   EXPECT_TRUE(std::isfinite(sumSquares));
   EXPECT_EQ(allocations, 0) << "heap allocation on the audio thread";

@@ -1394,6 +1394,178 @@ TEST(Engine, ASourceAddedWhileASimulationRunsJoinsItsNextGroup) {
   EXPECT_TRUE(joined.ir->channels == together.ir->channels) << "the newcomer's IR, joined or from the start";
 }
 
+// A one-shot: a source added and played at once (a 21 ms burst), whose
+// first IR lands 0.1 s later (a simulation step). What it played meanwhile
+// went into its convolution's history (and the shared tail, at the late
+// level of the sources simulated before it), so once its first IR has
+// faded in the output is what it is when the source was simulated before
+// it played: the burst's reflections and reverberation, not silence. In a
+// fresh slot and in one whose last source has rung out (its IR dropped),
+// with binaural reflections and with ambisonic ones and the shared tail.
+// Another source stands at the same place, so that the late level the
+// newcomer's shared tail starts at is its own; its IR is the same.
+TEST(Engine, WhatASourcePlaysBeforeItsFirstIrIsInItsReflections) {
+  ASSERT_TRUE(test::ku100());
+  test::Room room;
+  const size_t block = 256;
+  const Vec3d place{2.5, 3.0, 1.5};
+  const int landsAt = 19;  // the block at which the first IR is posted (0.1 s)
+  auto run = [&](int order, bool reuse, bool simulatedFirst, uint32_t* slot) {
+    EngineSettings es = test::fastSettings();
+    es.ambisonicOrder = order;
+    es.maxSources = 2;
+    auto created = Engine::create(es, test::ku100());
+    EXPECT_TRUE(created.isOk()) << created.status().message();
+    Engine& e = **created;
+    e.setScene(room.tracer, room.materials);
+    EXPECT_TRUE(e.setListener({7, 4, 1.6}, {{1, 0, 0}, {0, 0, 1}}).isOk());
+    std::vector<float> in(block), silence(block, 0.0f), l(block), r(block), out;
+    std::vector<const float*> inputs(es.maxSources, nullptr);
+    auto resident = e.addSource({});
+    EXPECT_TRUE(resident.isOk());
+    EXPECT_TRUE(e.setSourcePosition(*resident, place).isOk());
+    inputs[*resident] = silence.data();
+    Pcg32 rng(5, 2);
+    if (reuse) {
+      // A source elsewhere plays 0.3 s of noise, is released and rings out.
+      auto old = e.addSource({});
+      EXPECT_TRUE(old.isOk());
+      EXPECT_TRUE(e.setSourcePosition(*old, {8.5, 1.2, 1.1}).isOk());
+      EXPECT_TRUE(e.simulate().isOk());
+      inputs[*old] = in.data();
+      for (int b = 0; b < 56; ++b) {
+        for (float& x : in) x = float(rng.uniformDouble() - 0.5);
+        e.process(inputs.data(), l.data(), r.data(), block);
+      }
+      EXPECT_TRUE(e.removeSource(*old).isOk());
+      inputs[*old] = nullptr;
+      for (int b = 0; b < 375; ++b) e.process(inputs.data(), l.data(), r.data(), block);  // 2 s
+    } else {
+      EXPECT_TRUE(e.simulate().isOk());
+    }
+    SourceSettings ss;
+    ss.directGainDb = -120;  // the reflections are what counts
+    auto s = e.addSource(ss);
+    EXPECT_TRUE(s.isOk());
+    *slot = *s;
+    EXPECT_TRUE(e.setSourcePosition(*s, place).isOk());
+    if (simulatedFirst) {
+      EXPECT_TRUE(e.simulate(std::vector<uint32_t>{*s}).isOk());
+    }
+    inputs[*s] = in.data();
+    for (int b = 0; b < 300; ++b) {  // 1.6 s
+      for (float& x : in) x = b < 4 ? float(rng.uniformDouble() - 0.5) : 0.0f;
+      if (!simulatedFirst && b == landsAt) {
+        EXPECT_TRUE(e.simulate(std::vector<uint32_t>{*s}).isOk());
+      }
+      e.process(inputs.data(), l.data(), r.data(), block);
+      out.insert(out.end(), l.begin(), l.end());
+      out.insert(out.end(), r.begin(), r.end());
+    }
+    return out;
+  };
+  for (int order : {0, 1}) {
+    for (bool reuse : {false, true}) {
+      uint32_t lateSlot = 0, firstSlot = 0;
+      const std::vector<float> late = run(order, reuse, false, &lateSlot);
+      const std::vector<float> first = run(order, reuse, true, &firstSlot);
+      EXPECT_EQ(lateSlot, 1u);
+      EXPECT_EQ(firstSlot, 1u);
+      ASSERT_EQ(late.size(), first.size());
+      // Energies from `from` to `to` seconds: the output's, the source
+      // simulated first's and their difference.
+      struct Energies {
+        double late = 0, first = 0, difference = 0;
+      };
+      auto energies = [&](double from, double to) {
+        Energies e;
+        const size_t end = std::min(late.size(), size_t(to * kFs / block) * 2 * block);
+        for (size_t i = size_t(from * kFs / block) * 2 * block; i < end; ++i) {
+          e.late += double(late[i]) * late[i];
+          e.first += double(first[i]) * first[i];
+          e.difference += (double(late[i]) - first[i]) * (double(late[i]) - first[i]);
+        }
+        return e;
+      };
+      // The first IR lands at 0.1 s and fades in level by level, each at
+      // its next block (the longest, for a 1.5 s binaural IR, blocks of
+      // 8192 frames or fewer); from 0.6 s it is all in.
+      const double landing = landsAt * double(block) / kFs;
+      const Energies waiting = energies(0.0, landing), after = energies(0.6, 2.0), fading = energies(landing, 0.6);
+      std::printf("order %d, %s slot: from 0.6 s the difference is %.1f dB of the output; from the IR's landing "
+                  "to 0.6 s the output is %.1f dB of the source simulated first's\n",
+                  order, reuse ? "a rung-out" : "a fresh", 10 * std::log10(after.difference / after.first + 1e-30),
+                  10 * std::log10(fading.late / fading.first + 1e-30));
+      EXPECT_GT(after.first, 1e-12) << "the burst's reverberation is there to compare";
+      // Before its IR, nothing of the source is heard through the IR the
+      // slot held (the direct sound at -120 dB apart).
+      EXPECT_LT(waiting.late, 1e-6 * waiting.first) << "order " << order << (reuse ? ", reused slot" : ", fresh slot");
+      EXPECT_LT(after.difference, 1e-6 * after.first) << "order " << order << (reuse ? ", reused slot" : ", fresh slot");
+      EXPECT_GT(fading.late, 0.1 * fading.first) << "order " << order << (reuse ? ", reused slot" : ", fresh slot");
+      EXPECT_LT(fading.late, 1.1 * fading.first) << "a fade in, not more";
+    }
+  }
+}
+
+// A new source that takes a slot whose last source still rings (every
+// other slot in use): the last source's ring-out fades out, and nothing of
+// what it played goes through the new source's IR. Binaural reflections
+// (each source's whole IR in its slot: no shared tail rings on). The slot's
+// last source plays 0.3 s of noise and is released; the new source, silent,
+// is added at once and simulated 0.1 s later. Once the new IR has faded
+// in, the output is silence. (Before, the old noise still in the slot's
+// convolution history was heard through the new source's IR.)
+TEST(Engine, ASourceInASlotThatStillRingsHearsNothingOfTheLastOnesSound) {
+  ASSERT_TRUE(test::ku100());
+  test::Room room;
+  const size_t block = 256;
+  EngineSettings es = test::fastSettings();
+  es.ambisonicOrder = 0;
+  es.maxSources = 2;
+  auto created = Engine::create(es, test::ku100());
+  ASSERT_TRUE(created.isOk()) << created.status().message();
+  Engine& e = **created;
+  e.setScene(room.tracer, room.materials);
+  ASSERT_TRUE(e.setListener({7, 4, 1.6}, {{1, 0, 0}, {0, 0, 1}}).isOk());
+  std::vector<float> in(block), silence(block, 0.0f), l(block), r(block);
+  std::vector<const float*> inputs(es.maxSources, nullptr);
+  auto resident = e.addSource({}), old = e.addSource({});
+  ASSERT_TRUE(resident.isOk() && old.isOk());
+  ASSERT_TRUE(e.setSourcePosition(*resident, {2.5, 3.0, 1.5}).isOk());
+  ASSERT_TRUE(e.setSourcePosition(*old, {8.5, 1.2, 1.1}).isOk());
+  ASSERT_TRUE(e.simulate().isOk());
+  inputs[*resident] = silence.data();
+  inputs[*old] = in.data();
+  Pcg32 rng(9, 4);
+  for (int b = 0; b < 56; ++b) {
+    for (float& x : in) x = float(rng.uniformDouble() - 0.5);
+    e.process(inputs.data(), l.data(), r.data(), block);
+  }
+  ASSERT_TRUE(e.removeSource(*old).isOk());
+  auto s = e.addSource({});
+  ASSERT_TRUE(s.isOk());
+  EXPECT_EQ(*s, *old) << "the only free slot, still ringing";
+  ASSERT_TRUE(e.setSourcePosition(*s, {4.0, 5.0, 1.2}).isOk());
+  inputs[*s] = silence.data();
+  double ringing = 0, after = 0;
+  for (int b = 0; b < 300; ++b) {  // 1.6 s
+    if (b == 19) {
+      ASSERT_TRUE(e.simulate(std::vector<uint32_t>{*s}).isOk());
+    }
+    e.process(inputs.data(), l.data(), r.data(), block);
+    double energy = 0;
+    for (size_t k = 0; k < block; ++k) energy += double(l[k]) * l[k] + double(r[k]) * r[k];
+    if (b < 19) {
+      ringing += energy;
+    } else if (b * double(block) / kFs >= 0.6) {
+      after += energy;
+    }
+  }
+  std::printf("the last source's ring-out until the new IR lands: %.3g; from 0.6 s: %.3g\n", ringing, after);
+  EXPECT_GT(ringing, 1e-6) << "the slot rang when the new source took it";
+  EXPECT_EQ(after, 0.0) << "nothing of the last source's sound through the new source's IR";
+}
+
 // Issue 16: sources whose geometry changed most since their IR are
 // simulated first (after priority and never-simulated ones), equal ones in
 // round robin; each IR carries when its poses were read.
