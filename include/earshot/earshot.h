@@ -659,7 +659,9 @@ EARSHOT_API earshot_status earshot_source_retain(earshot_source* source);
  *  arrives: its direct sound in flight (a source 34 m away is heard 0.1 s
  *  after it plays) and its reverberation, which rings out through its IR
  *  over up to max_ir_seconds. So a one-shot may be released as soon as its
- *  last sample has been passed to earshot_process. The index may be reused
+ *  last sample has been passed to earshot_process, also before its first
+ *  simulation: the next earshot_simulate still makes its first IR (where
+ *  it was), and what it played is heard through it. The index may be reused
  *  by a later source: earshot_source_create gives a new source a slot
  *  whose last source has rung out (or never played), else a slot never
  *  used, and only when neither is free the one whose ring-out ends first

@@ -71,6 +71,16 @@ struct Engine::Slot {
   std::atomic<uint64_t> voiceUntilFrame{0};
   std::atomic<uint32_t> generation{0};           // bumped by add/remove
   std::atomic<uint32_t> simulatedGeneration{~0u};  // generation of the last simulation posted
+  // The generation of the source the audio thread last fed the reflections
+  // of (written by the audio thread).
+  std::atomic<uint32_t> fedGeneration{~0u};
+  // A source released before its first IR landed, having played (a
+  // one-shot released once its last sample was passed): its generation,
+  // else -1. What it played waits in the slot's convolution history for
+  // that IR, which the next simulate() makes (from where it was) and posts
+  // unless a new source took the slot (addSource() clears it). Changed
+  // under Engine::mIrMutex.
+  std::atomic<int64_t> owedFirstIr{-1};
   std::atomic<int> direct{0};
   std::atomic<double> position[3] = {{0.0}, {0.0}, {0.0}};
   std::atomic<double> gain{1.0};
@@ -692,6 +702,7 @@ Result<uint32_t> Engine::addSource(const SourceSettings& settings) {
     // posts, which posts none for a source no longer in its slot.
     std::lock_guard<std::mutex> irLock(mIrMutex);
     if (chosen != fresh) EARSHOT_RETURN_IF_ERROR(mMixer->setIr(size_t(chosen), nullptr));
+    slot.owedFirstIr.store(-1);
     slot.generation.fetch_add(1);
   }
   slot.active.store(true);
@@ -728,8 +739,15 @@ Status Engine::allocateSlot(uint32_t i) {
 
 Status Engine::removeSource(uint32_t s) {
   if (!validSource(s)) return invalidArgument("source " + std::to_string(s) + " does not exist");
-  mSlots[s]->active.store(false);
-  mSlots[s]->generation.fetch_add(1);
+  Slot& slot = *mSlots[s];
+  std::lock_guard<std::mutex> lock(mIrMutex);
+  slot.active.store(false);
+  // Played before its first IR landed: that IR is still owed (its sound
+  // so far is in the slot's convolution, waiting for it).
+  const uint32_t generation = slot.generation.load();
+  if (slot.simulatedGeneration.load() != generation && slot.fedGeneration.load() == generation)
+    slot.owedFirstIr.store(generation);
+  slot.generation.fetch_add(1);
   return Status::ok();
 }
 
@@ -818,7 +836,8 @@ Status Engine::simulate(uint32_t count) {
   const uint32_t n = uint32_t(mSlots.size());
   for (uint32_t k = 0; k < n; ++k) {
     const uint32_t i = (mNextRoundRobin + k) % n;
-    if (mSlots[i]->active.load()) order.push_back(i);
+    // (A source released before its first IR is owed that IR.)
+    if (mSlots[i]->active.load() || mSlots[i]->owedFirstIr.load() >= 0) order.push_back(i);
   }
   // Higher priority first; then never simulated; then waiting for over
   // twice a round (what moved most would otherwise starve a source that
@@ -832,7 +851,7 @@ Status Engine::simulate(uint32_t count) {
   std::vector<char> fresh(n, 0), waiting(n, 0);
   for (uint32_t i : order) {
     const Slot& slot = *mSlots[i];
-    fresh[i] = slot.simulatedGeneration.load() != slot.generation.load();
+    fresh[i] = slot.simulatedGeneration.load() != slot.generation.load() || slot.owedFirstIr.load() >= 0;
     waiting[i] = mSimulations - slot.simulatedStep >= patience;
     const Vec3d p{slot.position[0].load(), slot.position[1].load(), slot.position[2].load()};
     changed[i] = length(p - slot.simulatedSource) + length(listenerNow - slot.simulatedListener);
@@ -967,7 +986,9 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& requested, bool takeN
       for (uint32_t i = 0; i < uint32_t(mSlots.size()) && newcomers.size() < newcomersLeft; ++i) {
         const Slot& slot = *mSlots[i];
         const uint32_t generation = slot.generation.load();
-        if (generation == startGeneration[i] || !slot.active.load() || slot.simulatedGeneration.load() == generation ||
+        const bool unsimulated = slot.active.load() ? slot.simulatedGeneration.load() != generation
+                                                    : slot.owedFirstIr.load() >= 0;  // released, owed its first IR
+        if (generation == startGeneration[i] || !unsimulated ||
             std::find(order.begin() + std::ptrdiff_t(g0), order.end(), i) != order.end())
           continue;
         startGeneration[i] = generation;
@@ -983,7 +1004,10 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& requested, bool takeN
     for (size_t g = g0; g < g1; ++g) {
       const uint32_t i = order[g];
       Slot& slot = *mSlots[i];
-      Job j{i, slot.generation.load(), mSettings.simulation,
+      // A released source owed its first IR is simulated as the source it was.
+      const int64_t owed = slot.owedFirstIr.load();
+      const uint32_t generation = !slot.active.load() && owed >= 0 ? uint32_t(owed) : slot.generation.load();
+      Job j{i, generation, mSettings.simulation,
             {slot.position[0].load(), slot.position[1].load(), slot.position[2].load()}, std::nullopt};
       slot.simulatedSource = j.source;
       slot.simulatedListener = listener;
@@ -1069,8 +1093,12 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& requested, bool takeN
       {
         // Not into a slot released or taken by another source meanwhile
         // (addSource() posts silence there, under the same lock).
+        // A source released before its first IR still gets it (what it
+        // played waits for it in the slot's convolution).
         std::lock_guard<std::mutex> lock(mIrMutex);
-        if (slot.generation.load() == j.generation) EARSHOT_RETURN_IF_ERROR(mMixer->setIr(j.slot, *prepared));
+        const bool owed = slot.owedFirstIr.load() == int64_t(j.generation);
+        if (slot.generation.load() == j.generation || owed) EARSHOT_RETURN_IF_ERROR(mMixer->setIr(j.slot, *prepared));
+        if (owed) slot.owedFirstIr.store(-1);
       }
       {
         // Kept for sourceIr(), unless the slot was released or reused
@@ -1130,12 +1158,16 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& requested, bool takeN
           if (!transmissionOn && d.surfacesCrossed > 0) transmission[b] = 0.0;
         }
       }
-      bool audible = false;
-      for (int b = 0; b < kNumBands; ++b) {
-        slot.transmission[b].store(transmission[b]);
-        audible = audible || transmission[b] > 0;
+      // (Not into a source that took the slot meanwhile: it is unoccluded
+      // until its own first simulation.)
+      if (slot.generation.load() == j.generation) {
+        bool audible = false;
+        for (int b = 0; b < kNumBands; ++b) {
+          slot.transmission[b].store(transmission[b]);
+          audible = audible || transmission[b] > 0;
+        }
+        slot.audible.store(audible);
       }
-      slot.audible.store(audible);
       slot.simulatedGeneration.store(j.generation);
       stats.prepareMs += msSince(tPrepare);
       ++stats.sourcesSimulated;
@@ -1303,7 +1335,10 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
       slot.appliedGain = to;
       const bool feeds = slot.reflectionsLive || slot.feedsEarly;
       mInputs[i] = feeds ? g : nullptr;
-      if (feeds) slot.fedUntilFrame.store(firstFrame + off + m, std::memory_order_relaxed);
+      if (feeds) {
+        slot.fedUntilFrame.store(firstFrame + off + m, std::memory_order_relaxed);
+        slot.fedGeneration.store(slot.voiceGeneration, std::memory_order_relaxed);
+      }
       if (mTailMixer && feeds) {
         // The shared tail's input: this source at its late level, ramped.
         const float t0 = float(slot.appliedTailGain), t1 = float(slot.tailGain.load(std::memory_order_relaxed));

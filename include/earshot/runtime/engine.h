@@ -335,11 +335,15 @@ class Engine {
    *  call, and what it already played still arrives: its direct sound in
    *  flight (DirectVoice::ringOutFrames: its delay, up to maxDistanceMeters
    *  / c) and its reverberation, which rings out through its IR over up to
-   *  maxIrSeconds. A NULL input in process() is silence the same way. Its
-   *  slot goes to a new source only once that has rung out, unless no other
-   *  slot can be had (addSource): a new source in a ringing slot cuts the
-   *  direct sound in flight and carries the rest of the reverberation
-   *  through its own IR once simulated. */
+   *  maxIrSeconds. A source released before its first IR landed, having
+   *  played, is still owed that IR: the next simulate(count) makes it
+   *  (where the source was) and what it played is heard through it. A
+   *  NULL input in process() is silence the same way. Its slot goes to a
+   *  new source only once that has rung out, unless no other slot can be
+   *  had (addSource): a new source in a ringing slot cuts the direct sound
+   *  in flight and fades the reverberation out (within a block of the
+   *  convolution's longest level), then starts the slot's convolution
+   *  anew. */
   Status removeSource(uint32_t source);
   /** The direct sound follows from the next process() call, gliding as
    *  EngineSettings::glideGameUpdates says; the reflections at the source's next
@@ -369,7 +373,8 @@ class Engine {
    *  after a door opened or it turned); then those whose geometry changed
    *  most since their IR (the distance the source moved plus the distance
    *  the listener moved); equal ones in round-robin order from after the
-   *  last simulated. */
+   *  last simulated. Sources released before their first IR landed count
+   *  as active sources never simulated (removeSource). */
   Status simulate(uint32_t count = 0);
   /** Simulates exactly these sources (in this order). */
   Status simulate(const std::vector<uint32_t>& sources);
