@@ -1091,10 +1091,10 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& requested, bool takeN
       auto prepared = PreparedIr::create(*convolved, mMixer->layout(), mPool.get());
       if (!prepared.isOk()) return prepared.status();
       {
-        // Not into a slot released or taken by another source meanwhile
-        // (addSource() posts silence there, under the same lock).
-        // A source released before its first IR still gets it (what it
-        // played waits for it in the slot's convolution).
+        // Not into a slot another source took meanwhile (addSource() posts
+        // silence there, under the same lock); a source released meanwhile
+        // rings out through it, and one released before its first IR
+        // still gets that IR (what it played waits in its convolution).
         std::lock_guard<std::mutex> lock(mIrMutex);
         const bool owed = slot.owedFirstIr.load() == int64_t(j.generation);
         if (slot.generation.load() == j.generation || owed) EARSHOT_RETURN_IF_ERROR(mMixer->setIr(j.slot, *prepared));
