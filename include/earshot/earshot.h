@@ -317,12 +317,13 @@ EARSHOT_API earshot_status earshot_context_set_scene(earshot_context* context, e
  *  simulation has traced the path); its reflections join when its first
  *  simulation lands, and bring those of what it played meanwhile (its
  *  input feeds its convolution from its first block, and the shared late
- *  tail at the other sources' late level: a one-shot is not heard dry,
- *  only its first reflections are missed). A step goes through its sources in groups of 8 and
- *  posts each group's reflections as soon as it is done; a source created
- *  while a step runs joins the step's next group (a one-shot waits for a
- *  group, not for the whole step: 0.08 s against 0.39 s with 32 sources in
- *  the furnished sample room). Errors: INVALID_ARGUMENT, INVALID_STATE
+ *  tail at the late level of the simulated source nearest to it: a
+ *  one-shot is not heard dry, only its first reflections are missed). A
+ *  step goes through its sources in groups of 8 and posts each group's
+ *  reflections as soon as it is done; a source created while a step runs
+ *  joins the step's next group (a one-shot waits for a group, not for the
+ *  whole step: 0.08 s against 0.39 s with 32 sources in the furnished
+ *  sample room). Errors: INVALID_ARGUMENT, INVALID_STATE
  *  (the built-in simulation thread is running), OUT_OF_MEMORY, INTERNAL.
  *  Simulation thread (any thread but the audio thread; one at a time). */
 EARSHOT_API earshot_status earshot_simulate(earshot_context* context, uint32_t source_count);

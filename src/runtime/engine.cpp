@@ -147,6 +147,16 @@ struct Engine::Slot {
   // Shared tail: the source's late level (sqrt of its tail's W energy),
   // written by the simulation, ramped by the audio thread.
   std::atomic<double> tailGain{0.0};
+  // Until its first simulation (tailGainSimulated false), an estimate:
+  // the late level of the simulated source nearest to where the game put
+  // it, or before it was put anywhere their power mean (addSource,
+  // setSourcePosition; the game thread's).
+  std::atomic<double> tailGainEstimate{0.0};
+  std::atomic<bool> tailGainSimulated{false};
+  double lateLevel() const {  // any thread
+    return tailGainSimulated.load(std::memory_order_acquire) ? tailGain.load(std::memory_order_relaxed)
+                                                             : tailGainEstimate.load(std::memory_order_relaxed);
+  }
   double appliedTailGain = 0.0;        // audio thread
   // Poses of the last simulation (simulation thread only): how far the
   // source and the listener moved since orders the next simulations.
@@ -674,20 +684,22 @@ Result<uint32_t> Engine::addSource(const SourceSettings& settings) {
   slot.gain.store(dbToGain(settings.gainDb));
   slot.gainDb.store(settings.gainDb);
   // The source's late level until its first simulation: the other
-  // simulated sources' (their power mean). What it plays before its first
-  // IR goes into the shared tail at this level (in a room whose late
-  // field is diffuse every source's is the same), and into its own
-  // convolution's history, so that its first IR brings the reflections of
-  // what it played while it waited (a one-shot is not heard dry).
+  // simulated sources' (their power mean; once the game puts the source
+  // somewhere, the nearest one's). What it plays before its first IR goes
+  // into the shared tail at this level (in a room whose late field is
+  // diffuse every source's is the same), and into its own convolution's
+  // history, so that its first IR brings the reflections of what it
+  // played while it waited (a one-shot is not heard dry).
   double lateEnergy = 0;
   int lateCount = 0;
   for (const auto& other : mSlots) {
-    if (!other->active.load() || other->simulatedGeneration.load() != other->generation.load()) continue;
+    if (!other->active.load() || !other->tailGainSimulated.load()) continue;
     const double t = other->tailGain.load();
     lateEnergy += t * t;
     ++lateCount;
   }
-  slot.tailGain.store(lateCount > 0 ? std::sqrt(lateEnergy / lateCount) : 0.0);
+  slot.tailGainSimulated.store(false);
+  slot.tailGainEstimate.store(lateCount > 0 ? std::sqrt(lateEnergy / lateCount) : 0.0);
   slot.direct.store(int(settings.direct));
   storeControls(slot, settings);
   for (auto& t : slot.transmission) t.store(1.0);
@@ -755,7 +767,22 @@ Status Engine::setSourcePosition(uint32_t s, const Vec3d& p) {
   if (!validSource(s)) return invalidArgument("source " + std::to_string(s) + " does not exist");
   if (!isFinite(p)) return invalidArgument("source position is not finite");
   if (!withinCoordinateRange(p)) return outOfRange("source position is farther than 1e6 m from the origin");
-  for (int i = 0; i < 3; ++i) mSlots[s]->position[i].store((&p.x)[i], std::memory_order_relaxed);
+  Slot& slot = *mSlots[s];
+  for (int i = 0; i < 3; ++i) slot.position[i].store((&p.x)[i], std::memory_order_relaxed);
+  if (mTailMixer && !slot.tailGainSimulated.load()) {
+    // Not simulated yet: the late level of the simulated source nearest to
+    // it (more likely in the same room than the mean of all).
+    double nearest = std::numeric_limits<double>::infinity();
+    for (const auto& other : mSlots) {
+      if (other.get() == &slot || !other->active.load() || !other->tailGainSimulated.load()) continue;
+      const Vec3d q{other->position[0].load(), other->position[1].load(), other->position[2].load()};
+      const double d = length(q - p);
+      if (d < nearest) {
+        nearest = d;
+        slot.tailGainEstimate.store(other->tailGain.load());
+      }
+    }
+  }
   return Status::ok();
 }
 
@@ -1083,7 +1110,10 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& requested, bool takeN
         for (size_t c = 0; c < ir.channelCount(); ++c)
           for (size_t i = 0; i < ownFrames; ++i) own.channels[c][i] = ir.channels[c][i] * (1.0f - tailWeight(i));
         const double energy = tailEnergy(ir);  // W whole also when in part
-        if (slot.generation.load() == j.generation) slot.tailGain.store(std::sqrt(energy));
+        if (slot.generation.load() == j.generation) {
+          slot.tailGain.store(std::sqrt(energy));
+          slot.tailGainSimulated.store(true, std::memory_order_release);
+        }
         hasTail = energy > 0;
         if (!partial && hasTail) sharedTail = normalisedTail(ir, energy);
         convolved = &own;
@@ -1257,7 +1287,7 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
       slot.voiceGeneration = generation;
       slot.appliedGain = slot.gain.load(std::memory_order_relaxed);
       slot.appliedReflectionsGain = slot.reflectionsGain.load(std::memory_order_relaxed);
-      slot.appliedTailGain = slot.tailGain.load(std::memory_order_relaxed);
+      slot.appliedTailGain = slot.lateLevel();
       slot.startsAnew = true;
     }
     // Before its first IR, a per-block source's input goes into its
@@ -1341,7 +1371,7 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
       }
       if (mTailMixer && feeds) {
         // The shared tail's input: this source at its late level, ramped.
-        const float t0 = float(slot.appliedTailGain), t1 = float(slot.tailGain.load(std::memory_order_relaxed));
+        const float t0 = float(slot.appliedTailGain), t1 = float(slot.lateLevel());
         float* tail = mTailInput.data();
         const float tStep = t1 - t0;
         for (size_t k = 0; k < m; ++k) tail[k] += g[k] * (t0 + tStep * ramp[k]);

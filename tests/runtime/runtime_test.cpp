@@ -1529,6 +1529,59 @@ TEST(Engine, WhatASourcePlaysBeforeItsFirstIrIsInItsReflections) {
   }
 }
 
+// Until its first simulation a source's sound goes into the shared tail
+// at the late level of the simulated source nearest to it: more likely in
+// its room than the mean of all. Two sources are simulated, one in the room
+// and one outside it (no reflection reaches the listener: no tail); a new
+// source plays a burst near one of them and is simulated 0.1 s later. Near
+// the one outside, none of its burst is heard in the tail (from 0.6 s, after
+// its own IR's 0.17 s, the output is silence, as its own simulation says);
+// near the one inside, the burst rings on in the tail.
+TEST(Engine, ANewSourcesLateLevelIsTheNearestSimulatedSources) {
+  ASSERT_TRUE(test::ku100());
+  test::Room room;
+  const size_t block = 256;
+  auto lateEnergy = [&](const Vec3d& place) {
+    EngineSettings es = test::fastSettings();
+    es.maxSources = 3;
+    auto created = Engine::create(es, test::ku100());
+    EXPECT_TRUE(created.isOk()) << created.status().message();
+    Engine& e = **created;
+    e.setScene(room.tracer, room.materials);
+    EXPECT_TRUE(e.setListener({6, 4, 1.5}, {{1, 0, 0}, {0, 0, 1}}).isOk());
+    auto inside = e.addSource({}), outside = e.addSource({});
+    EXPECT_TRUE(inside.isOk() && outside.isOk());
+    EXPECT_TRUE(e.setSourcePosition(*inside, {3.0, 3.0, 1.5}).isOk());
+    EXPECT_TRUE(e.setSourcePosition(*outside, {15.0, 3.5, 1.5}).isOk());
+    EXPECT_TRUE(e.simulate().isOk());
+    SourceSettings ss;
+    ss.directGainDb = -120;
+    auto s = e.addSource(ss);
+    EXPECT_TRUE(s.isOk());
+    EXPECT_TRUE(e.setSourcePosition(*s, place).isOk());
+    std::vector<float> in(block), silence(block, 0.0f), l(block), r(block);
+    std::vector<const float*> inputs(es.maxSources, silence.data());
+    inputs[*s] = in.data();
+    Pcg32 rng(2, 9);
+    double late = 0;
+    for (int b = 0; b < 300; ++b) {  // 1.6 s
+      for (float& x : in) x = b < 4 ? float(rng.uniformDouble() - 0.5) : 0.0f;
+      if (b == 19) {
+        EXPECT_TRUE(e.simulate(std::vector<uint32_t>{*s}).isOk());
+      }
+      e.process(inputs.data(), l.data(), r.data(), block);
+      if (b * double(block) / kFs >= 0.6)
+        for (size_t k = 0; k < block; ++k) late += double(l[k]) * l[k] + double(r[k]) * r[k];
+    }
+    return late;
+  };
+  const double nearOutside = lateEnergy({14.0, 3.5, 1.5}), nearInside = lateEnergy({3.5, 3.0, 1.5});
+  std::printf("the burst's energy in the shared tail from 0.6 s: near the source outside %.3g, inside %.3g\n",
+              nearOutside, nearInside);
+  EXPECT_EQ(nearOutside, 0.0);
+  EXPECT_GT(nearInside, 1e-9);
+}
+
 // A new source that takes a slot whose last source still rings (every
 // other slot in use): the last source's ring-out fades out, and nothing of
 // what it played goes through the new source's IR. Binaural reflections
