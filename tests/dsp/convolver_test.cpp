@@ -437,8 +437,12 @@ TEST(ConvolutionMixer, AResetSourceForgetsItsIrAndWhatItPlayed) {
       // would be heard through this IR as it fades in.
       ASSERT_TRUE((*both)->setIr(0, prepare(irC, (*both)->layout())).isOk());
     }
-    const float* source0 = pos < resetAt ? noise0.data() + pos : pos >= impulseAt + block ? impulse.data() : zeros.data();
-    if (pos >= impulseAt + 2 * block) source0 = zeros.data();
+    const float* source0 = zeros.data();
+    if (pos < resetAt) {
+      source0 = noise0.data() + pos;
+    } else if (pos == impulseAt + block) {
+      source0 = impulse.data();
+    }
     const float* insBoth[2] = {source0, noise1.data() + pos};
     const float* insAlone[2] = {nullptr, noise1.data() + pos};
     float* ob[1] = {outBoth.data() + pos};
