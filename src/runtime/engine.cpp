@@ -773,15 +773,16 @@ Status Engine::setSourcePosition(uint32_t s, const Vec3d& p) {
     // Not simulated yet: the late level of the simulated source nearest to
     // it (more likely in the same room than the mean of all).
     double nearest = std::numeric_limits<double>::infinity();
+    const Slot* from = nullptr;
     for (const auto& other : mSlots) {
       if (other.get() == &slot || !other->active.load() || !other->tailGainSimulated.load()) continue;
       const Vec3d q{other->position[0].load(), other->position[1].load(), other->position[2].load()};
-      const double d = length(q - p);
-      if (d < nearest) {
-        nearest = d;
-        slot.tailGainEstimate.store(other->tailGain.load());
+      if (length(q - p) < nearest) {
+        nearest = length(q - p);
+        from = other.get();
       }
     }
+    if (from) slot.tailGainEstimate.store(from->tailGain.load());
   }
   return Status::ok();
 }
