@@ -667,8 +667,8 @@ EARSHOT_API earshot_status earshot_source_retain(earshot_source* source);
  *  whose last source has rung out (or never played), else a slot never
  *  used, and only when neither is free the one whose ring-out ends first
  *  (the new source then cuts that direct sound, and the reverberation
- *  fades out within ~0.2 s; nothing of it goes through the new source's
- *  IR). Game thread. */
+ *  fades out; nothing of it goes through the new source's IR unless that
+ *  IR lands before the fade ends). Game thread. */
 EARSHOT_API earshot_status earshot_source_release(earshot_source* source);
 
 /** The source's slot index in [0, max_sources): its position in the

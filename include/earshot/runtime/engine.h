@@ -343,7 +343,8 @@ class Engine {
    *  had (addSource): a new source in a ringing slot cuts the direct sound
    *  in flight and fades the reverberation out (within a block of the
    *  convolution's longest level), then starts the slot's convolution
-   *  anew. */
+   *  anew (if its own first IR lands before that, the rest of the old
+   *  sound goes through it). */
   Status removeSource(uint32_t source);
   /** The direct sound follows from the next process() call, gliding as
    *  EngineSettings::glideGameUpdates says; the reflections at the source's next
