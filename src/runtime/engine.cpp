@@ -1292,8 +1292,8 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
       slot.startsAnew = true;
     }
     // Before its first IR, a per-block source's input goes into its
-    // convolution's history (and into the shared tail at the late level
-    // addSource() estimated), so that its first IR, fading in, brings the
+    // convolution's history (and into the shared tail at its estimated late
+    // level, Slot::lateLevel), so that its first IR, fading in, brings the
     // reflections of what it played while it waited: a one-shot is not heard
     // dry. First the slot's convolution starts anew, at once where the last
     // source's sound has rung out (nothing of it would be heard), else once
