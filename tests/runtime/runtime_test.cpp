@@ -1586,8 +1586,10 @@ TEST(Engine, ANewSourcesLateLevelIsTheNearestSimulatedSources) {
 // what it played goes through the new source's IR. Binaural reflections
 // (each source's whole IR in its slot: no shared tail rings on). The slot's
 // last source plays 0.3 s of noise and is released; the new source, silent,
-// is added at once and simulated 0.1 s later. Once the new IR has faded
-// in, the output is silence. (Before, the old noise still in the slot's
+// is added at once and simulated 0.1 s later, after the last IR has faded
+// out (~0.08 s here; an IR that lands before that still hears the rest of
+// the old sound: engine.h, removeSource). Once the new IR has faded in,
+// the output is silence. (Before, the old noise still in the slot's
 // convolution history was heard through the new source's IR.)
 TEST(Engine, ASourceInASlotThatStillRingsHearsNothingOfTheLastOnesSound) {
   ASSERT_TRUE(test::ku100());
