@@ -48,6 +48,17 @@ constexpr size_t kProcessChunk = 1024;
 // The ambisonic decoder's bulk delay: 2 ms (the ears' onsets lie within
 // +-0.7 ms of the head centre's; the rest is the fit's spread).
 size_t ambisonicDecoderDelayFrames(double rateHz) { return size_t(std::ceil(0.002 * rateHz)); }
+
+Status validPosition(const Vec3d& p) {
+  if (!isFinite(p)) return invalidArgument("source position is not finite");
+  if (!withinCoordinateRange(p)) return outOfRange("source position is farther than 1e6 m from the origin");
+  return Status::ok();
+}
+
+Status validForward(const Vec3d& forward) {
+  if (!isFinite(forward) || !(length(forward) > 0)) return invalidArgument("source forward is zero or not finite");
+  return Status::ok();
+}
 }  // namespace
 
 struct Engine::Slot {
@@ -429,7 +440,7 @@ Result<SourceSettings> Engine::sourceControls(uint32_t s) const {
 
 Status Engine::setSourceOrientation(uint32_t s, const Vec3d& forward) {
   if (!validSource(s)) return invalidArgument("source " + std::to_string(s) + " does not exist");
-  if (!isFinite(forward) || !(length(forward) > 0)) return invalidArgument("source forward is zero or not finite");
+  EARSHOT_RETURN_IF_ERROR(validForward(forward));
   const Vec3d f = normalize(forward);
   for (int i = 0; i < 3; ++i) mSlots[s]->forward[i].store((&f.x)[i], std::memory_order_relaxed);
   return Status::ok();
@@ -639,7 +650,18 @@ size_t Engine::ringOutFrames() const {
 }
 
 Result<uint32_t> Engine::addSource(const SourceSettings& settings) {
+  return addSourceAt(settings, {0, 0, 0}, {0, 0, -1}, false);
+}
+
+Result<uint32_t> Engine::addSource(const SourceSettings& settings, const Vec3d& position, const Vec3d& forward) {
+  return addSourceAt(settings, position, forward, true);
+}
+
+Result<uint32_t> Engine::addSourceAt(const SourceSettings& settings, const Vec3d& position, const Vec3d& forward,
+                                     bool placed) {
   EARSHOT_RETURN_IF_ERROR(validate(settings));
+  EARSHOT_RETURN_IF_ERROR(validPosition(position));
+  EARSHOT_RETURN_IF_ERROR(validForward(forward));
   std::lock_guard<std::mutex> lock(mAddMutex);
   // Which slot. A removed source's reverberation rings out in its slot (what
   // it played is still in the slot's convolution history, heard through its
@@ -704,9 +726,16 @@ Result<uint32_t> Engine::addSource(const SourceSettings& settings) {
   storeControls(slot, settings);
   for (auto& t : slot.transmission) t.store(1.0);
   slot.audible.store(true);
-  slot.forward[0].store(0.0);
-  slot.forward[1].store(0.0);
-  slot.forward[2].store(-1.0);
+  // Where it is, before the slot turns active: the audio thread's first
+  // block of it plays from there (not from the slot's last source's place,
+  // or the origin while the game has yet to move it), and so does its
+  // first simulation.
+  const Vec3d f = normalize(forward);
+  for (int i = 0; i < 3; ++i) {
+    slot.position[i].store((&position.x)[i]);
+    slot.forward[i].store((&f.x)[i]);
+  }
+  if (placed) estimateLateLevel(slot, position);
   {
     // A slot used before still holds its last source's IR: silence takes
     // its place (the audio thread drops it at once where the slot has rung
@@ -765,26 +794,28 @@ Status Engine::removeSource(uint32_t s) {
 
 Status Engine::setSourcePosition(uint32_t s, const Vec3d& p) {
   if (!validSource(s)) return invalidArgument("source " + std::to_string(s) + " does not exist");
-  if (!isFinite(p)) return invalidArgument("source position is not finite");
-  if (!withinCoordinateRange(p)) return outOfRange("source position is farther than 1e6 m from the origin");
+  EARSHOT_RETURN_IF_ERROR(validPosition(p));
   Slot& slot = *mSlots[s];
   for (int i = 0; i < 3; ++i) slot.position[i].store((&p.x)[i], std::memory_order_relaxed);
-  if (mTailMixer && !slot.tailGainSimulated.load()) {
-    // Not simulated yet: the late level of the simulated source nearest to
-    // it (more likely in the same room than the mean of all).
-    double nearest = std::numeric_limits<double>::infinity();
-    const Slot* from = nullptr;
-    for (const auto& other : mSlots) {
-      if (other.get() == &slot || !other->active.load() || !other->tailGainSimulated.load()) continue;
-      const Vec3d q{other->position[0].load(), other->position[1].load(), other->position[2].load()};
-      if (length(q - p) < nearest) {
-        nearest = length(q - p);
-        from = other.get();
-      }
-    }
-    if (from) slot.tailGainEstimate.store(from->tailGain.load());
-  }
+  estimateLateLevel(slot, p);
   return Status::ok();
+}
+
+void Engine::estimateLateLevel(Slot& slot, const Vec3d& p) {
+  if (!mTailMixer || slot.tailGainSimulated.load()) return;
+  // Not simulated yet: the late level of the simulated source nearest to
+  // it (more likely in the same room than the mean of all).
+  double nearest = std::numeric_limits<double>::infinity();
+  const Slot* from = nullptr;
+  for (const auto& other : mSlots) {
+    if (other.get() == &slot || !other->active.load() || !other->tailGainSimulated.load()) continue;
+    const Vec3d q{other->position[0].load(), other->position[1].load(), other->position[2].load()};
+    if (length(q - p) < nearest) {
+      nearest = length(q - p);
+      from = other.get();
+    }
+  }
+  if (from) slot.tailGainEstimate.store(from->tailGain.load());
 }
 
 Status Engine::setSourceGainDb(uint32_t s, double gainDb) {

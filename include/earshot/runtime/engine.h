@@ -316,8 +316,19 @@ class Engine {
    *  sourceSlotBytes() each. The slot: a free one whose last source's
    *  reverberation has rung out or never played (removeSource), else one
    *  never used (within the memory limit), else the one that played
-   *  longest ago. */
+   *  longest ago. The source is at the origin, facing (0, 0, -1), until
+   *  setSourcePosition() and setSourceOrientation(); the audio thread may
+   *  play its first block there in between, so a source that plays at once
+   *  (a one-shot) is better added where it is, with the overload below. */
   Result<uint32_t> addSource(const SourceSettings& settings);
+  /** addSource() at `position` (finite, within 1e6 m of the origin) facing
+   *  `forward` (finite, non-zero): its first block plays from there, its
+   *  first simulation traces from there, and until then its late level is
+   *  the nearest simulated source's (as after setSourcePosition). Nothing
+   *  is added when either is refused (the same errors as
+   *  setSourcePosition() and setSourceOrientation()). */
+  Result<uint32_t> addSource(const SourceSettings& settings, const Vec3d& position,
+                             const Vec3d& forward = {0, 0, -1});
   /** What one source slot may hold, from above: its direct voice, its
    *  convolution state, the three IRs the convolver may hold for it at
    *  once (the one playing, the one it fades from, one waiting) and what
@@ -418,6 +429,9 @@ class Engine {
   size_t simulationGroupSize() const;
   Status createDecoder(const BinauralModel& model);  // under mAddMutex
   Status allocateSlot(uint32_t slot);                // under mAddMutex: a slot's first source's state
+  Result<uint32_t> addSourceAt(const SourceSettings& settings, const Vec3d& position, const Vec3d& forward,
+                               bool placed);        // addSource(); placed: the late level from the nearest
+  void estimateLateLevel(Slot& slot, const Vec3d& position);  // until simulated: the nearest simulated source's
   size_t ringOutFrames() const;  // frames after which a removed source's slot has nothing left to play
   // Audio thread: the bus (mInputs convolved) rotated to the head and decoded into ears[0..1].
   // With OutputFormat::kAmbisonic, `ears` are the output's channels and the bus is not decoded.
