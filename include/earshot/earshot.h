@@ -653,6 +653,20 @@ EARSHOT_API earshot_status earshot_source_settings_init(earshot_source_settings*
  *  PARSE / NOT_FOUND (the HRTF failed to load), OUT_OF_MEMORY. Game thread. */
 EARSHOT_API earshot_status earshot_source_create(earshot_context* context, const earshot_source_settings* settings,
                                                  earshot_source** out);
+/** earshot_source_create, with the source already at `position` (metres,
+ *  finite, within 1e6 m of the origin) facing `forward` (finite,
+ *  non-zero; earshot_source_set_orientation). Created then moved, a source
+ *  may have its first audio block played from where it was created (the
+ *  origin) if the audio thread runs in between, and glide from there; a
+ *  source created where it is plays from there from its first block, and
+ *  its first simulation traces from there. For one-shots and any source
+ *  that plays as soon as it is created. Errors: those of
+ *  earshot_source_create; INVALID_ARGUMENT for a non-finite position or a
+ *  zero or non-finite forward, OUT_OF_RANGE for a position farther than
+ *  1e6 m (no source is created). Game thread. */
+EARSHOT_API earshot_status earshot_source_create_at(earshot_context* context, const earshot_source_settings* settings,
+                                                    earshot_vec3 position, earshot_vec3 forward,
+                                                    earshot_source** out);
 /** Adds a reference. Game thread. */
 EARSHOT_API earshot_status earshot_source_retain(earshot_source* source);
 /** Drops a reference; the last one frees the slot: the source plays no

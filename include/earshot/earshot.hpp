@@ -326,6 +326,10 @@ class Source : public detail::Handle<earshot_source, earshot_source_retain, ears
   Source() noexcept = default;
   explicit Source(const Context& context, const earshot_source_settings& settings = SourceSettings())
       : Handle(make(context, settings)) {}
+  /** earshot_source_create_at: created where it is (forward: its facing). */
+  Source(const Context& context, earshot_vec3 position, earshot_vec3 forward = {0, 0, -1},
+         const earshot_source_settings& settings = SourceSettings())
+      : Handle(makeAt(context, settings, position, forward)) {}
   static Source adopt(earshot_source* adopted) noexcept { return Source(adopted); }
 
   /** Slot index: the position of this source's input in Context::process. */
@@ -359,6 +363,12 @@ class Source : public detail::Handle<earshot_source, earshot_source_retain, ears
   static earshot_source* make(const Context& context, const earshot_source_settings& settings) {
     earshot_source* s = nullptr;
     check(earshot_source_create(context.get(), &settings, &s));
+    return s;
+  }
+  static earshot_source* makeAt(const Context& context, const earshot_source_settings& settings,
+                                earshot_vec3 position, earshot_vec3 forward) {
+    earshot_source* s = nullptr;
+    check(earshot_source_create_at(context.get(), &settings, position, forward, &s));
     return s;
   }
 };

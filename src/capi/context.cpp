@@ -547,16 +547,19 @@ std::string toRuntime(const earshot_source_settings& s, runtime::SourceSettings&
   return "";
 }
 
-}  // namespace
-
-extern "C" {
-
-earshot_status earshot_source_create(earshot_context* c, const earshot_source_settings* settings,
-                                     earshot_source** out) {
-  static const char* kFn = "earshot_source_create";
+/** earshot_source_create (pose null: at the origin, until the game moves
+ *  it) and earshot_source_create_at (pose[0] position, pose[1] forward). */
+earshot_status createSource(const char* kFn, earshot_context* c, const earshot_source_settings* settings,
+                            const earshot_vec3* pose, earshot_source** out) {
   if (out) *out = nullptr;
   if (!alive(c)) return argError(nullptr, kFn, "context is not a live earshot_context");
   if (!out) return argError(&c->env, kFn, "out is NULL");
+  if (pose) {
+    for (int k = 0; k < 2; ++k) {
+      const std::string bad = checkVec3(pose[k], k == 0 ? "position" : "forward");
+      if (!bad.empty()) return argError(&c->env, kFn, bad);
+    }
+  }
   return guard(&c->env, kFn, [&]() -> earshot_status {
     earshot_source_settings s;
     earshot_source_settings_init(&s);
@@ -569,7 +572,8 @@ earshot_status earshot_source_create(earshot_context* c, const earshot_source_se
     const std::string bad = toRuntime(s, rs);
     if (!bad.empty()) return argError(&c->env, kFn, bad);
     std::lock_guard<std::mutex> lock(c->sourcesMutex);
-    auto slot = c->engine->addSource(rs);
+    auto slot = pose ? c->engine->addSource(rs, {pose[0].x, pose[0].y, pose[0].z}, {pose[1].x, pose[1].y, pose[1].z})
+                     : c->engine->addSource(rs);
     if (!slot.isOk()) return fromStatus(&c->env, kFn, slot.status());
     earshot_source* src = nullptr;
     try {
@@ -585,6 +589,21 @@ earshot_status earshot_source_create(earshot_context* c, const earshot_source_se
     *out = src;
     return EARSHOT_OK;
   });
+}
+
+}  // namespace
+
+extern "C" {
+
+earshot_status earshot_source_create(earshot_context* c, const earshot_source_settings* settings,
+                                     earshot_source** out) {
+  return createSource("earshot_source_create", c, settings, nullptr, out);
+}
+
+earshot_status earshot_source_create_at(earshot_context* c, const earshot_source_settings* settings,
+                                        earshot_vec3 position, earshot_vec3 forward, earshot_source** out) {
+  const earshot_vec3 pose[2] = {position, forward};
+  return createSource("earshot_source_create_at", c, settings, pose, out);
 }
 
 earshot_status earshot_source_retain(earshot_source* s) {

@@ -337,4 +337,89 @@ TEST(CapiControls, BadValuesAreRefused) {
   EXPECT_THROW(source.setSettings(ss), earshot::Error);
 }
 
+// earshot_source_create_at: a source created where it is plays from there
+// from its first block (the same output as one created and placed before
+// the audio thread ran); a bad pose creates nothing.
+TEST(CapiControls, ASourceCreatedWhereItIsPlaysFromThereAndABadPoseCreatesNothing) {
+  const earshot_vec3 at{3, 0, -2}, facing{0, 0, 1};  // a cardioid not facing the default way (0, 0, -1)
+  earshot_source_settings ss = defaults();
+  ss.directivity_alpha = 0.5f;
+  // 0.2 s of the output from the source's first block, in which it starts
+  // a 50 ms burst (free field: the direct sound alone).
+  auto render = [&](bool createdAt) {
+    earshot_context_settings cs = fastSettings();
+    cs.max_sources = 1;
+    earshot_context* c = nullptr;
+    EXPECT_EQ(earshot_context_create(&cs, &c), EARSHOT_OK);
+    EXPECT_EQ(earshot_context_set_listener(c, {1, 0, 0}, {0, 0, -1}, {0, 1, 0}), EARSHOT_OK);
+    earshot_source* src = nullptr;
+    if (createdAt) {
+      EXPECT_EQ(earshot_source_create_at(c, &ss, at, facing, &src), EARSHOT_OK) << earshot_last_error_message();
+    } else {
+      EXPECT_EQ(earshot_source_create(c, &ss, &src), EARSHOT_OK);
+      EXPECT_EQ(earshot_source_set_position(src, at), EARSHOT_OK);
+      EXPECT_EQ(earshot_source_set_orientation(src, facing), EARSHOT_OK);
+    }
+    std::vector<float> dry(256), l(256), r(256), out;
+    const float* in[1] = {dry.data()};
+    uint32_t seed = 12345;
+    for (int b = 0; b < 38; ++b) {
+      for (float& x : dry) {
+        seed = seed * 1664525u + 1013904223u;
+        x = b < 9 ? float(seed >> 8) / float(1u << 24) - 0.5f : 0.0f;
+      }
+      EXPECT_EQ(earshot_process(c, in, 1, l.data(), r.data(), 256), EARSHOT_OK);
+      out.insert(out.end(), l.begin(), l.end());
+      out.insert(out.end(), r.begin(), r.end());
+    }
+    earshot_source_release(src);
+    earshot_context_release(c);
+    return out;
+  };
+  const std::vector<float> placed = render(false), createdAt = render(true);
+  double e = 0;
+  for (float x : placed) e += double(x) * x;
+  EXPECT_GT(e, 0.0);
+  EXPECT_EQ(createdAt, placed) << "the same samples";
+
+  earshot_context_settings cs = fastSettings();
+  earshot_context* c = nullptr;
+  ASSERT_EQ(earshot_context_create(&cs, &c), EARSHOT_OK);
+  auto created = [&](earshot_vec3 p, earshot_vec3 f, const earshot_source_settings* settings) {
+    earshot_source* src = reinterpret_cast<earshot_source*>(&cs);  // not left as it was on failure
+    const earshot_status st = earshot_source_create_at(c, settings, p, f, &src);
+    EXPECT_EQ(src, nullptr) << "a refused source is not handed out";
+    if (src) earshot_source_release(src);
+    earshot_context_info info;
+    info.struct_size = sizeof(info);
+    EXPECT_EQ(earshot_context_get_info(c, &info), EARSHOT_OK);
+    EXPECT_EQ(info.active_sources, 0u) << "and nothing was created";
+    return st;
+  };
+  EXPECT_EQ(created({NAN, 0, 0}, facing, nullptr), EARSHOT_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(created({0, INFINITY, 0}, facing, nullptr), EARSHOT_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(created({0, 0, 2e6f}, facing, nullptr), EARSHOT_ERROR_OUT_OF_RANGE);
+  EXPECT_EQ(created(at, {0, 0, 0}, nullptr), EARSHOT_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(created(at, {0, NAN, 1}, nullptr), EARSHOT_ERROR_INVALID_ARGUMENT);
+  earshot_source_settings bad = defaults();
+  bad.rolloff = -1;
+  EXPECT_EQ(created(at, facing, &bad), EARSHOT_ERROR_INVALID_ARGUMENT);
+  bad = defaults();
+  bad.struct_size = 8;
+  EXPECT_EQ(created(at, facing, &bad), EARSHOT_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(earshot_source_create_at(c, nullptr, at, facing, nullptr), EARSHOT_ERROR_INVALID_ARGUMENT);
+  earshot_source* none = nullptr;
+  EXPECT_EQ(earshot_source_create_at(nullptr, nullptr, at, facing, &none), EARSHOT_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(none, nullptr);
+  earshot_context_release(c);
+
+  // C++: the same through Source's constructor.
+  earshot::ContextSettings cpp;
+  cpp.max_sources = 1;
+  earshot::Context context(cpp);
+  EXPECT_THROW(earshot::Source(context, earshot_vec3{0, 0, 0}, earshot_vec3{0, 0, 0}), earshot::Error);
+  earshot::Source source(context, at, facing);
+  EXPECT_EQ(source.index(), 0u);
+}
+
 }  // namespace

@@ -324,7 +324,16 @@ struct Program {
     fillSourceSettings(s);
     earshot_source* source = reinterpret_cast<earshot_source*>(uintptr_t(1));
     const bool withSettings = in.u8() < 240;
-    const earshot_status st = checked(earshot_source_create(contexts().c[ci], withSettings ? &s : nullptr, &source));
+    // Created, or created where it is (earshot_source_create_at: any
+    // position and forward, the default ones half the time).
+    earshot_status st;
+    if (in.u8() < 128) {
+      st = checked(earshot_source_create(contexts().c[ci], withSettings ? &s : nullptr, &source));
+    } else {
+      const earshot_vec3 p = in.vec();
+      const earshot_vec3 f = in.u8() < 128 ? earshot_vec3{0, 0, -1} : in.vec();
+      st = checked(earshot_source_create_at(contexts().c[ci], withSettings ? &s : nullptr, p, f, &source));
+    }
     if (st == EARSHOT_OK) {
       CAPI_CHECK(source != nullptr);
       uint32_t index = kMaxSources;
