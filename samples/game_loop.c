@@ -142,6 +142,8 @@ int main(int argc, char** argv) {
   const earshot_vec3 listener = {3.0f, 2.5f, 1.7f};
   const earshot_vec3 forward = {1.0f, 0.0f, 0.0f}; /* facing the partition (+x) */
   const earshot_vec3 up = {0.0f, 0.0f, 1.0f};      /* the samples are z-up */
+  const earshot_vec3 toward_listener = {-1.0f, 0.0f, 0.0f};
+  earshot_vec3 start;
   earshot_context_settings settings;
   earshot_gltf_settings gltf;
   earshot_context* context = NULL;
@@ -191,7 +193,13 @@ int main(int argc, char** argv) {
    * keeps it below full scale (the sample prints the peak). */
   earshot_source_settings_init(&source_settings);
   source_settings.gain_db = -12.0f;
-  CHECK(earshot_source_create(context, &source_settings, &source));
+  /* Created where it starts (2 m ahead, facing the listener): a source
+   * created and then moved may play its first audio block from where it was
+   * created, if the audio thread runs between the two calls. */
+  start.x = listener.x + 2.0f;
+  start.y = listener.y;
+  start.z = listener.z;
+  CHECK(earshot_source_create_at(context, &source_settings, start, toward_listener, &source));
   CHECK(earshot_source_get_index(source, &index));
   if (index != 0) {
     fprintf(stderr, "unexpected source index %u\n", (unsigned)index);

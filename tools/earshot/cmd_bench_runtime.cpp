@@ -119,10 +119,9 @@ int run(const BenchRuntimeOptions& o) {
   auto sourceAt = [&](unsigned i, double t) { return ringPosition(*tracer, 2 * kPi * (double(i) / o.sources + 0.05 * t)); };
   std::vector<uint32_t> ids;
   for (unsigned i = 0; i < o.sources; ++i) {
-    auto id = engine.addSource({});
+    auto id = engine.addSource({}, sourceAt(i, 0));
     if (!check(id.status())) return 2;
     ids.push_back(*id);
-    (void)engine.setSourcePosition(*id, sourceAt(i, 0));
   }
   if (!check(engine.setListener(centre, {{1, 0, 0}, {0, 0, 1}}))) return 2;
   if (!check(engine.simulate())) return 2;  // every source once before the clock starts
@@ -197,9 +196,9 @@ int run(const BenchRuntimeOptions& o) {
     // first IR has landed (they play nothing: what is measured is the wait).
     if (o.oneShotsHz > 0 && t >= nextOneShot) {
       nextOneShot += 1.0 / o.oneShotsHz;
-      auto id = oneShots.size() < kMaxOneShots ? engine.addSource({}) : Result<uint32_t>(outOfRange("no slot"));
+      auto id = oneShots.size() < kMaxOneShots ? engine.addSource({}, sourceAt(unsigned(oneShotCount * 7 + 3), t))
+                                               : Result<uint32_t>(outOfRange("no slot"));
       if (id.isOk()) {
-        (void)engine.setSourcePosition(*id, sourceAt(unsigned(oneShotCount * 7 + 3), t));
         oneShots.push_back({*id, t});
       } else {
         ++oneShotsMissed;
