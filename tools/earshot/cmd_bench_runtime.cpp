@@ -163,6 +163,11 @@ int run(const BenchRuntimeOptions& o) {
   }
   std::vector<float> left(o.block), right(o.block);
   std::vector<double> blockMs, blockCpuMs, irAges;
+  // The game's calls: their wall time per block (poses, one-shots, IR
+  // ages), and each addSource / removeSource of a one-shot (a call that
+  // waits for a lock the simulation holds shows here).
+  std::vector<double> gameMs, addRemoveMs;
+  gameMs.reserve(size_t(o.seconds * es.sampleRateHz / double(o.block)) + 1);
   std::vector<uint64_t> blockFaults;
   // The audio thread (this one) at real-time priority where the system
   // allows it; said either way.
@@ -186,6 +191,10 @@ int run(const BenchRuntimeOptions& o) {
     // Game thread's part, here at 90 Hz: new poses for every source.
     const double t = double(b) * period;
     const double g0 = threadCpuSeconds();
+    const auto gameStart = std::chrono::steady_clock::now();
+    auto msSince = [](std::chrono::steady_clock::time_point from) {
+      return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - from).count();
+    };
     if (b % std::max<size_t>(1, size_t((1.0 / 90.0) / period)) == 0) {
       for (unsigned s = 0; s < o.sources; ++s) (void)engine.setSourcePosition(ids[s], sourceAt(s, t));
       // The head turns about the up axis (z) of the samples.
@@ -196,8 +205,10 @@ int run(const BenchRuntimeOptions& o) {
     // first IR has landed (they play nothing: what is measured is the wait).
     if (o.oneShotsHz > 0 && t >= nextOneShot) {
       nextOneShot += 1.0 / o.oneShotsHz;
+      const auto a0 = std::chrono::steady_clock::now();
       auto id = oneShots.size() < kMaxOneShots ? engine.addSource({}, sourceAt(unsigned(oneShotCount * 7 + 3), t))
                                                : Result<uint32_t>(outOfRange("no slot"));
+      if (id.isOk()) addRemoveMs.push_back(msSince(a0));
       if (id.isOk()) {
         oneShots.push_back({*id, t});
       } else {
@@ -210,7 +221,9 @@ int run(const BenchRuntimeOptions& o) {
       if (simulated || t - oneShots[k].second > 3.0) {
         if (simulated) oneShotWaits.push_back(t - oneShots[k].second);
         else ++oneShotsMissed;
+        const auto r0 = std::chrono::steady_clock::now();
         (void)engine.removeSource(oneShots[k].first);
+        addRemoveMs.push_back(msSince(r0));
         oneShots.erase(oneShots.begin() + std::ptrdiff_t(k));
       } else {
         ++k;
@@ -223,6 +236,7 @@ int run(const BenchRuntimeOptions& o) {
       for (unsigned s = 0; s < o.sources; ++s)
         irAges.push_back(std::chrono::duration<double>(now - engine.sourceIrInfo(ids[s]).posed).count());
     }
+    gameMs.push_back(msSince(gameStart));
     const auto t0 = std::chrono::steady_clock::now();
     const double c0 = threadCpuSeconds();
     const uint64_t f0 = threadFaults();
@@ -288,6 +302,16 @@ int run(const BenchRuntimeOptions& o) {
                 oneShotWaits.size(), oneShotsMissed,
                 engine.settings().simulationGroupSources);
   }
+  std::vector<double> steadyGame(gameMs.begin() + std::ptrdiff_t(std::min(warm, gameMs.size())), gameMs.end());
+  std::sort(steadyGame.begin(), steadyGame.end());
+  std::sort(addRemoveMs.begin(), addRemoveMs.end());
+  std::printf("game_calls_ms_per_block median=%.3f p99=%.3f max=%.3f (wall time of the game's calls each block after "
+              "the first second)\n",
+              quantile(steadyGame, 0.5), quantile(steadyGame, 0.99), quantile(steadyGame, 1.0));
+  if (o.oneShotsHz > 0)
+    std::printf("one_shot_add_remove_ms median=%.3f p99=%.3f max=%.3f calls=%zu (each addSource and removeSource)\n",
+                quantile(addRemoveMs, 0.5), quantile(addRemoveMs, 0.99), quantile(addRemoveMs, 1.0),
+                addRemoveMs.size());
   std::printf("sim_ms_per_source_update trace_and_image_sources=%.1f synthesis=%.1f prepare=%.1f wall=%.1f\n",
               simTotals.traceMs * perUpdate, simTotals.synthesisMs * perUpdate, simTotals.prepareMs * perUpdate,
               simTotals.totalMs * perUpdate);
