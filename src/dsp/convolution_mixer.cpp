@@ -152,14 +152,20 @@ struct ConvolutionMixer::Impl {
     }
   }
 
-  void collect() {
+  // Control side: takes up to `n` retired holders off the queue (the one
+  // consumer at a time: controlMutex held, or the destructor).
+  size_t popRetired(Holder** out, size_t n) {
     size_t tail = retiredTail.load(std::memory_order_relaxed);
-    size_t head = retiredHead.load(std::memory_order_acquire);
-    while (tail != head) {
-      delete retired[tail & retiredMask];
-      ++tail;
-    }
+    const size_t head = retiredHead.load(std::memory_order_acquire);
+    size_t k = 0;
+    while (tail != head && k < n) out[k++] = retired[(tail++) & retiredMask];
     retiredTail.store(tail, std::memory_order_release);
+    return k;
+  }
+  void collect() {
+    Holder* batch[64];
+    while (size_t k = popRetired(batch, 64))
+      for (size_t i = 0; i < k; ++i) delete batch[i];
   }
 
   // What reserve() allocates for a source: its input history and each
@@ -664,6 +670,15 @@ size_t ConvolutionMixer::sourceCount() const { return mImpl->owned.size(); }
 size_t ConvolutionMixer::latencyFrames() const { return mImpl->n; }
 
 Status ConvolutionMixer::setIr(size_t source, std::shared_ptr<const PreparedIr> ir) {
+  std::shared_ptr<const PreparedIr> replaced;
+  EARSHOT_RETURN_IF_ERROR(postIr(source, std::move(ir), &replaced));
+  replaced.reset();
+  collectGarbage();
+  return Status::ok();
+}
+
+Status ConvolutionMixer::postIr(size_t source, std::shared_ptr<const PreparedIr> ir,
+                                std::shared_ptr<const PreparedIr>* replaced) {
   if (source >= mImpl->owned.size())
     return invalidArgument("convolver setIr: source " + std::to_string(source) + " out of range (have " +
                            std::to_string(mImpl->owned.size()) + ")");
@@ -675,8 +690,8 @@ Status ConvolutionMixer::setIr(size_t source, std::shared_ptr<const PreparedIr> 
   EARSHOT_RETURN_IF_ERROR(reserveSource(source));
   auto* h = new Holder{std::move(ir), 0};
   Holder* old = mImpl->owned[source]->pending.exchange(h, std::memory_order_acq_rel);
+  if (old && replaced) *replaced = std::move(old->ir);
   delete old;  // never seen by the audio thread
-  collectGarbage();
   return Status::ok();
 }
 
@@ -703,8 +718,18 @@ size_t ConvolutionMixer::reservedSources() const {
 }
 
 void ConvolutionMixer::collectGarbage() {
-  std::lock_guard<std::mutex> lock(mImpl->controlMutex);
-  mImpl->collect();
+  // Taken off the queue under the lock, freed outside it: another control
+  // thread (setIr, reserveSource) never waits for the frees.
+  Holder* batch[64];
+  for (;;) {
+    size_t k;
+    {
+      std::lock_guard<std::mutex> lock(mImpl->controlMutex);
+      k = mImpl->popRetired(batch, 64);
+    }
+    for (size_t i = 0; i < k; ++i) delete batch[i];
+    if (k < 64) return;
+  }
 }
 
 void ConvolutionMixer::process(const float* const* inputs, float* const* outputs, size_t frames) {

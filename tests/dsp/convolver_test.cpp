@@ -469,6 +469,65 @@ TEST(ConvolutionMixer, AResetSourceForgetsItsIrAndWhatItPlayed) {
   EXPECT_LE(irWorst, 1e-4 * irPeak + 1e-5 * peak);
 }
 
+// postIr() frees nothing, so that a caller (the engine) can post under a
+// lock of its own and free outside it: the IR it replaced comes back to the
+// caller, and the IRs the audio thread retired wait for collectGarbage().
+TEST(ConvolutionMixer, PostIrHandsBackWhatItReplacedAndFreesNothing) {
+  const size_t irLen = 4000, block = 256;
+  ConvolverSettings s;
+  s.latencyFrames = block;
+  s.maxIrFrames = irLen;
+  s.channels = 1;
+  auto mixer = ConvolutionMixer::create(s, 1);
+  ASSERT_TRUE(mixer.isOk());
+  ConvolutionMixer& m = **mixer;
+  std::vector<float> in(block, 0.0f), out(block);
+  const float* ins[1] = {in.data()};
+  float* outs[1] = {out.data()};
+  auto run = [&](size_t blocks) {
+    for (size_t b = 0; b < blocks; ++b) m.process(ins, outs, block);
+  };
+  auto ir = [&](uint32_t seed) { return prepare({decayingNoise(irLen, seed)}, m.layout()); };
+  std::shared_ptr<const PreparedIr> replaced;
+  ASSERT_TRUE(m.postIr(0, ir(81), &replaced).isOk());
+  EXPECT_EQ(replaced, nullptr) << "nothing was posted before";
+  run(40);  // taken up and faded in
+  EXPECT_TRUE(m.holdsIr(0));
+  // An IR the audio thread takes and then retires, replaced by the next.
+  std::weak_ptr<const PreparedIr> first;
+  {
+    auto a = ir(82);
+    first = a;
+    ASSERT_TRUE(m.postIr(0, std::move(a), &replaced).isOk());
+  }
+  run(40);
+  ASSERT_TRUE(m.postIr(0, ir(83), &replaced).isOk());
+  run(40);  // the second replaces the first, which retires
+  // Posted twice with no block between: the first comes back, the mixer
+  // keeping no reference to it.
+  auto waiting = ir(84);
+  const PreparedIr* waitingAddress = waiting.get();
+  ASSERT_TRUE(m.postIr(0, std::move(waiting), &replaced).isOk());
+  ASSERT_TRUE(m.postIr(0, ir(85), &replaced).isOk());
+  ASSERT_NE(replaced, nullptr);
+  EXPECT_EQ(replaced.get(), waitingAddress);
+  EXPECT_EQ(replaced.use_count(), 1) << "the caller's alone";
+  replaced.reset();
+  EXPECT_FALSE(first.expired()) << "retired by the audio thread, not freed by postIr";
+  m.collectGarbage();
+  EXPECT_TRUE(first.expired()) << "freed by collectGarbage";
+  // setIr() still frees both at once.
+  run(40);
+  std::weak_ptr<const PreparedIr> pending;
+  {
+    auto b = ir(86);
+    pending = b;
+    ASSERT_TRUE(m.setIr(0, std::move(b)).isOk());
+  }
+  ASSERT_TRUE(m.setIr(0, ir(87)).isOk());
+  EXPECT_TRUE(pending.expired()) << "replaced before the audio thread took it: freed by setIr";
+}
+
 // Several sources in a layout of more than one level, as the engine's
 // ambisonic bus (short 4-channel IRs, many sources: the layout's levels are
 // 256 and 1024 frames), each IR starting with silence of its own length (a

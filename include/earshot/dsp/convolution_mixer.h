@@ -50,6 +50,12 @@ class ConvolutionMixer {
    *  the IR's layout or channel count differ. Thread: control side (any
    *  thread but the audio thread; may allocate and free). */
   Status setIr(size_t source, std::shared_ptr<const PreparedIr> ir);
+  /** setIr() without freeing anything, for a caller that posts under a
+   *  lock of its own and frees outside it: the IR this one replaced (posted
+   *  before and never taken up by the audio thread; null if none) is moved
+   *  into *replaced (may be null: then it is freed here), and the IRs the
+   *  audio thread retired wait for the next collectGarbage() or setIr(). */
+  Status postIr(size_t source, std::shared_ptr<const PreparedIr> ir, std::shared_ptr<const PreparedIr>* replaced);
 
   /** Allocates `source`'s state if it has none yet (a no-op after the first
    *  call); the audio thread takes it up at its next latency block. Until
