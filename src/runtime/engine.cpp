@@ -741,10 +741,17 @@ Result<uint32_t> Engine::addSourceAt(const SourceSettings& settings, const Vec3d
     // its place (the audio thread drops it at once where the slot has rung
     // out, or lets it fade out), in the order of the IRs the simulation
     // posts, which posts none for a source no longer in its slot.
-    std::lock_guard<std::mutex> irLock(mIrMutex);
-    if (chosen != fresh) EARSHOT_RETURN_IF_ERROR(mMixer->setIr(size_t(chosen), nullptr));
-    slot.owedFirstIr.store(-1);
-    slot.generation.fetch_add(1);
+    std::shared_ptr<const PreparedIr> replaced;  // freed after the lock, as the simulation's
+    {
+      std::lock_guard<std::mutex> irLock(mIrMutex);
+      if (chosen != fresh) EARSHOT_RETURN_IF_ERROR(mMixer->postIr(size_t(chosen), nullptr, &replaced));
+      slot.owedFirstIr.store(-1);
+      slot.generation.fetch_add(1);
+    }
+    replaced.reset();
+    // (Also when no simulation runs: the audio thread takes no IR while
+    // the retired ones wait in a full queue.)
+    mMixer->collectGarbage();
   }
   slot.active.store(true);
   return uint32_t(chosen);
@@ -881,8 +888,10 @@ SourceIr Engine::sourceIr(uint32_t source) const {
   if (!ir.isOk()) return out;  // (the same inputs gave an IR in part; not expected)
   cutIr(*ir, inputs->maxFrames, mSettings.sampleRateHz);
   out.ir = std::make_shared<const AudioBuffer>(std::move(ir.value()));
+  std::shared_ptr<const AudioBuffer> oldMadeIr;  // freed after the lock
   std::lock_guard<std::mutex> lock(mIrMutex);
   if (slot.lastIrInputs == inputs) {
+    oldMadeIr = std::move(mMadeIr);
     mMadeIr = out.ir;
     mMadeIrFrom = inputs;
   }
@@ -1157,10 +1166,19 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& requested, bool takeN
         // silence there, under the same lock); a source released meanwhile
         // rings out through it, and one released before its first IR
         // still gets that IR (what it played waits in its convolution).
-        std::lock_guard<std::mutex> lock(mIrMutex);
-        const bool owed = slot.owedFirstIr.load() == int64_t(j.generation);
-        if (slot.generation.load() == j.generation || owed) EARSHOT_RETURN_IF_ERROR(mMixer->setIr(j.slot, *prepared));
-        if (owed) slot.owedFirstIr.store(-1);
+        // Nothing is freed under the lock (the game thread's addSource()
+        // and removeSource() wait for it): the IR this one replaced, and
+        // those the audio thread retired, after it.
+        std::shared_ptr<const PreparedIr> replaced;
+        {
+          std::lock_guard<std::mutex> lock(mIrMutex);
+          const bool owed = slot.owedFirstIr.load() == int64_t(j.generation);
+          if (slot.generation.load() == j.generation || owed)
+            EARSHOT_RETURN_IF_ERROR(mMixer->postIr(j.slot, *prepared, &replaced));
+          if (owed) slot.owedFirstIr.store(-1);
+        }
+        replaced.reset();
+        mMixer->collectGarbage();
       }
       {
         // Kept for sourceIr(), unless the slot was released or reused
@@ -1191,13 +1209,19 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& requested, bool takeN
           kept.reset();
           inputs.reset();
         }
+        // What these replace is freed after the lock (declared before it).
+        std::shared_ptr<const AudioBuffer> oldIr, oldMadeIr;
+        std::shared_ptr<const Slot::WholeIr> oldInputs;
         std::lock_guard<std::mutex> lock(mIrMutex);
         if (slot.generation.load() == j.generation) {
           slot.lastIrPosed = tGroup;  // the poses were read just after tGroup
           if (inputs && kept) {
+            oldMadeIr = std::move(mMadeIr);
             mMadeIr = std::move(kept);
             mMadeIrFrom = inputs;
           }
+          oldIr = std::move(slot.lastIr);
+          oldInputs = std::move(slot.lastIrInputs);
           slot.lastIr = std::move(kept);
           slot.lastIrInputs = std::move(inputs);
           slot.lastIrIncludesDirect = j.settings.includeDirect;
