@@ -720,12 +720,8 @@ Result<uint32_t> Engine::addSourceAt(const SourceSettings& settings, const Vec3d
     lateEnergy += t * t;
     ++lateCount;
   }
-  slot.tailGainSimulated.store(false);
-  slot.tailGainEstimate.store(lateCount > 0 ? std::sqrt(lateEnergy / lateCount) : 0.0);
   slot.direct.store(int(settings.direct));
   storeControls(slot, settings);
-  for (auto& t : slot.transmission) t.store(1.0);
-  slot.audible.store(true);
   // Where it is, before the slot turns active: the audio thread's first
   // block of it plays from there (not from the slot's last source's place,
   // or the origin while the game has yet to move it), and so does its
@@ -735,7 +731,6 @@ Result<uint32_t> Engine::addSourceAt(const SourceSettings& settings, const Vec3d
     slot.position[i].store((&position.x)[i]);
     slot.forward[i].store((&f.x)[i]);
   }
-  if (placed) estimateLateLevel(slot, position);
   {
     // A slot used before still holds its last source's IR: silence takes
     // its place (the audio thread drops it at once where the slot has rung
@@ -747,6 +742,15 @@ Result<uint32_t> Engine::addSourceAt(const SourceSettings& settings, const Vec3d
       if (chosen != fresh) EARSHOT_RETURN_IF_ERROR(mMixer->postIr(size_t(chosen), nullptr, &replaced));
       slot.owedFirstIr.store(-1);
       slot.generation.fetch_add(1);
+      // What a simulation writes into its source's slot, under this lock
+      // once it has checked the generation: a job of the slot's last
+      // source that ends now finds the generation changed, and one that
+      // ended before is overwritten here.
+      slot.tailGainSimulated.store(false);
+      slot.tailGainEstimate.store(lateCount > 0 ? std::sqrt(lateEnergy / lateCount) : 0.0);
+      if (placed) estimateLateLevel(slot, position);
+      for (auto& t : slot.transmission) t.store(1.0);
+      slot.audible.store(true);
     }
     replaced.reset();
     // (Also when no simulation runs: the audio thread takes no IR while
@@ -1142,6 +1146,7 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& requested, bool takeN
       cutIr(ir, maxFrames, mSettings.sampleRateHz);
       const bool partial = j.settings.ambisonicPartialFrames > 0;
       const DirectPath direct = r->direct;
+      double lateLevel = 0;  // with a shared tail: the source's level in it
       AudioBuffer own;
       const AudioBuffer* convolved = &ir;
       bool hasTail = false;
@@ -1151,10 +1156,7 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& requested, bool takeN
         for (size_t c = 0; c < ir.channelCount(); ++c)
           for (size_t i = 0; i < ownFrames; ++i) own.channels[c][i] = ir.channels[c][i] * (1.0f - tailWeight(i));
         const double energy = tailEnergy(ir);  // W whole also when in part
-        if (slot.generation.load() == j.generation) {
-          slot.tailGain.store(std::sqrt(energy));
-          slot.tailGainSimulated.store(true, std::memory_order_release);
-        }
+        lateLevel = std::sqrt(energy);
         hasTail = energy > 0;
         if (!partial && hasTail) sharedTail = normalisedTail(ir, energy);
         convolved = &own;
@@ -1176,6 +1178,10 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& requested, bool takeN
           if (slot.generation.load() == j.generation || owed)
             EARSHOT_RETURN_IF_ERROR(mMixer->postIr(j.slot, *prepared, &replaced));
           if (owed) slot.owedFirstIr.store(-1);
+          if (mTailMixer && slot.generation.load() == j.generation) {
+            slot.tailGain.store(lateLevel);
+            slot.tailGainSimulated.store(true, std::memory_order_release);
+          }
         }
         replaced.reset();
         mMixer->collectGarbage();
@@ -1245,7 +1251,9 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& requested, bool takeN
         }
       }
       // (Not into a source that took the slot meanwhile: it is unoccluded
-      // until its own first simulation.)
+      // until its own first simulation. Checked under the lock addSource()
+      // resets the slot under.)
+      std::lock_guard<std::mutex> lock(mIrMutex);
       if (slot.generation.load() == j.generation) {
         bool audible = false;
         for (int b = 0; b < kNumBands; ++b) {
