@@ -468,7 +468,10 @@ class Engine {
   std::shared_ptr<const RayTracer> mEmptyTracer;
   std::mutex mSimulationMutex;  // serialises simulate()
   std::unique_ptr<ListenerCache> mListenerCache;  // under mSimulationMutex: what the last shared simulation kept
-  mutable std::mutex mIrMutex;  // Slot::lastIr, mMadeIr (game and simulation threads only)
+  // Slot::lastIr, mMadeIr; a slot's generation bump and what a simulation
+  // writes into its source (IR post, late level, occlusion) after checking
+  // it. Game and simulation threads only; nothing is freed under it.
+  mutable std::mutex mIrMutex;
   // The whole IR sourceIr() made last for a source synthesised in part, and
   // what it was made from (that source's latest): one for the engine, not
   // one a slot.
