@@ -755,7 +755,7 @@ Result<uint32_t> Engine::addSourceAt(const SourceSettings& settings, const Vec3d
     replaced.reset();
     // (Also when no simulation runs: the audio thread takes no IR while
     // the retired ones wait in a full queue.)
-    mMixer->collectGarbage();
+    if (chosen != fresh) mMixer->collectGarbage();
   }
   slot.active.store(true);
   return uint32_t(chosen);
