@@ -49,6 +49,12 @@ constexpr size_t kProcessChunk = 1024;
 // +-0.7 ms of the head centre's; the rest is the fit's spread).
 size_t ambisonicDecoderDelayFrames(double rateHz) { return size_t(std::ceil(0.002 * rateHz)); }
 
+// A vector of three of a SeqValues' numbers, from `first`.
+template <size_t N>
+Vec3d vecOf(const std::array<double, N>& v, size_t first = 0) {
+  return {v[first], v[first + 1], v[first + 2]};
+}
+
 Status validPosition(const Vec3d& p) {
   if (!isFinite(p)) return invalidArgument("source position is not finite");
   if (!withinCoordinateRange(p)) return outOfRange("source position is farther than 1e6 m from the origin");
@@ -93,7 +99,10 @@ struct Engine::Slot {
   // under Engine::mIrMutex.
   std::atomic<int64_t> owedFirstIr{-1};
   std::atomic<int> direct{0};
-  std::atomic<double> position[3] = {{0.0}, {0.0}, {0.0}};
+  // The pose, set whole by the game thread and read whole (seq_values.h);
+  // the audio thread keeps the last it read (heardPosition, heardForward)
+  // for a read that overlapped a store.
+  SeqValues<3> position{{0.0, 0.0, 0.0}};
   std::atomic<double> gain{1.0};
   // Controls (SourceSettings), written by the game thread.
   std::atomic<double> directGain{1.0}, reflectionsGain{1.0};
@@ -112,7 +121,8 @@ struct Engine::Slot {
   std::atomic<double> directivityAlpha{0.0}, directivitySharpness{1.0};
   std::atomic<bool> directivityPerBand{false};
   std::atomic<double> directivityBandAlpha[kNumBands] = {}, directivityMeanSquare[kNumBands] = {};
-  std::atomic<double> forward[3] = {{0.0}, {0.0}, {-1.0}};
+  SeqValues<3> forward{{0.0, 0.0, -1.0}};
+  Vec3d heardPosition{0, 0, 0}, heardForward{0, 0, -1};  // audio thread
   std::atomic<double> transmission[kNumBands];
   std::atomic<bool> audible{true};
   std::unique_ptr<DirectVoice> voiceOwner;   // allocated by the slot's first addSource()
@@ -442,7 +452,7 @@ Status Engine::setSourceOrientation(uint32_t s, const Vec3d& forward) {
   if (!validSource(s)) return invalidArgument("source " + std::to_string(s) + " does not exist");
   EARSHOT_RETURN_IF_ERROR(validForward(forward));
   const Vec3d f = normalize(forward);
-  for (int i = 0; i < 3; ++i) mSlots[s]->forward[i].store((&f.x)[i], std::memory_order_relaxed);
+  mSlots[s]->forward.store({f.x, f.y, f.z});
   return Status::ok();
 }
 
@@ -572,7 +582,9 @@ Result<std::unique_ptr<Engine>> Engine::create(const EngineSettings& settings, B
   for (size_t i = 0; i < s.maxSources; ++i) e->mSlots.push_back(std::make_unique<Slot>());
   const ListenerOrientation o;
   const double listener[9] = {0, 0, 0, o.forward.x, o.forward.y, o.forward.z, o.up.x, o.up.y, o.up.z};
-  for (int i = 0; i < 9; ++i) e->mListener[i].store(listener[i]);
+  e->mListener.store({listener[0], listener[1], listener[2], listener[3], listener[4], listener[5], listener[6],
+                      listener[7], listener[8]});
+  for (int i = 0; i < 9; ++i) e->mHeardListener[size_t(i)] = listener[i];
   auto empty = RayTracer::create(TriangleMesh{});
   if (!empty.isOk()) return empty.status();
   e->mEmptyTracer = std::move(empty.value());
@@ -727,10 +739,8 @@ Result<uint32_t> Engine::addSourceAt(const SourceSettings& settings, const Vec3d
   // or the origin while the game has yet to move it), and so does its
   // first simulation.
   const Vec3d f = normalize(forward);
-  for (int i = 0; i < 3; ++i) {
-    slot.position[i].store((&position.x)[i]);
-    slot.forward[i].store((&f.x)[i]);
-  }
+  slot.position.store({position.x, position.y, position.z});
+  slot.forward.store({f.x, f.y, f.z});
   {
     // A slot used before still holds its last source's IR: silence takes
     // its place (the audio thread drops it at once where the slot has rung
@@ -807,7 +817,7 @@ Status Engine::setSourcePosition(uint32_t s, const Vec3d& p) {
   if (!validSource(s)) return invalidArgument("source " + std::to_string(s) + " does not exist");
   EARSHOT_RETURN_IF_ERROR(validPosition(p));
   Slot& slot = *mSlots[s];
-  for (int i = 0; i < 3; ++i) slot.position[i].store((&p.x)[i], std::memory_order_relaxed);
+  slot.position.store({p.x, p.y, p.z});
   estimateLateLevel(slot, p);
   return Status::ok();
 }
@@ -820,7 +830,7 @@ void Engine::estimateLateLevel(Slot& slot, const Vec3d& p) {
   const Slot* from = nullptr;
   for (const auto& other : mSlots) {
     if (other.get() == &slot || !other->active.load() || !other->tailGainSimulated.load()) continue;
-    const Vec3d q{other->position[0].load(), other->position[1].load(), other->position[2].load()};
+    const Vec3d q = vecOf(other->position.load());
     if (length(q - p) < nearest) {
       nearest = length(q - p);
       from = other.get();
@@ -843,7 +853,7 @@ Status Engine::setListener(const Vec3d& position, const ListenerOrientation& o) 
   if (!withinCoordinateRange(position)) return outOfRange("listener position is farther than 1e6 m from the origin");
   EARSHOT_RETURN_IF_ERROR(validate(o));
   const double v[9] = {position.x, position.y, position.z, o.forward.x, o.forward.y, o.forward.z, o.up.x, o.up.y, o.up.z};
-  for (int i = 0; i < 9; ++i) mListener[i].store(v[i], std::memory_order_relaxed);
+  mListener.store({v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7], v[8]});
   return Status::ok();
 }
 
@@ -916,7 +926,7 @@ Status Engine::simulate(uint32_t count) {
   // stands still: its reflections would never follow a door that opened or
   // its own turn); then most changed since the last IR; round-robin order
   // among equals (stable sort).
-  const Vec3d listenerNow{mListener[0].load(), mListener[1].load(), mListener[2].load()};
+  const Vec3d listenerNow = vecOf(mListener.load());
   const uint64_t taken = count > 0 && count < order.size() ? count : std::max<size_t>(order.size(), 1);
   const uint64_t patience = 2 * ((order.size() + taken - 1) / taken);
   std::vector<double> changed(n, 0.0);
@@ -925,7 +935,7 @@ Status Engine::simulate(uint32_t count) {
     const Slot& slot = *mSlots[i];
     fresh[i] = slot.simulatedGeneration.load() != slot.generation.load() || slot.owedFirstIr.load() >= 0;
     waiting[i] = mSimulations - slot.simulatedStep >= patience;
-    const Vec3d p{slot.position[0].load(), slot.position[1].load(), slot.position[2].load()};
+    const Vec3d p = vecOf(slot.position.load());
     changed[i] = length(p - slot.simulatedSource) + length(listenerNow - slot.simulatedListener);
   }
   std::stable_sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) {
@@ -983,13 +993,14 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& requested, bool takeN
     tracer = mTracer;
     materials = mMaterials;
   }
-  const Vec3d listener{mListener[0].load(), mListener[1].load(), mListener[2].load()};
+  const std::array<double, 9> pose = mListener.load();
+  const Vec3d listener = vecOf(pose);
   auto model = this->model();
   if (!model.isOk()) return model.status();
   BinauralReceiver receiver;
   receiver.model = *model;
-  receiver.orientation.forward = {mListener[3].load(), mListener[4].load(), mListener[5].load()};
-  receiver.orientation.up = {mListener[6].load(), mListener[7].load(), mListener[8].load()};
+  receiver.orientation.forward = vecOf(pose, 3);
+  receiver.orientation.up = vecOf(pose, 6);
   // Ambisonic reflections are in the world frame: the head's orientation is
   // applied per block on the audio thread, not here.
   AmbisonicReceiver ambisonic;
@@ -1080,7 +1091,7 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& requested, bool takeN
       const int64_t owed = slot.owedFirstIr.load();
       const uint32_t generation = !slot.active.load() && owed >= 0 ? uint32_t(owed) : slot.generation.load();
       Job j{i, generation, mSettings.simulation,
-            {slot.position[0].load(), slot.position[1].load(), slot.position[2].load()}, std::nullopt};
+            vecOf(slot.position.load()), std::nullopt};
       slot.simulatedSource = j.source;
       slot.simulatedListener = listener;
       slot.simulatedStep = mSimulations;
@@ -1089,7 +1100,7 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& requested, bool takeN
       j.settings.directivity.sharpness = slot.directivitySharpness.load();
       j.settings.directivity.perBand = slot.directivityPerBand.load();
       for (int b = 0; b < kNumBands; ++b) j.settings.directivity.bandAlpha[size_t(b)] = slot.directivityBandAlpha[b].load();
-      j.settings.directivity.forward = {slot.forward[0].load(), slot.forward[1].load(), slot.forward[2].load()};
+      j.settings.directivity.forward = vecOf(slot.forward.load());
       jobs.push_back(std::move(j));
     }
     if (mTailMixer)
@@ -1302,13 +1313,11 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
   const size_t outChannels = mOutputChannels;
   const size_t n = mSlots.size();
   DirectTarget target;
-  const Vec3d listenerSet{mListener[0].load(std::memory_order_relaxed), mListener[1].load(std::memory_order_relaxed),
-                          mListener[2].load(std::memory_order_relaxed)};
-  target.orientation.forward = {mListener[3].load(std::memory_order_relaxed),
-                                mListener[4].load(std::memory_order_relaxed),
-                                mListener[5].load(std::memory_order_relaxed)};
-  target.orientation.up = {mListener[6].load(std::memory_order_relaxed), mListener[7].load(std::memory_order_relaxed),
-                           mListener[8].load(std::memory_order_relaxed)};
+  // (A read that overlapped the game's store keeps the pose read last.)
+  (void)mListener.tryLoad(mHeardListener);
+  const Vec3d listenerSet = vecOf(mHeardListener);
+  target.orientation.forward = vecOf(mHeardListener, 3);
+  target.orientation.up = vecOf(mHeardListener, 6);
   for (size_t i = 0; i < n; ++i) {
     Slot& slot = *mSlots[i];
     const uint32_t generation = slot.generation.load(std::memory_order_acquire);
@@ -1456,9 +1465,9 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
       if (!draining &&
           (!slot.live || DirectMode(slot.direct.load(std::memory_order_relaxed)) != DirectMode::kPerBlock))
         continue;
-      target.source = {slot.position[0].load(std::memory_order_relaxed),
-                       slot.position[1].load(std::memory_order_relaxed),
-                       slot.position[2].load(std::memory_order_relaxed)};
+      std::array<double, 3> read;
+      if (slot.position.tryLoad(read)) slot.heardPosition = vecOf(read);
+      target.source = slot.heardPosition;
       if (mSettings.glideGameUpdates) target.source = slot.glide.next(target.source, m, maxGlide, maxGlideSpeed);
       // The direct gain and the distance curve, relative to the voice's own
       // physical 1/r (ramped by the voice across the chunk).
@@ -1500,8 +1509,9 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
       // to unit length (a half turn within one update, whose chord passes
       // the centre, flips halfway); followed whether or not it is
       // directional, so a pattern switched on starts where it faces.
-      Vec3d f{slot.forward[0].load(std::memory_order_relaxed), slot.forward[1].load(std::memory_order_relaxed),
-              slot.forward[2].load(std::memory_order_relaxed)};
+      std::array<double, 3> facing;
+      if (slot.forward.tryLoad(facing)) slot.heardForward = vecOf(facing);
+      Vec3d f = slot.heardForward;
       if (mSettings.glideGameUpdates) {
         const Vec3d glided = slot.facingGlide.next(f, m, maxGlide, kAnySpeed);
         if (length(glided) > 1e-6) f = normalize(glided);

@@ -26,6 +26,7 @@
 #include "earshot/ir/ir_pipeline.h"
 #include "earshot/runtime/direct_voice.h"
 #include "earshot/runtime/engine.h"
+#include "earshot/runtime/seq_values.h"
 #include "earshot/scene/ray_tracer.h"
 #include "../support/sine_frequency.h"
 #include "runtime_fixture.h"
@@ -884,6 +885,61 @@ TEST(Engine, ASourceAddedWhereItIsPlaysFromThereFromItsFirstBlock) {
     EXPECT_LT(originDb, -100.0) << name;
     EXPECT_GT(differenceDb(origin, placed), -20.0) << name << ": the origin and `at` sound different";
   }
+}
+
+// A pose is set whole and read whole: two game threads store poses (each
+// of nine equal numbers: 1 or 2 from one thread, 3 or 4 from the other) as
+// fast as they can while a reader reads them; every read it keeps is one
+// store's nine numbers. The same stores into nine separate atomics (how
+// the engine kept poses) are read mixed, printed for scale: that depends
+// on the scheduling, so it is not asserted.
+TEST(SeqValues, AReaderGetsOneStoreWholeWhileOtherThreadsStore) {
+  using Pose = std::array<double, 9>;
+  auto filled = [](double x) {
+    Pose p;
+    p.fill(x);
+    return p;
+  };
+  SeqValues<9> pose(filled(1.0));
+  std::atomic<double> separate[9];
+  for (auto& x : separate) x.store(1.0);
+  std::atomic<bool> stop{false};
+  auto writer = [&](double a, double b) {
+    for (uint64_t i = 0; !stop.load(std::memory_order_relaxed); ++i) {
+      const double x = i % 2 ? b : a;
+      pose.store(filled(x));
+      for (auto& v : separate) v.store(x, std::memory_order_relaxed);
+    }
+  };
+  std::thread w1(writer, 1.0, 2.0), w2(writer, 3.0, 4.0);
+  uint64_t kept = 0, mixed = 0, gaveUp = 0, separateMixed = 0, reads = 0;
+  const auto until = std::chrono::steady_clock::now() + std::chrono::milliseconds(400);
+  Pose p = filled(0.0);
+  while (std::chrono::steady_clock::now() < until) {
+    for (int k = 0; k < 256; ++k, ++reads) {
+      if (pose.tryLoad(p)) {
+        ++kept;
+        bool whole = p[0] == 1.0 || p[0] == 2.0 || p[0] == 3.0 || p[0] == 4.0;
+        for (double x : p) whole = whole && x == p[0];
+        mixed += whole ? 0 : 1;
+      } else {
+        ++gaveUp;
+      }
+      double first = separate[0].load(std::memory_order_relaxed);
+      for (int i = 1; i < 9; ++i) separateMixed += separate[i].load(std::memory_order_relaxed) != first ? 1 : 0;
+    }
+  }
+  stop = true;
+  w1.join();
+  w2.join();
+  std::printf("%llu reads: %llu kept, %llu gave up (each of %d tries overlapped a store), %llu mixed; nine "
+              "separate atomics: %llu mixed numbers\n",
+              (unsigned long long)reads, (unsigned long long)kept, (unsigned long long)gaveUp, SeqValues<9>::kTries,
+              (unsigned long long)mixed, (unsigned long long)separateMixed);
+  EXPECT_GT(kept, 0u);
+  EXPECT_EQ(mixed, 0u) << "a read kept is one store's";
+  const Pose last = pose.load();  // (waits for a consistent read: no writer now)
+  for (double x : last) EXPECT_EQ(x, last[0]);
 }
 
 // A game fades a source by setting its gain once a frame (60 Hz) while the

@@ -23,6 +23,7 @@
  *  and the audio thread (process()). Poses and gains cross to the audio thread
  *  through atomics; IRs through the mixer's lock-free mailbox. process()
  *  never allocates, locks, logs or throws. */
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cstddef>
@@ -40,6 +41,7 @@
 #include "earshot/ir/spherical_harmonics.h"
 #include "earshot/materials/material.h"
 #include "earshot/runtime/glide.h"
+#include "earshot/runtime/seq_values.h"
 
 namespace earshot {
 class RayTracer;
@@ -459,7 +461,8 @@ class Engine {
   std::vector<float> mLastRotation;   // audio thread: the bus's rotation at the end of the last chunk
   bool mHaveRotation = false;         // audio thread
   std::vector<std::unique_ptr<Slot>> mSlots;
-  std::atomic<double> mListener[9];  // position, forward, up
+  SeqValues<9> mListener;                // position, forward, up: set and read whole
+  std::array<double, 9> mHeardListener{};  // audio thread: the pose it read last
   PoseGlide mListenerGlide;          // audio thread: the listener position the direct sound follows
 
   std::mutex mSceneMutex;  // game and simulation threads only
