@@ -31,6 +31,16 @@ def u32(v):
     return struct.pack("<I", v)
 
 
+def source_create(context, at=None, forward=None):
+    """earshot_source_create (default settings), or earshot_source_create_at
+    `at` facing `forward` (None: the default (0, 0, -1))."""
+    p = bytes([SOURCE_CREATE, context, 0, 0])
+    if at is None:
+        return p + bytes([0])
+    p += bytes([128]) + vec(*at)
+    return p + (bytes([0]) if forward is None else bytes([128]) + vec(*forward))
+
+
 def box_mesh(context, material=0, motion=0, bad_index=False):
     """Eight corners of [-2, 3]^3 (bit a of the vertex number: axis a at 3),
     twelve triangles, one material."""
@@ -71,8 +81,8 @@ def game_loop(context):
     p = bytes([SCENE_CREATE, context, 0, 0])
     p += box_mesh(context)
     p += bytes([ADD_OR_REMOVE_MESH, 0, 0, 0, COMMIT, 0, SET_SCENE, context, 0])
-    p += bytes([SOURCE_CREATE, context, 0, 0])
-    p += bytes([SOURCE_CREATE, context, 0, 0])
+    p += source_create(context)
+    p += source_create(context, at=(-1.0, 1.0, 2.0), forward=(0.0, 0.0, 1.0))
     p += bytes([SOURCE_MOVE, 0, 0]) + vec(1.0, 0.5, -1.5)
     p += bytes([SOURCE_MOVE, 1, 0]) + vec(-1.0, 1.0, 2.0)
     p += bytes([LISTENER]) + vec(0.2, 0.1, 0.3) + bytes([0, 0, context])
@@ -92,7 +102,7 @@ def gltf_and_movable():
     p += bytes([SCENE_RELEASE, 1])
     p += box_mesh(1, material=0, motion=1)  # a movable concrete box
     p += bytes([ADD_OR_REMOVE_MESH, 0, 0, 0, COMMIT, 0, SET_SCENE, 1, 0])
-    p += bytes([SOURCE_CREATE, 1, 0, 0, SOURCE_MOVE, 0, 0]) + vec(0.5, 0.5, 0.5)
+    p += source_create(1) + bytes([SOURCE_MOVE, 0, 0]) + vec(0.5, 0.5, 0.5)
     p += bytes([SIMULATE, 1, 1])
     # Row-major 3x4: identity, translated 0.25 m along x; then read back.
     p += bytes([TRANSFORM]) + bytes(16) + bytes([0]) + f(0.25) + bytes([0, 0, 0, 0])
@@ -112,12 +122,15 @@ def hostile():
     p += box_mesh(0, material=5)  # "no such material": refused when added
     p += bytes([ADD_OR_REMOVE_MESH, 0, 0, 0])
     p += bytes([ADD_OR_REMOVE_MESH, 0, 0, 0])  # twice
-    p += bytes([SOURCE_CREATE, 0, 0, 0, SOURCE_MOVE, 0, 0]) + vec(NAN, 0.0, 0.0)
+    p += source_create(0) + bytes([SOURCE_MOVE, 0, 0]) + vec(NAN, 0.0, 0.0)
+    p += source_create(0, at=(NAN, 0.0, 0.0))  # refused: nothing created
+    p += source_create(0, at=(0.0, 0.0, 2e6))  # farther than 1e6 m
+    p += source_create(0, at=(1.0, 0.0, 0.0), forward=(0.0, 0.0, 0.0))
     p += bytes([LISTENER]) + vec(0.0, 0.0, 0.0) + bytes([200]) + vec(0.0, 1.0, 0.0) + bytes([0, 0])
     p += process(0, 64, 1, hostile=(10, NAN))
     p += process(0, 64, 1, hostile=(3, 3.4e38))
     p += bytes([SIMULATE, 0, 0, MEMORY_LIMIT, 1, SIMULATE, 0, 0, COMPUTE_IR, 0, 0])
-    p += bytes([SOURCE_CREATE, 0, 0, 0])  # past a 1-byte limit
+    p += source_create(0)  # past a 1-byte limit
     p += bytes([NEW_CONTEXT]) + bytes([200]) + f(1e9) + bytes(12)
     return p
 
