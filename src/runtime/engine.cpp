@@ -734,13 +734,7 @@ Result<uint32_t> Engine::addSourceAt(const SourceSettings& settings, const Vec3d
   }
   slot.direct.store(int(settings.direct));
   storeControls(slot, settings);
-  // Where it is, before the slot turns active: the audio thread's first
-  // block of it plays from there (not from the slot's last source's place,
-  // or the origin while the game has yet to move it), and so does its
-  // first simulation.
   const Vec3d f = normalize(forward);
-  slot.position.store({position.x, position.y, position.z});
-  slot.forward.store({f.x, f.y, f.z});
   {
     // A slot used before still holds its last source's IR: silence takes
     // its place (the audio thread drops it at once where the slot has rung
@@ -752,6 +746,13 @@ Result<uint32_t> Engine::addSourceAt(const SourceSettings& settings, const Vec3d
       if (chosen != fresh) EARSHOT_RETURN_IF_ERROR(mMixer->postIr(size_t(chosen), nullptr, &replaced));
       slot.owedFirstIr.store(-1);
       slot.generation.fetch_add(1);
+      // Where it is, before the slot turns active: the audio thread's first
+      // block of it plays from there (not from the slot's last source's
+      // place, or the origin while the game has yet to move it), and so
+      // does its first simulation. After the new generation: the last
+      // source's sound in flight keeps its own place.
+      slot.position.store({position.x, position.y, position.z});
+      slot.forward.store({f.x, f.y, f.z});
       // What a simulation writes into its source's slot, under this lock
       // once it has checked the generation: a job of the slot's last
       // source that ends now finds the generation changed, and one that
@@ -1465,8 +1466,15 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
       if (!draining &&
           (!slot.live || DirectMode(slot.direct.load(std::memory_order_relaxed)) != DirectMode::kPerBlock))
         continue;
-      std::array<double, 3> read;
-      if (slot.position.tryLoad(read)) slot.heardPosition = vecOf(read);
+      // A released source's sound in flight stays where it was: a new
+      // source's pose in its slot (addSource() sets it after the new
+      // generation, so a pose read before the generation is checked is
+      // the new source's only if the check sees the new generation).
+      std::array<double, 3> read{}, facing{};
+      const bool gotPosition = slot.position.tryLoad(read), gotFacing = slot.forward.tryLoad(facing);
+      const bool ownPose = slot.live || slot.generation.load(std::memory_order_acquire) == slot.voiceGeneration;
+      if (ownPose && gotPosition) slot.heardPosition = vecOf(read);
+      if (ownPose && gotFacing) slot.heardForward = vecOf(facing);
       target.source = slot.heardPosition;
       if (mSettings.glideGameUpdates) target.source = slot.glide.next(target.source, m, maxGlide, maxGlideSpeed);
       // The direct gain and the distance curve, relative to the voice's own
@@ -1509,8 +1517,6 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
       // to unit length (a half turn within one update, whose chord passes
       // the centre, flips halfway); followed whether or not it is
       // directional, so a pattern switched on starts where it faces.
-      std::array<double, 3> facing;
-      if (slot.forward.tryLoad(facing)) slot.heardForward = vecOf(facing);
       Vec3d f = slot.heardForward;
       if (mSettings.glideGameUpdates) {
         const Vec3d glided = slot.facingGlide.next(f, m, maxGlide, kAnySpeed);
