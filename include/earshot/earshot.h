@@ -641,7 +641,8 @@ typedef struct earshot_source_settings {
 EARSHOT_API earshot_status earshot_source_settings_init(earshot_source_settings* settings);
 
 /** Creates a source in one of the context's slots (settings NULL: defaults),
- *  at the origin. Its direct sound plays from the next audio block
+ *  at the origin facing (0, 0, -1) (earshot_source_create_at: where it is).
+ *  Its direct sound plays from the next audio block
  *  (EARSHOT_DIRECT_PER_BLOCK, the default), its reflections once simulated;
  *  a source with EARSHOT_DIRECT_IN_IMPULSE_RESPONSE is heard once simulated
  *  (its direct sound is part of its IR). The source holds a
