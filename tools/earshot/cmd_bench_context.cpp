@@ -24,10 +24,6 @@ struct ContextBenchOptions {
 // context is released, so repetitions measure the same thing.
 double heapMb() { return double(mallinfo2().uordblks) / (1024.0 * 1024.0); }
 
-double msSince(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-}
-
 int run(const ContextBenchOptions& o) {
   // Per repetition: create (the HRTF loads in the background), then the
   // first source (waits for the load), then every other slot's source.

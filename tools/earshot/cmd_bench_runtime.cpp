@@ -199,9 +199,6 @@ int run(const BenchRuntimeOptions& o) {
     const double t = double(b) * period;
     const double g0 = threadCpuSeconds();
     const auto gameStart = std::chrono::steady_clock::now();
-    auto msSince = [](std::chrono::steady_clock::time_point from) {
-      return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - from).count();
-    };
     if (b % std::max<size_t>(1, size_t((1.0 / 90.0) / period)) == 0) {
       for (unsigned s = 0; s < o.sources; ++s) (void)engine.setSourcePosition(ids[s], sourceAt(s, t));
       // The head turns about the up axis (z) of the samples.

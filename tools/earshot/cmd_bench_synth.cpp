@@ -28,7 +28,6 @@ struct BenchSynthOptions {
 };
 
 using Clock = std::chrono::steady_clock;
-double msSince(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
 
 int run(const BenchSynthOptions& o) {
   auto scene = loadSceneInputs(o.geometry, "", o.materialMap);

@@ -56,10 +56,6 @@ struct IrOptions {
   std::string bands = "octave";
 };
 
-double msSince(std::chrono::steady_clock::time_point t) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count();
-}
-
 int run(const IrOptions& o, const CLI::App& cmd) {
   const auto t0 = std::chrono::steady_clock::now();
   nlohmann::json stats;

@@ -7,6 +7,7 @@
  *  tolerance), 2 an error (bad input, I/O). */
 #include <CLI/CLI.hpp>
 
+#include <chrono>
 #include <functional>
 #include <memory>
 #include <string>
@@ -57,6 +58,9 @@ Result<SceneInputs> loadSceneInputs(const std::string& geometryPath, const std::
 
 /** Median of a non-empty set (benchmarks report medians: shared machines). */
 double median(std::vector<double> values);
+
+/** Wall time since `t`, in milliseconds. */
+double msSince(std::chrono::steady_clock::time_point t);
 
 /** The benchmarks' source placement: at `angle` (radians) on a horizontal
  *  ring (z up, as the samples) around the scene's centre, at 0.6 of its

@@ -109,6 +109,10 @@ double median(std::vector<double> v) {
   return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
 }
 
+double msSince(std::chrono::steady_clock::time_point t) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count();
+}
+
 Vec3d ringPosition(const RayTracer& tracer, double angle) {
   const Vec3d lo(tracer.boundsMin()), hi(tracer.boundsMax());
   const Vec3d centre = (lo + hi) * 0.5, half = (hi - lo) * 0.5;
