@@ -175,6 +175,7 @@ int run(const BenchRuntimeOptions& o) {
   // waits for a lock the simulation holds shows here).
   std::vector<double> gameMs, addRemoveMs;
   gameMs.reserve(size_t(o.seconds * es.sampleRateHz / double(o.block)) + 1);
+  addRemoveMs.reserve(2 * size_t(o.seconds * o.oneShotsHz + 1));
   std::vector<uint64_t> blockFaults;
   // The audio thread (this one) at real-time priority where the system
   // allows it; said either way.
