@@ -9,6 +9,8 @@
 #include <limits>
 #include <optional>
 #include <string>
+#include <type_traits>
+#include <utility>
 
 #include "earshot/core/denormals.h"
 #include "earshot/core/math.h"
@@ -65,6 +67,84 @@ Status validForward(const Vec3d& forward) {
   if (!isFinite(forward) || !(length(forward) > 0)) return invalidArgument("source forward is zero or not finite");
   return Status::ok();
 }
+
+// A source's controls (its SourceSettings but the gain, which
+// setSourceGain() sets alone, and the direct mode, fixed at addSource()),
+// as the audio thread and the simulation use them. setSourceControls()
+// and addSource() store them whole and readers read them whole (a
+// SeqValues of their numbers): each number in an atomic of its own, a read
+// that overlapped a store could mix two calls' distance curves (a linear
+// curve with the other's rolloff is silent where both are at full gain),
+// a pattern with the other's normalisation, and two game threads' tables
+// mixed for good in the one buffer both wrote.
+struct Controls {
+  double directGain = 0, reflectionsGain = 0;
+  double directGainDb = 0, reflectionsGainDb = 0;  // as given, for sourceControls()
+  int distanceModel = 0;
+  double distanceMin = 0, distanceMax = 0, rolloff = 0;
+  int tableCount = 0;
+  std::pair<double, double> table[kMaxDistanceTablePoints] = {};
+  int occlusion = 0;
+  double radius = 0;
+  bool transmissionOn = false;
+  int priority = 0;
+  double directivityAlpha = 0, directivitySharpness = 0;
+  bool directivityPerBand = false;
+  double directivityBandAlpha[kNumBands] = {};
+  double directivityMeanSquare[kNumBands] = {};  // the pattern's, once per store, not per audio block
+};
+
+// Calls f on each of c's numbers, in one fixed order (packed, unpacked).
+template <class C, class F>
+constexpr void eachNumber(C& c, F&& f) {
+  f(c.directGain);
+  f(c.reflectionsGain);
+  f(c.directGainDb);
+  f(c.reflectionsGainDb);
+  f(c.distanceModel);
+  f(c.distanceMin);
+  f(c.distanceMax);
+  f(c.rolloff);
+  f(c.tableCount);
+  for (auto& point : c.table) {
+    f(point.first);
+    f(point.second);
+  }
+  f(c.occlusion);
+  f(c.radius);
+  f(c.transmissionOn);
+  f(c.priority);
+  f(c.directivityAlpha);
+  f(c.directivitySharpness);
+  f(c.directivityPerBand);
+  for (auto& a : c.directivityBandAlpha) f(a);
+  for (auto& m : c.directivityMeanSquare) f(m);
+}
+
+constexpr size_t countControlNumbers() {
+  Controls c;
+  size_t n = 0;
+  eachNumber(c, [&n](auto&) { ++n; });
+  return n;
+}
+constexpr size_t kControlNumbers = countControlNumbers();
+using PackedControls = std::array<double, kControlNumbers>;
+
+PackedControls packed(Controls c) {
+  PackedControls v{};
+  size_t k = 0;
+  eachNumber(c, [&](auto& x) { v[k++] = double(x); });  // ints and bools are exact in a double
+  return v;
+}
+
+Controls unpacked(const PackedControls& v) {
+  Controls c;
+  size_t k = 0;
+  eachNumber(c, [&](auto& x) { x = std::remove_reference_t<decltype(x)>(v[k++]); });
+  return c;
+}
+
+Controls controlsOf(const SourceSettings& s);
 }  // namespace
 
 struct Engine::Slot {
@@ -103,24 +183,14 @@ struct Engine::Slot {
   // the audio thread keeps the last it read (heardPosition, heardForward)
   // for a read that overlapped a store.
   SeqValues<3> position{{0.0, 0.0, 0.0}};
-  std::atomic<double> gain{1.0};
-  // Controls (SourceSettings), written by the game thread.
-  std::atomic<double> directGain{1.0}, reflectionsGain{1.0};
-  // The gains in dB as given, for sourceControls(): back from the linear
-  // gains, -0 and the tiny values (|dB| < ~1e-3) came back changed.
-  std::atomic<double> gainDb{0.0}, directGainDb{0.0}, reflectionsGainDb{0.0};
-  std::atomic<int> distanceModel{0}, occlusion{int(OcclusionMode::kRay)}, priority{0};
-  std::atomic<double> distanceMin{1.0}, distanceMax{100.0}, rolloff{1.0}, radius{0.5};
-  std::atomic<bool> transmissionOn{true};
-  // kTable: two buffers, the audio thread reading the one tableIndex names
-  // (the game thread writes the other, then flips; a read that overlaps two
-  // flips within one block may see a mix for that block, never garbage).
-  std::atomic<double> tableDistance[2][kMaxDistanceTablePoints] = {}, tableGain[2][kMaxDistanceTablePoints] = {};
-  std::atomic<int> tableCount[2] = {{0}, {0}};
-  std::atomic<int> tableIndex{0};
-  std::atomic<double> directivityAlpha{0.0}, directivitySharpness{1.0};
-  std::atomic<bool> directivityPerBand{false};
-  std::atomic<double> directivityBandAlpha[kNumBands] = {}, directivityMeanSquare[kNumBands] = {};
+  // The source's gain, set alone (setSourceGain()) or with the controls;
+  // in dB as given, for sourceControls() (back from the linear gain, -0
+  // and the tiny values, |dB| < ~1e-3, came back changed).
+  std::atomic<double> gain{1.0}, gainDb{0.0};
+  // The other controls, set whole by the game thread and read whole
+  // (Controls); the audio thread keeps the last it read (heardControls).
+  SeqValues<kControlNumbers> controls{packed(controlsOf(SourceSettings{}))};
+  Controls heardControls = controlsOf(SourceSettings{});  // audio thread
   SeqValues<3> forward{{0.0, 0.0, -1.0}};
   Vec3d heardPosition{0, 0, 0}, heardForward{0, 0, -1};  // audio thread
   std::atomic<double> transmission[kNumBands];
@@ -298,8 +368,6 @@ Directivity directivityOf(const SourceSettings& s) {
   return d;
 }
 
-void storeControls(Engine::Slot& slot, const SourceSettings& s);
-
 }  // namespace
 
 double tableGain(const std::pair<double, double>* t, size_t n, double d) {
@@ -375,37 +443,44 @@ Status validate(const SourceSettings& s) {
 
 namespace {
 
-void storeControls(Engine::Slot& slot, const SourceSettings& s) {
-  slot.directGain.store(dbToGain(s.directGainDb));
-  slot.reflectionsGain.store(dbToGain(s.reflectionsGainDb));
-  slot.directGainDb.store(s.directGainDb);
-  slot.reflectionsGainDb.store(s.reflectionsGainDb);
-  slot.distanceModel.store(int(s.distance.model));
-  slot.distanceMin.store(s.distance.minDistance);
-  slot.distanceMax.store(s.distance.maxDistance);
-  slot.rolloff.store(s.distance.rolloff);
-  if (s.distance.model == DistanceModel::kTable) {
-    const int next = 1 - slot.tableIndex.load();
-    for (size_t i = 0; i < s.distance.table.size(); ++i) {
-      slot.tableDistance[next][i].store(s.distance.table[i].first);
-      slot.tableGain[next][i].store(s.distance.table[i].second);
-    }
-    slot.tableCount[next].store(int(s.distance.table.size()));
-    slot.tableIndex.store(next);
+Controls controlsOf(const SourceSettings& s) {
+  Controls c;
+  c.directGain = dbToGain(s.directGainDb);
+  c.reflectionsGain = dbToGain(s.reflectionsGainDb);
+  c.directGainDb = s.directGainDb;
+  c.reflectionsGainDb = s.reflectionsGainDb;
+  c.distanceModel = int(s.distance.model);
+  c.distanceMin = s.distance.minDistance;
+  c.distanceMax = s.distance.maxDistance;
+  c.rolloff = s.distance.rolloff;
+  if (s.distance.model == DistanceModel::kTable) {  // (validated: 1 to kMaxDistanceTablePoints points)
+    c.tableCount = int(std::min(s.distance.table.size(), size_t(kMaxDistanceTablePoints)));
+    for (int i = 0; i < c.tableCount; ++i) c.table[i] = s.distance.table[size_t(i)];
   }
-  slot.occlusion.store(int(s.occlusion));
-  slot.radius.store(s.radiusMeters);
-  slot.transmissionOn.store(s.transmission);
-  slot.priority.store(s.priority);
+  c.occlusion = int(s.occlusion);
+  c.radius = s.radiusMeters;
+  c.transmissionOn = s.transmission;
+  c.priority = s.priority;
   const Directivity d = directivityOf(s);
-  const BandArrayD ms = d.meanSquares();  // once here, not per audio block
+  const BandArrayD ms = d.meanSquares();
   for (int b = 0; b < kNumBands; ++b) {
-    slot.directivityMeanSquare[b].store(ms[size_t(b)]);
-    slot.directivityBandAlpha[b].store(d.alphaOf(b));
+    c.directivityMeanSquare[b] = ms[size_t(b)];
+    c.directivityBandAlpha[b] = d.alphaOf(b);
   }
-  slot.directivityAlpha.store(s.directivityAlpha);
-  slot.directivitySharpness.store(s.directivitySharpness);
-  slot.directivityPerBand.store(s.directivityPerBand);
+  c.directivityAlpha = s.directivityAlpha;
+  c.directivitySharpness = s.directivitySharpness;
+  c.directivityPerBand = s.directivityPerBand;
+  return c;
+}
+
+/** The pattern of a source's controls, without its axis (the forward). */
+Directivity directivityOf(const Controls& c) {
+  Directivity d;
+  d.alpha = c.directivityAlpha;
+  d.sharpness = c.directivitySharpness;
+  d.perBand = c.directivityPerBand;
+  for (int b = 0; b < kNumBands; ++b) d.bandAlpha[size_t(b)] = c.directivityBandAlpha[b];
+  return d;
 }
 
 }  // namespace
@@ -416,7 +491,7 @@ Status Engine::setSourceControls(uint32_t s, const SourceSettings& settings) {
   Slot& slot = *mSlots[s];
   slot.gain.store(dbToGain(settings.gainDb), std::memory_order_relaxed);
   slot.gainDb.store(settings.gainDb, std::memory_order_relaxed);
-  storeControls(slot, settings);
+  slot.controls.store(packed(controlsOf(settings)));
   return Status::ok();
 }
 
@@ -426,25 +501,23 @@ Result<SourceSettings> Engine::sourceControls(uint32_t s) const {
   SourceSettings out;
   out.gainDb = slot.gainDb.load();
   out.direct = DirectMode(slot.direct.load());
-  out.directGainDb = slot.directGainDb.load();
-  out.reflectionsGainDb = slot.reflectionsGainDb.load();
-  out.distance.model = DistanceModel(slot.distanceModel.load());
-  out.distance.minDistance = slot.distanceMin.load();
-  out.distance.maxDistance = slot.distanceMax.load();
-  out.distance.rolloff = slot.rolloff.load();
-  if (out.distance.model == DistanceModel::kTable) {
-    const int k = slot.tableIndex.load();
-    for (int i = 0; i < slot.tableCount[k].load(); ++i)
-      out.distance.table.emplace_back(slot.tableDistance[k][i].load(), slot.tableGain[k][i].load());
-  }
-  out.occlusion = OcclusionMode(slot.occlusion.load());
-  out.radiusMeters = slot.radius.load();
-  out.transmission = slot.transmissionOn.load();
-  out.priority = slot.priority.load();
-  out.directivityAlpha = slot.directivityAlpha.load();
-  out.directivitySharpness = slot.directivitySharpness.load();
-  out.directivityPerBand = slot.directivityPerBand.load();
-  for (int b = 0; b < kNumBands; ++b) out.directivityBandAlpha[size_t(b)] = slot.directivityBandAlpha[b].load();
+  const Controls c = unpacked(slot.controls.load());
+  out.directGainDb = c.directGainDb;
+  out.reflectionsGainDb = c.reflectionsGainDb;
+  out.distance.model = DistanceModel(c.distanceModel);
+  out.distance.minDistance = c.distanceMin;
+  out.distance.maxDistance = c.distanceMax;
+  out.distance.rolloff = c.rolloff;
+  out.distance.table.assign(c.table, c.table + std::clamp(c.tableCount, 0, kMaxDistanceTablePoints));
+  out.occlusion = OcclusionMode(c.occlusion);
+  out.radiusMeters = c.radius;
+  out.transmission = c.transmissionOn;
+  out.priority = c.priority;
+  const Directivity d = directivityOf(c);
+  out.directivityAlpha = d.alpha;
+  out.directivitySharpness = d.sharpness;
+  out.directivityPerBand = d.perBand;
+  out.directivityBandAlpha = d.bandAlpha;
   return out;
 }
 
@@ -733,7 +806,7 @@ Result<uint32_t> Engine::addSourceAt(const SourceSettings& settings, const Vec3d
     ++lateCount;
   }
   slot.direct.store(int(settings.direct));
-  storeControls(slot, settings);
+  const PackedControls controls = packed(controlsOf(settings));  // (the pattern's quadrature, before the lock)
   const Vec3d f = normalize(forward);
   {
     // A slot used before still holds its last source's IR: silence takes
@@ -753,6 +826,10 @@ Result<uint32_t> Engine::addSourceAt(const SourceSettings& settings, const Vec3d
       // source's sound in flight keeps its own place.
       slot.position.store({position.x, position.y, position.z});
       slot.forward.store({f.x, f.y, f.z});
+      // So are its controls: the last source's sound in flight keeps its
+      // own distance curve, direct gain and pattern until the audio thread
+      // sees the new source (which ends it).
+      slot.controls.store(controls);
       // What a simulation writes into its source's slot, under this lock
       // once it has checked the generation: a job of the slot's last
       // source that ends now finds the generation changed, and one that
@@ -932,15 +1009,17 @@ Status Engine::simulate(uint32_t count) {
   const uint64_t patience = 2 * ((order.size() + taken - 1) / taken);
   std::vector<double> changed(n, 0.0);
   std::vector<char> fresh(n, 0), waiting(n, 0);
+  std::vector<int> priority(n, 0);
   for (uint32_t i : order) {
     const Slot& slot = *mSlots[i];
+    priority[i] = unpacked(slot.controls.load()).priority;
     fresh[i] = slot.simulatedGeneration.load() != slot.generation.load() || slot.owedFirstIr.load() >= 0;
     waiting[i] = mSimulations - slot.simulatedStep >= patience;
     const Vec3d p = vecOf(slot.position.load());
     changed[i] = length(p - slot.simulatedSource) + length(listenerNow - slot.simulatedListener);
   }
   std::stable_sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) {
-    const int pa = mSlots[a]->priority.load(), pb = mSlots[b]->priority.load();
+    const int pa = priority[a], pb = priority[b];
     if (pa != pb) return pa > pb;
     if (fresh[a] != fresh[b]) return fresh[a] > fresh[b];
     if (waiting[a] != waiting[b]) return waiting[a] > waiting[b];
@@ -1017,6 +1096,7 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& requested, bool takeN
     uint32_t slot, generation;
     OmniIrSettings settings;
     Vec3d source;
+    Controls controls;  // the source's, read whole with its pose
     std::optional<Result<OmniIrResult>> result;
     uint32_t denormalMode = 0;  // the synthesis's (pool workers flush denormals)
   };
@@ -1092,15 +1172,13 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& requested, bool takeN
       const int64_t owed = slot.owedFirstIr.load();
       const uint32_t generation = !slot.active.load() && owed >= 0 ? uint32_t(owed) : slot.generation.load();
       Job j{i, generation, mSettings.simulation,
-            vecOf(slot.position.load()), std::nullopt};
+            vecOf(slot.position.load()), {}, std::nullopt};
       slot.simulatedSource = j.source;
       slot.simulatedListener = listener;
       slot.simulatedStep = mSimulations;
       j.settings.includeDirect = DirectMode(slot.direct.load()) == DirectMode::kInImpulseResponse;
-      j.settings.directivity.alpha = slot.directivityAlpha.load();
-      j.settings.directivity.sharpness = slot.directivitySharpness.load();
-      j.settings.directivity.perBand = slot.directivityPerBand.load();
-      for (int b = 0; b < kNumBands; ++b) j.settings.directivity.bandAlpha[size_t(b)] = slot.directivityBandAlpha[b].load();
+      j.controls = unpacked(slot.controls.load());
+      j.settings.directivity = directivityOf(j.controls);
       j.settings.directivity.forward = vecOf(slot.forward.load());
       jobs.push_back(std::move(j));
     }
@@ -1249,10 +1327,10 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& requested, bool takeN
       // Transmission through occluders: the direct path's band gains without
       // air, by the source's occlusion mode (kOff is applied per block).
       const DirectPath& d = direct;
-      const bool transmissionOn = slot.transmissionOn.load();
+      const bool transmissionOn = j.controls.transmissionOn;
       BandArrayD transmission = filledBands(1.0);
-      if (OcclusionMode(slot.occlusion.load()) == OcclusionMode::kVolumetric) {
-        transmission = volumetricTransmission(*tracer, *materials, j.source, listener, slot.radius.load(),
+      if (OcclusionMode(j.controls.occlusion) == OcclusionMode::kVolumetric) {
+        transmission = volumetricTransmission(*tracer, *materials, j.source, listener, j.controls.radius,
                                               transmissionOn);
       } else {
         const BandArrayD air = j.settings.air.enabled ? airAttenuationDbPerMeter(j.settings.air) : filledBands(0.0);
@@ -1335,6 +1413,16 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
     const bool wasLive = slot.live, voiceRan = slot.voicePlayed || slot.drainLeft > 0;
     slot.live = live;
     slot.reflectionsLive = active && simulated;
+    // The source's controls, whole (Controls): a live source's own (read
+    // after its slot turned active, and addSource() stores them before);
+    // a voice running out its sound in flight keeps its source's if a new
+    // source takes the slot meanwhile (addSource() stores the new ones
+    // after the new generation, checked here after the read). A read that
+    // overlapped a store each time keeps the last, for this call.
+    PackedControls controls;
+    if (slot.controls.tryLoad(controls) &&
+        (live || slot.generation.load(std::memory_order_acquire) == slot.voiceGeneration))
+      slot.heardControls = unpacked(controls);
     // Sound in flight: a direct voice whose source stops playing (its input
     // NULL, or the source released) runs on silence until what it played
     // has arrived (DirectVoice::ringOutFrames), unless a new source takes
@@ -1360,7 +1448,7 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
       slot.resetInputGlides();
       slot.voiceGeneration = generation;
       slot.appliedGain = slot.gain.load(std::memory_order_relaxed);
-      slot.appliedReflectionsGain = slot.reflectionsGain.load(std::memory_order_relaxed);
+      slot.appliedReflectionsGain = slot.heardControls.reflectionsGain;
       slot.appliedTailGain = slot.lateLevel();
       slot.startsAnew = true;
     }
@@ -1408,7 +1496,7 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
       // The source gain, ramped per chunk, on the reflections' input (the
       // direct voice applies it itself).
       double gainSet = slot.gain.load(std::memory_order_relaxed);
-      double reflectionsSet = slot.reflectionsGain.load(std::memory_order_relaxed);
+      double reflectionsSet = slot.heardControls.reflectionsGain;
       if (mSettings.glideGameUpdates) {
         gainSet = slot.gainGlide.next(gainSet, m, maxGlide, kAnySpeed);
         reflectionsSet = slot.reflectionsGlide.next(reflectionsSet, m, maxGlide, kAnySpeed);
@@ -1479,33 +1567,25 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
       if (mSettings.glideGameUpdates) target.source = slot.glide.next(target.source, m, maxGlide, maxGlideSpeed);
       // The direct gain and the distance curve, relative to the voice's own
       // physical 1/r (ramped by the voice across the chunk).
+      const Controls& controls = slot.heardControls;
       DistanceCurve curve;
-      curve.model = DistanceModel(slot.distanceModel.load(std::memory_order_relaxed));
+      curve.model = DistanceModel(controls.distanceModel);
       double shape = 1.0;
       if (curve.model != DistanceModel::kPhysical) {
-        curve.minDistance = slot.distanceMin.load(std::memory_order_relaxed);
-        curve.maxDistance = slot.distanceMax.load(std::memory_order_relaxed);
-        curve.rolloff = slot.rolloff.load(std::memory_order_relaxed);
+        curve.minDistance = controls.distanceMin;
+        curve.maxDistance = controls.distanceMax;
+        curve.rolloff = controls.rolloff;
         const double r = length(target.source - target.listener);
-        double g;
-        if (curve.model == DistanceModel::kTable) {
-          // No allocation here: the table is copied to the stack.
-          std::pair<double, double> t[kMaxDistanceTablePoints];
-          const int k = slot.tableIndex.load(std::memory_order_acquire);
-          const int n = std::min(slot.tableCount[k].load(std::memory_order_relaxed), kMaxDistanceTablePoints);
-          for (int i = 0; i < n; ++i)
-            t[i] = {slot.tableDistance[k][i].load(std::memory_order_relaxed),
-                    slot.tableGain[k][i].load(std::memory_order_relaxed)};
-          g = tableGain(t, size_t(n), r);
-        } else {
-          g = distanceGain(curve, r);
-        }
+        // (kTable: the controls' own points, no allocation.)
+        const double g = curve.model == DistanceModel::kTable
+                             ? tableGain(controls.table, size_t(std::clamp(controls.tableCount, 0, kMaxDistanceTablePoints)), r)
+                             : distanceGain(curve, r);
         shape = g * std::max(r, DirectVoiceSettings{}.minDistanceMeters);
       }
-      double directSet = slot.directGain.load(std::memory_order_relaxed);
+      double directSet = controls.directGain;
       if (mSettings.glideGameUpdates) directSet = slot.directGlide.next(directSet, m, maxGlide, kAnySpeed);
       target.gain = slot.appliedGain * directSet * shape;
-      if (OcclusionMode(slot.occlusion.load(std::memory_order_relaxed)) == OcclusionMode::kOff) {
+      if (OcclusionMode(controls.occlusion) == OcclusionMode::kOff) {
         target.transmission = filledBands(1.0);
         target.audible = true;
       } else {
@@ -1524,19 +1604,18 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
       }
       // Directivity toward the listener, per band: sqrt(D_b) = g_b / sqrt(<g_b^2>),
       // through the voice's band shelves (as occlusion).
-      const bool perBand = slot.directivityPerBand.load(std::memory_order_relaxed);
-      if (perBand || slot.directivityAlpha.load(std::memory_order_relaxed) > 0.0) {
+      const bool perBand = controls.directivityPerBand;
+      if (perBand || controls.directivityAlpha > 0.0) {
         const Vec3d toListener = target.listener - target.source;
         const double r = length(toListener);
         const double c = r > 1e-9 ? std::clamp(dot(f, toListener) / r, -1.0, 1.0) : 1.0;
-        const double k = slot.directivitySharpness.load(std::memory_order_relaxed);
+        const double k = controls.directivitySharpness;
         // One pattern for every band unless the table differs per band.
         const int patterns = perBand ? kNumBands : 1;
         double g[kNumBands];
         for (int b = 0; b < patterns; ++b) {
-          const double a = slot.directivityBandAlpha[b].load(std::memory_order_relaxed);
-          g[b] = a == 0.0 ? 1.0 : std::pow(std::fabs((1.0 - a) + a * c), k) /
-                                      std::sqrt(slot.directivityMeanSquare[b].load(std::memory_order_relaxed));
+          const double a = controls.directivityBandAlpha[b];
+          g[b] = a == 0.0 ? 1.0 : std::pow(std::fabs((1.0 - a) + a * c), k) / std::sqrt(controls.directivityMeanSquare[b]);
         }
         for (int b = 0; b < kNumBands; ++b) target.transmission[b] *= g[perBand ? b : 0];
         target.audible = target.audible && [&] {

@@ -942,6 +942,111 @@ TEST(SeqValues, AReaderGetsOneStoreWholeWhileOtherThreadsStore) {
   for (double x : last) EXPECT_EQ(x, last[0]);
 }
 
+// A source's controls are set whole and read whole. Three distance curves
+// that all give full gain 10 m away (a linear curve flat at rolloff 0, an
+// inverse curve still flat short of its 20 m minimum, a table) are set in
+// turn by two game threads as fast as they can while the audio thread
+// plays the source 10 m away and a third thread reads the controls back.
+// Read whole, every block is the one the first curve alone gives, bit for
+// bit; a read that mixed two calls is not (the linear curve with the
+// others' rolloff 1 is silent there, the inverse curve with the linear
+// one's 1 m minimum -20 dB). Each number an atomic of its own, mixes were
+// heard and read back (the counts in the commit that made Controls).
+TEST(Engine, ControlsSetOnGameThreadsAreHeardAndReadWhole) {
+  auto model = test::ku100();
+  ASSERT_TRUE(model);
+  std::vector<SourceSettings> curves(3);
+  curves[0].distance.model = DistanceModel::kLinear;
+  curves[0].distance.minDistance = 1.0;
+  curves[0].distance.maxDistance = 2.0;
+  curves[0].distance.rolloff = 0.0;
+  curves[1].distance.model = DistanceModel::kInverse;
+  curves[1].distance.minDistance = 20.0;
+  curves[1].distance.maxDistance = 100.0;
+  curves[1].distance.rolloff = 1.0;
+  curves[2].distance.model = DistanceModel::kTable;
+  curves[2].distance.minDistance = 1.0;
+  curves[2].distance.maxDistance = 2.0;
+  curves[2].distance.rolloff = 1.0;
+  curves[2].distance.table = {{0.5, 1.0}, {15.0, 1.0}, {16.0, 0.5}};
+  for (const auto& c : curves) ASSERT_EQ(distanceGain(c.distance, 10.0), 1.0);
+  const size_t block = 32, blocks = 40000;  // 27 s of audio: about a second of the audio thread's time
+  auto render = [&](bool racing, uint64_t* misread) {
+    EngineSettings es = test::fastSettings();
+    es.maxSources = 1;
+    es.maxIrSeconds = 0.2;
+    es.blockFrames = block;
+    auto engine = Engine::create(es, model);
+    EXPECT_TRUE(engine.isOk());
+    Engine& e = **engine;  // free field: the direct sound alone
+    EXPECT_TRUE(e.setListener({0, 0, 0}, {{0, 0, -1}, {0, 1, 0}}).isOk());
+    auto id = e.addSource(curves[0], {10, 0, 0}, {-1, 0, 0});
+    EXPECT_TRUE(id.isOk());
+    std::vector<float> in(block), out(2 * block * blocks, 0.0f);
+    Pcg32 rng(11, 2);
+    std::atomic<bool> stop{false};
+    std::atomic<uint64_t> stores{0}, reads{0}, mixed{0};
+    auto writer = [&](size_t first) {
+      for (size_t k = first; !stop.load(std::memory_order_relaxed); ++k) {
+        EXPECT_TRUE(e.setSourceControls(*id, curves[k % curves.size()]).isOk());
+        stores.fetch_add(1, std::memory_order_relaxed);
+      }
+    };
+    auto reader = [&] {
+      while (!stop.load(std::memory_order_relaxed)) {
+        auto got = e.sourceControls(*id);
+        EXPECT_TRUE(got.isOk());
+        if (!got.isOk()) return;
+        const DistanceCurve& d = got->distance;
+        bool whole = false;
+        for (const auto& c : curves)
+          whole = whole || (d.model == c.distance.model && d.minDistance == c.distance.minDistance &&
+                            d.maxDistance == c.distance.maxDistance && d.rolloff == c.distance.rolloff &&
+                            (d.model != DistanceModel::kTable || d.table == c.distance.table));
+        mixed.fetch_add(whole ? 0 : 1, std::memory_order_relaxed);
+        reads.fetch_add(1, std::memory_order_relaxed);
+      }
+    };
+    std::vector<std::thread> threads;
+    if (racing) {
+      threads.emplace_back(writer, 1);
+      threads.emplace_back(writer, 2);
+      threads.emplace_back(reader);
+    }
+    const float* inputs[1] = {in.data()};
+    for (size_t b = 0; b < blocks; ++b) {
+      for (auto& x : in) x = rng.uniform() - 0.5f;
+      float* outs[2] = {out.data() + 2 * b * block, out.data() + (2 * b + 1) * block};
+      e.process(inputs, outs, block);
+    }
+    stop = true;
+    for (auto& t : threads) t.join();
+    if (racing) {
+      std::printf("%llu stores on two game threads, %llu read back (%llu mixed)\n",
+                  (unsigned long long)stores.load(), (unsigned long long)reads.load(),
+                  (unsigned long long)mixed.load());
+      EXPECT_GT(stores.load(), 0u);
+      EXPECT_GT(reads.load(), 0u);
+      *misread = mixed.load();
+    }
+    return out;
+  };
+  const std::vector<float> alone = render(false, nullptr);
+  ASSERT_GT(energy(alone.data(), alone.size()), 0.0);
+  uint64_t mixedReads = 0;
+  const std::vector<float> raced = render(true, &mixedReads);
+  size_t blocksDiffering = 0;
+  for (size_t b = 0; b < blocks; ++b)
+    blocksDiffering += std::equal(alone.begin() + std::ptrdiff_t(2 * b * block),
+                                  alone.begin() + std::ptrdiff_t(2 * (b + 1) * block),
+                                  raced.begin() + std::ptrdiff_t(2 * b * block))
+                           ? 0
+                           : 1;
+  std::printf("%zu of %zu blocks differ from the first curve's alone\n", blocksDiffering, blocks);
+  EXPECT_EQ(blocksDiffering, 0u) << "the audio thread heard a mix of two calls' controls";
+  EXPECT_EQ(mixedReads, 0u) << "sourceControls() read a mix of two calls' controls";
+}
+
 // A game fades a source by setting its gain once a frame (60 Hz) while the
 // audio thread runs blocks of 256: each step was ramped over the next block
 // and held for the two after it, a 60 Hz staircase in level (a 1 kHz
