@@ -501,7 +501,12 @@ TEST(ConvolutionMixer, PostIrHandsBackWhatItReplacedAndFreesNothing) {
     ASSERT_TRUE(m.postIr(0, std::move(a), &replaced).isOk());
   }
   run(40);
-  ASSERT_TRUE(m.postIr(0, ir(83), &replaced).isOk());
+  std::weak_ptr<const PreparedIr> second;
+  {
+    auto b = ir(83);
+    second = b;
+    ASSERT_TRUE(m.postIr(0, std::move(b), &replaced).isOk());
+  }
   run(40);  // the second replaces the first, which retires
   // Posted twice with no block between: the first comes back, the mixer
   // keeping no reference to it.
@@ -516,14 +521,18 @@ TEST(ConvolutionMixer, PostIrHandsBackWhatItReplacedAndFreesNothing) {
   EXPECT_FALSE(first.expired()) << "retired by the audio thread, not freed by postIr";
   m.collectGarbage();
   EXPECT_TRUE(first.expired()) << "freed by collectGarbage";
-  // setIr() still frees both at once.
+  // setIr() still frees both at once: what the audio thread retired
+  // (the second, once it takes the last one posted) and the pending IR it
+  // replaces.
   run(40);
+  EXPECT_FALSE(second.expired()) << "retired by the audio thread, not yet collected";
   std::weak_ptr<const PreparedIr> pending;
   {
     auto b = ir(86);
     pending = b;
     ASSERT_TRUE(m.setIr(0, std::move(b)).isOk());
   }
+  EXPECT_TRUE(second.expired()) << "retired by the audio thread: freed by setIr";
   ASSERT_TRUE(m.setIr(0, ir(87)).isOk());
   EXPECT_TRUE(pending.expired()) << "replaced before the audio thread took it: freed by setIr";
 }
