@@ -68,18 +68,22 @@ Status validForward(const Vec3d& forward) {
   return Status::ok();
 }
 
-// A source's controls (its SourceSettings but the gain, which
-// setSourceGain() sets alone, and the direct mode, fixed at addSource()),
-// as the audio thread and the simulation use them. setSourceControls()
-// and addSource() store them whole and readers read them whole (a
-// SeqValues of their numbers): each number in an atomic of its own, a read
-// that overlapped a store could mix two calls' distance curves (a linear
-// curve with the other's rolloff is silent where both are at full gain),
-// a pattern with the other's normalisation, and two game threads' tables
+// A source's controls (its SourceSettings but the direct mode, fixed at
+// addSource()), as the audio thread and the simulation use them.
+// setSourceControls() and addSource() store them whole, setSourceGain()
+// changes the gain among them, and readers read them whole (a SeqValues of
+// their numbers): each number in an atomic of its own, a read that
+// overlapped a store could mix two calls' distance curves (a linear curve
+// with the other's rolloff is silent where both are at full gain), one
+// call's source gain with the other's direct gain (a source faded from
+// its direct sound to its whole at -120 dB both ways heard at 0 dB), a
+// pattern with the other's normalisation, and two game threads' tables
 // mixed for good in the one buffer both wrote.
 struct Controls {
-  double directGain = 0, reflectionsGain = 0;
-  double directGainDb = 0, reflectionsGainDb = 0;  // as given, for sourceControls()
+  double gain = 0, directGain = 0, reflectionsGain = 0;
+  // As given, for sourceControls() (back from the linear gains, -0 and the
+  // tiny values, |dB| < ~1e-3, came back changed).
+  double gainDb = 0, directGainDb = 0, reflectionsGainDb = 0;
   int distanceModel = 0;
   double distanceMin = 0, distanceMax = 0, rolloff = 0;
   int tableCount = 0;
@@ -97,8 +101,10 @@ struct Controls {
 // Calls f on each of c's numbers, in one fixed order (packed, unpacked).
 template <class C, class F>
 constexpr void eachNumber(C& c, F&& f) {
+  f(c.gain);
   f(c.directGain);
   f(c.reflectionsGain);
+  f(c.gainDb);
   f(c.directGainDb);
   f(c.reflectionsGainDb);
   f(c.distanceModel);
@@ -183,12 +189,9 @@ struct Engine::Slot {
   // the audio thread keeps the last it read (heardPosition, heardForward)
   // for a read that overlapped a store.
   SeqValues<3> position{{0.0, 0.0, 0.0}};
-  // The source's gain, set alone (setSourceGain()) or with the controls;
-  // in dB as given, for sourceControls() (back from the linear gain, -0
-  // and the tiny values, |dB| < ~1e-3, came back changed).
-  std::atomic<double> gain{1.0}, gainDb{0.0};
-  // The other controls, set whole by the game thread and read whole
-  // (Controls); the audio thread keeps the last it read (heardControls).
+  // The controls (gains, distance curve, occlusion, directivity), set whole
+  // by the game thread and read whole (Controls); the audio thread keeps
+  // the last it read (heardControls).
   SeqValues<kControlNumbers> controls{packed(controlsOf(SourceSettings{}))};
   Controls heardControls = controlsOf(SourceSettings{});  // audio thread
   SeqValues<3> forward{{0.0, 0.0, -1.0}};
@@ -445,6 +448,8 @@ namespace {
 
 Controls controlsOf(const SourceSettings& s) {
   Controls c;
+  c.gain = dbToGain(s.gainDb);
+  c.gainDb = s.gainDb;
   c.directGain = dbToGain(s.directGainDb);
   c.reflectionsGain = dbToGain(s.reflectionsGainDb);
   c.directGainDb = s.directGainDb;
@@ -489,8 +494,6 @@ Status Engine::setSourceControls(uint32_t s, const SourceSettings& settings) {
   if (!validSource(s)) return invalidArgument("source " + std::to_string(s) + " does not exist");
   EARSHOT_RETURN_IF_ERROR(validate(settings));
   Slot& slot = *mSlots[s];
-  slot.gain.store(dbToGain(settings.gainDb), std::memory_order_relaxed);
-  slot.gainDb.store(settings.gainDb, std::memory_order_relaxed);
   slot.controls.store(packed(controlsOf(settings)));
   return Status::ok();
 }
@@ -499,9 +502,9 @@ Result<SourceSettings> Engine::sourceControls(uint32_t s) const {
   if (!validSource(s)) return invalidArgument("source " + std::to_string(s) + " does not exist");
   const Slot& slot = *mSlots[s];
   SourceSettings out;
-  out.gainDb = slot.gainDb.load();
   out.direct = DirectMode(slot.direct.load());
   const Controls c = unpacked(slot.controls.load());
+  out.gainDb = c.gainDb;
   out.directGainDb = c.directGainDb;
   out.reflectionsGainDb = c.reflectionsGainDb;
   out.distance.model = DistanceModel(c.distanceModel);
@@ -788,8 +791,6 @@ Result<uint32_t> Engine::addSourceAt(const SourceSettings& settings, const Vec3d
   if (chosen < 0)
     return Status(StatusCode::kOutOfRange, "all " + std::to_string(mSlots.size()) + " source slots are in use");
   Slot& slot = *mSlots[size_t(chosen)];
-  slot.gain.store(dbToGain(settings.gainDb));
-  slot.gainDb.store(settings.gainDb);
   // The source's late level until its first simulation: the other
   // simulated sources' (their power mean; once the game puts the source
   // somewhere, the nearest one's). What it plays before its first IR goes
@@ -921,8 +922,12 @@ Status Engine::setSourceGainDb(uint32_t s, double gainDb) {
   if (!validSource(s)) return invalidArgument("source " + std::to_string(s) + " does not exist");
   if (!(gainDb >= -120.0 && gainDb <= 60.0))
     return invalidArgument("source gain " + std::to_string(gainDb) + " dB is outside [-120, 60]");
-  mSlots[s]->gain.store(dbToGain(gainDb), std::memory_order_relaxed);
-  mSlots[s]->gainDb.store(gainDb, std::memory_order_relaxed);
+  mSlots[s]->controls.update([gainDb](PackedControls& v) {
+    Controls c = unpacked(v);
+    c.gain = dbToGain(gainDb);
+    c.gainDb = gainDb;
+    v = packed(c);
+  });
   return Status::ok();
 }
 
@@ -1447,7 +1452,7 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
       slot.resetVoiceGlides();
       slot.resetInputGlides();
       slot.voiceGeneration = generation;
-      slot.appliedGain = slot.gain.load(std::memory_order_relaxed);
+      slot.appliedGain = slot.heardControls.gain;
       slot.appliedReflectionsGain = slot.heardControls.reflectionsGain;
       slot.appliedTailGain = slot.lateLevel();
       slot.startsAnew = true;
@@ -1495,7 +1500,7 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
       if (!slot.live) continue;
       // The source gain, ramped per chunk, on the reflections' input (the
       // direct voice applies it itself).
-      double gainSet = slot.gain.load(std::memory_order_relaxed);
+      double gainSet = slot.heardControls.gain;
       double reflectionsSet = slot.heardControls.reflectionsGain;
       if (mSettings.glideGameUpdates) {
         gainSet = slot.gainGlide.next(gainSet, m, maxGlide, kAnySpeed);

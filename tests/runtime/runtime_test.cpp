@@ -6,6 +6,8 @@
 #include <sstream>
 #include <fstream>
 #include <filesystem>
+#include <functional>
+#include <optional>
 
 #include <algorithm>
 #include <cmath>
@@ -942,6 +944,89 @@ TEST(SeqValues, AReaderGetsOneStoreWholeWhileOtherThreadsStore) {
   for (double x : last) EXPECT_EQ(x, last[0]);
 }
 
+// A source played 10 m from the listener (free field: the direct sound
+// alone) for `blocks` blocks of 32 frames of noise, added with calls[0].
+// With `racing`, two game threads set calls in turn as fast as they can
+// (and a third sets the source's gain alone to `gainDb`, if given) while a
+// fourth reads the controls back and counts those `whole` rejects.
+struct ControlsRace {
+  std::vector<float> out;  // the ears' blocks in turn
+  uint64_t stores = 0, reads = 0, mixed = 0;
+};
+ControlsRace playWhileControlsAreSet(const std::vector<SourceSettings>& calls, bool glides, size_t blocks,
+                                     bool racing, std::optional<double> gainDb,
+                                     const std::function<bool(const SourceSettings&)>& whole) {
+  constexpr size_t kBlock = 32;
+  ControlsRace race;
+  auto model = test::ku100();
+  EXPECT_TRUE(model);
+  if (!model) return race;
+  EngineSettings es = test::fastSettings();
+  es.maxSources = 1;
+  es.maxIrSeconds = 0.2;
+  es.blockFrames = kBlock;
+  es.glideGameUpdates = glides;
+  auto engine = Engine::create(es, model);
+  EXPECT_TRUE(engine.isOk());
+  if (!engine.isOk()) return race;
+  Engine& e = **engine;
+  EXPECT_TRUE(e.setListener({0, 0, 0}, {{0, 0, -1}, {0, 1, 0}}).isOk());
+  auto id = e.addSource(calls[0], {10, 0, 0}, {-1, 0, 0});
+  EXPECT_TRUE(id.isOk());
+  if (!id.isOk()) return race;
+  std::vector<float> in(kBlock);
+  race.out.assign(2 * kBlock * blocks, 0.0f);
+  Pcg32 rng(11, 2);
+  std::atomic<bool> stop{false};
+  std::atomic<uint64_t> stores{0}, reads{0}, mixed{0};
+  auto writer = [&](size_t first) {
+    for (size_t k = first; !stop.load(std::memory_order_relaxed); ++k) {
+      EXPECT_TRUE(e.setSourceControls(*id, calls[k % calls.size()]).isOk());
+      stores.fetch_add(1, std::memory_order_relaxed);
+    }
+  };
+  auto gainWriter = [&] {
+    while (!stop.load(std::memory_order_relaxed)) {
+      EXPECT_TRUE(e.setSourceGainDb(*id, *gainDb).isOk());
+      stores.fetch_add(1, std::memory_order_relaxed);
+    }
+  };
+  auto reader = [&] {
+    while (!stop.load(std::memory_order_relaxed)) {
+      auto got = e.sourceControls(*id);
+      EXPECT_TRUE(got.isOk());
+      if (!got.isOk()) return;
+      mixed.fetch_add(whole(*got) ? 0 : 1, std::memory_order_relaxed);
+      reads.fetch_add(1, std::memory_order_relaxed);
+    }
+  };
+  std::vector<std::thread> threads;
+  if (racing) {
+    threads.emplace_back(writer, 1);
+    threads.emplace_back(writer, 2);
+    if (gainDb) threads.emplace_back(gainWriter);
+    threads.emplace_back(reader);
+  }
+  const float* inputs[1] = {in.data()};
+  for (size_t b = 0; b < blocks; ++b) {
+    for (auto& x : in) x = rng.uniform() - 0.5f;
+    float* outs[2] = {race.out.data() + 2 * b * kBlock, race.out.data() + (2 * b + 1) * kBlock};
+    e.process(inputs, outs, kBlock);
+  }
+  stop = true;
+  for (auto& t : threads) t.join();
+  race.stores = stores.load();
+  race.reads = reads.load();
+  race.mixed = mixed.load();
+  if (racing) {
+    std::printf("%llu stores on game threads, %llu read back (%llu mixed)\n", (unsigned long long)race.stores,
+                (unsigned long long)race.reads, (unsigned long long)race.mixed);
+    EXPECT_GT(race.stores, 0u);
+    EXPECT_GT(race.reads, 0u);
+  }
+  return race;
+}
+
 // A source's controls are set whole and read whole. Three distance curves
 // that all give full gain 10 m away (a linear curve flat at rolloff 0, an
 // inverse curve still flat short of its 20 m minimum, a table) are set in
@@ -953,8 +1038,6 @@ TEST(SeqValues, AReaderGetsOneStoreWholeWhileOtherThreadsStore) {
 // one's 1 m minimum -20 dB). Each number an atomic of its own, mixes were
 // heard and read back (the counts in the commit that made Controls).
 TEST(Engine, ControlsSetOnGameThreadsAreHeardAndReadWhole) {
-  auto model = test::ku100();
-  ASSERT_TRUE(model);
   std::vector<SourceSettings> curves(3);
   curves[0].distance.model = DistanceModel::kLinear;
   curves[0].distance.minDistance = 1.0;
@@ -970,81 +1053,67 @@ TEST(Engine, ControlsSetOnGameThreadsAreHeardAndReadWhole) {
   curves[2].distance.rolloff = 1.0;
   curves[2].distance.table = {{0.5, 1.0}, {15.0, 1.0}, {16.0, 0.5}};
   for (const auto& c : curves) ASSERT_EQ(distanceGain(c.distance, 10.0), 1.0);
-  const size_t block = 32, blocks = 40000;  // 27 s of audio: about a second of the audio thread's time
-  auto render = [&](bool racing, uint64_t* misread) {
-    EngineSettings es = test::fastSettings();
-    es.maxSources = 1;
-    es.maxIrSeconds = 0.2;
-    es.blockFrames = block;
-    auto engine = Engine::create(es, model);
-    EXPECT_TRUE(engine.isOk());
-    Engine& e = **engine;  // free field: the direct sound alone
-    EXPECT_TRUE(e.setListener({0, 0, 0}, {{0, 0, -1}, {0, 1, 0}}).isOk());
-    auto id = e.addSource(curves[0], {10, 0, 0}, {-1, 0, 0});
-    EXPECT_TRUE(id.isOk());
-    std::vector<float> in(block), out(2 * block * blocks, 0.0f);
-    Pcg32 rng(11, 2);
-    std::atomic<bool> stop{false};
-    std::atomic<uint64_t> stores{0}, reads{0}, mixed{0};
-    auto writer = [&](size_t first) {
-      for (size_t k = first; !stop.load(std::memory_order_relaxed); ++k) {
-        EXPECT_TRUE(e.setSourceControls(*id, curves[k % curves.size()]).isOk());
-        stores.fetch_add(1, std::memory_order_relaxed);
-      }
-    };
-    auto reader = [&] {
-      while (!stop.load(std::memory_order_relaxed)) {
-        auto got = e.sourceControls(*id);
-        EXPECT_TRUE(got.isOk());
-        if (!got.isOk()) return;
-        const DistanceCurve& d = got->distance;
-        bool whole = false;
-        for (const auto& c : curves)
-          whole = whole || (d.model == c.distance.model && d.minDistance == c.distance.minDistance &&
-                            d.maxDistance == c.distance.maxDistance && d.rolloff == c.distance.rolloff &&
-                            (d.model != DistanceModel::kTable || d.table == c.distance.table));
-        mixed.fetch_add(whole ? 0 : 1, std::memory_order_relaxed);
-        reads.fetch_add(1, std::memory_order_relaxed);
-      }
-    };
-    std::vector<std::thread> threads;
-    if (racing) {
-      threads.emplace_back(writer, 1);
-      threads.emplace_back(writer, 2);
-      threads.emplace_back(reader);
-    }
-    const float* inputs[1] = {in.data()};
-    for (size_t b = 0; b < blocks; ++b) {
-      for (auto& x : in) x = rng.uniform() - 0.5f;
-      float* outs[2] = {out.data() + 2 * b * block, out.data() + (2 * b + 1) * block};
-      e.process(inputs, outs, block);
-    }
-    stop = true;
-    for (auto& t : threads) t.join();
-    if (racing) {
-      std::printf("%llu stores on two game threads, %llu read back (%llu mixed)\n",
-                  (unsigned long long)stores.load(), (unsigned long long)reads.load(),
-                  (unsigned long long)mixed.load());
-      EXPECT_GT(stores.load(), 0u);
-      EXPECT_GT(reads.load(), 0u);
-      *misread = mixed.load();
-    }
-    return out;
+  auto whole = [&](const SourceSettings& got) {
+    const DistanceCurve& d = got.distance;
+    for (const auto& c : curves)
+      if (d.model == c.distance.model && d.minDistance == c.distance.minDistance &&
+          d.maxDistance == c.distance.maxDistance && d.rolloff == c.distance.rolloff &&
+          (d.model != DistanceModel::kTable || d.table == c.distance.table))
+        return true;
+    return false;
   };
-  const std::vector<float> alone = render(false, nullptr);
-  ASSERT_GT(energy(alone.data(), alone.size()), 0.0);
-  uint64_t mixedReads = 0;
-  const std::vector<float> raced = render(true, &mixedReads);
+  const size_t blocks = 40000;  // 27 s of audio: about a second of the audio thread's time
+  const ControlsRace alone = playWhileControlsAreSet(curves, true, blocks, false, std::nullopt, whole);
+  ASSERT_GT(energy(alone.out.data(), alone.out.size()), 0.0);
+  const ControlsRace raced = playWhileControlsAreSet(curves, true, blocks, true, std::nullopt, whole);
+  ASSERT_EQ(raced.out.size(), alone.out.size());
+  const size_t block = alone.out.size() / blocks;
   size_t blocksDiffering = 0;
   for (size_t b = 0; b < blocks; ++b)
-    blocksDiffering += std::equal(alone.begin() + std::ptrdiff_t(2 * b * block),
-                                  alone.begin() + std::ptrdiff_t(2 * (b + 1) * block),
-                                  raced.begin() + std::ptrdiff_t(2 * b * block))
+    blocksDiffering += std::equal(alone.out.begin() + std::ptrdiff_t(b * block),
+                                  alone.out.begin() + std::ptrdiff_t((b + 1) * block),
+                                  raced.out.begin() + std::ptrdiff_t(b * block))
                            ? 0
                            : 1;
   std::printf("%zu of %zu blocks differ from the first curve's alone\n", blocksDiffering, blocks);
   EXPECT_EQ(blocksDiffering, 0u) << "the audio thread heard a mix of two calls' controls";
-  EXPECT_EQ(mixedReads, 0u) << "sourceControls() read a mix of two calls' controls";
+  EXPECT_EQ(raced.mixed, 0u) << "sourceControls() read a mix of two calls' controls";
+}
+
+// The source's gain is read with the other controls. A game fades from a
+// source's direct sound down (-120 dB) to the whole source down (-120 dB)
+// and back, two game threads in turn, while a third sets the gain alone
+// (-120 dB): each call is -120 dB, and so is every block heard (the glides
+// off, so that every block has a call's product of the gains, not a path
+// between two). A block that took one call's source gain (0 dB) and the
+// other's direct gain (0 dB) is heard at full level.
+TEST(Engine, GainsSetOnGameThreadsAreHeardWhole) {
+  std::vector<SourceSettings> calls(2);
+  calls[0].gainDb = -120.0;
+  calls[1].directGainDb = -120.0;
+  auto whole = [](const SourceSettings& got) {
+    return (got.gainDb == -120.0 && got.directGainDb == 0.0) || (got.gainDb == -120.0 && got.directGainDb == -120.0) ||
+           (got.gainDb == 0.0 && got.directGainDb == -120.0);
+  };
+  const size_t blocks = 40000;
+  std::vector<SourceSettings> unity(1);
+  const ControlsRace full = playWhileControlsAreSet(unity, false, blocks, false, std::nullopt, whole);
+  const ControlsRace raced = playWhileControlsAreSet(calls, false, blocks, true, -120.0, whole);
+  ASSERT_EQ(raced.out.size(), full.out.size());
+  const size_t block = full.out.size() / blocks;
+  double worstDb = -400.0;
+  size_t loudBlocks = 0;
+  for (size_t b = 0; b < blocks; ++b) {
+    const double reference = energy(full.out.data() + b * block, block);
+    if (!(reference > 0)) continue;  // before the direct sound arrives
+    const double db = energyToDb(energy(raced.out.data() + b * block, block) / reference + 1e-30);
+    worstDb = std::max(worstDb, db);
+    loudBlocks += db > -60.0 ? 1 : 0;
+  }
+  std::printf("the loudest block %.1f dB from full level; %zu of %zu blocks above -60 dB\n", worstDb, loudBlocks,
+              blocks);
+  EXPECT_EQ(loudBlocks, 0u) << "a block heard one call's source gain with another's direct gain";
+  EXPECT_EQ(raced.mixed, 0u) << "sourceControls() read a mix of two calls' gains";
 }
 
 // A game fades a source by setting its gain once a frame (60 Hz) while the

@@ -40,14 +40,20 @@ class SeqValues {
    *  another writer). */
   void store(const std::array<double, N>& v) {
     std::lock_guard<std::mutex> lock(mWriters);
-    // Each number a release store after the odd count, each read an
-    // acquire: a reader that reads a number of this store then sees the
-    // count changed (no standalone fence, which ThreadSanitizer does not
-    // model; on x86 these are plain moves all the same).
-    const uint32_t s = mSeq.load(std::memory_order_relaxed);
-    mSeq.store(s + 1, std::memory_order_relaxed);
-    for (size_t i = 0; i < N; ++i) mValues[i].store(v[i], std::memory_order_release);
-    mSeq.store(s + 2, std::memory_order_release);
+    storeLocked(v);
+  }
+
+  /** Changes some of the N, the rest as the last store() left them: `f`
+   *  gets them and changes them in place, then they are stored whole. Two
+   *  writers' update() and store() never lose each other's numbers.
+   *  Thread: as store(). */
+  template <class F>
+  void update(F&& f) {
+    std::lock_guard<std::mutex> lock(mWriters);
+    std::array<double, N> v;
+    for (size_t i = 0; i < N; ++i) v[i] = mValues[i].load(std::memory_order_relaxed);  // (only writers change them)
+    f(v);
+    storeLocked(v);
   }
 
   /** The N of one store() (or the initial ones) into `out`, true; false with
@@ -76,6 +82,17 @@ class SeqValues {
   }
 
  private:
+  void storeLocked(const std::array<double, N>& v) {  // (mWriters held)
+    // Each number a release store after the odd count, each read an
+    // acquire: a reader that reads a number of this store then sees the
+    // count changed (no standalone fence, which ThreadSanitizer does not
+    // model; on x86 these are plain moves all the same).
+    const uint32_t s = mSeq.load(std::memory_order_relaxed);
+    mSeq.store(s + 1, std::memory_order_relaxed);
+    for (size_t i = 0; i < N; ++i) mValues[i].store(v[i], std::memory_order_release);
+    mSeq.store(s + 2, std::memory_order_release);
+  }
+
   std::atomic<uint32_t> mSeq{0};
   std::atomic<double> mValues[N];
   std::mutex mWriters;
