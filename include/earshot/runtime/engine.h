@@ -20,9 +20,11 @@
  *
  *  Threads (docs/design.md): the game thread (sources, listener, scene: the
  *  set, add and remove calls), one simulation thread at a time (simulate()),
- *  and the audio thread (process()). Poses and gains cross to the audio thread
- *  through atomics; IRs through the mixer's lock-free mailbox. process()
- *  never allocates, locks, logs or throws. */
+ *  and the audio thread (process()). A pose, and a source's controls
+ *  (gains, distance curve, directivity), cross to the audio thread whole
+ *  (seq_values.h: never some of one call and the rest of another); IRs
+ *  through the mixer's lock-free mailbox. process() never allocates, locks,
+ *  logs or throws. */
 #include <array>
 #include <atomic>
 #include <chrono>
@@ -364,7 +366,9 @@ class Engine {
    *  simulation. */
   Status setSourcePosition(uint32_t source, const Vec3d& position);
   Status setSourceGainDb(uint32_t source, double gainDb);
-  /** Every control but the direct mode (fixed at addSource). Gains glide
+  /** Every control but the direct mode (fixed at addSource), all at once:
+   *  the audio thread and the simulation never take some of one call's
+   *  and the rest of another's (nor of setSourceGainDb's). Gains glide
    *  as positions do (EngineSettings::glideGameUpdates), the distance
    *  curve ramps over the next block; the occlusion mode kOff
    *  applies from the next block, the others (and transmission) at the
