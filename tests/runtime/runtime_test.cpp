@@ -944,6 +944,44 @@ TEST(SeqValues, AReaderGetsOneStoreWholeWhileOtherThreadsStore) {
   for (double x : last) EXPECT_EQ(x, last[0]);
 }
 
+// update() changes numbers in place under the writers' lock: two threads
+// each adding 1 to both of two numbers 1,000,000 times leave 2,000,000 in each
+// (none lost), and a reader meanwhile sees the two equal.
+TEST(SeqValues, UpdatesFromTwoThreadsAreNotLost) {
+  SeqValues<2> counts({0.0, 0.0});
+  constexpr int kEach = 1000000;
+  std::atomic<bool> go{false}, done{false};
+  auto add = [&] {
+    while (!go.load()) std::this_thread::yield();  // both at once
+    for (int i = 0; i < kEach; ++i)
+      counts.update([](std::array<double, 2>& v) {
+        v[0] += 1;
+        v[1] += 1;
+      });
+  };
+  uint64_t unequal = 0, reads = 0;
+  std::thread reader([&] {
+    std::array<double, 2> v{};
+    while (!done.load()) {
+      if (counts.tryLoad(v)) {
+        ++reads;
+        unequal += v[0] != v[1] ? 1 : 0;
+      }
+    }
+  });
+  std::thread a(add), b(add);
+  go = true;
+  a.join();
+  b.join();
+  done = true;
+  reader.join();
+  const auto last = counts.load();
+  std::printf("%llu reads while two threads updated\n", (unsigned long long)reads);
+  EXPECT_EQ(last[0], 2.0 * kEach);
+  EXPECT_EQ(last[1], 2.0 * kEach);
+  EXPECT_EQ(unequal, 0u);
+}
+
 // A source played 10 m from the listener (free field: the direct sound
 // alone) for `blocks` blocks of 32 frames of noise, added with calls[0].
 // With `racing`, two game threads set calls in turn as fast as they can
