@@ -51,7 +51,7 @@ constexpr size_t kProcessChunk = 1024;
 // +-0.7 ms of the head centre's; the rest is the fit's spread).
 size_t ambisonicDecoderDelayFrames(double rateHz) { return size_t(std::ceil(0.002 * rateHz)); }
 
-// A vector of three of a SeqValues' numbers, from `first`.
+// A vector of three of a LatestValues' numbers, from `first`.
 template <size_t N>
 Vec3d vecOf(const std::array<double, N>& v, size_t first = 0) {
   return {v[first], v[first + 1], v[first + 2]};
@@ -71,10 +71,11 @@ Status validForward(const Vec3d& forward) {
 // A source's controls (its SourceSettings but the direct mode, fixed at
 // addSource()), as the audio thread and the simulation use them.
 // setSourceControls() and addSource() store them whole, setSourceGain()
-// changes the gain among them, and readers read them whole (a SeqValues of
-// their numbers): each number in an atomic of its own, a read that
-// overlapped a store could mix two calls' distance curves (a linear curve
-// with the other's rolloff is silent where both are at full gain), one
+// changes the gain among them, and readers read them whole (a
+// LatestValues of their numbers): each number in an atomic of its own, a
+// read that overlapped a store could mix two calls' distance curves (a
+// linear curve with the other's rolloff is silent where both are at full
+// gain), one
 // call's source gain with the other's direct gain (a source faded from
 // its direct sound to its whole at -120 dB both ways heard at 0 dB), a
 // pattern with the other's normalisation, and two game threads' tables
@@ -185,16 +186,16 @@ struct Engine::Slot {
   // under Engine::mIrMutex.
   std::atomic<int64_t> owedFirstIr{-1};
   std::atomic<int> direct{0};
-  // The pose, set whole by the game thread and read whole (seq_values.h);
-  // the audio thread keeps the last it read (heardPosition, heardForward)
-  // for a read that overlapped a store.
-  SeqValues<3> position{{0.0, 0.0, 0.0}};
+  // The pose, set whole by the game thread and read whole (latest_values.h);
+  // the audio thread keeps its source's (heardPosition, heardForward): a
+  // voice running out keeps its own while a new source takes the slot.
+  LatestValues<3> position{{0.0, 0.0, 0.0}};
   // The controls (gains, distance curve, occlusion, directivity), set whole
   // by the game thread and read whole (Controls); the audio thread keeps
-  // the last it read (heardControls).
-  SeqValues<kControlNumbers> controls{packed(controlsOf(SourceSettings{}))};
+  // its source's (heardControls), as the pose.
+  LatestValues<kControlNumbers> controls{packed(controlsOf(SourceSettings{}))};
   Controls heardControls = controlsOf(SourceSettings{});  // audio thread
-  SeqValues<3> forward{{0.0, 0.0, -1.0}};
+  LatestValues<3> forward{{0.0, 0.0, -1.0}};
   Vec3d heardPosition{0, 0, 0}, heardForward{0, 0, -1};  // audio thread
   std::atomic<double> transmission[kNumBands];
   std::atomic<bool> audible{true};
@@ -1397,8 +1398,7 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
   const size_t outChannels = mOutputChannels;
   const size_t n = mSlots.size();
   DirectTarget target;
-  // (A read that overlapped the game's store keeps the pose read last.)
-  (void)mListener.tryLoad(mHeardListener);
+  mHeardListener = mListener.take();
   const Vec3d listenerSet = vecOf(mHeardListener);
   target.orientation.forward = vecOf(mHeardListener, 3);
   target.orientation.up = vecOf(mHeardListener, 6);
@@ -1418,15 +1418,13 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
     const bool wasLive = slot.live, voiceRan = slot.voicePlayed || slot.drainLeft > 0;
     slot.live = live;
     slot.reflectionsLive = active && simulated;
-    // The source's controls, whole (Controls): a live source's own (read
+    // The source's controls, whole (Controls): a live source's own (taken
     // after its slot turned active, and addSource() stores them before);
     // a voice running out its sound in flight keeps its source's if a new
     // source takes the slot meanwhile (addSource() stores the new ones
-    // after the new generation, checked here after the read). A read that
-    // overlapped a store each time keeps the last, for this call.
-    PackedControls controls;
-    if (slot.controls.tryLoad(controls) &&
-        (live || slot.generation.load(std::memory_order_acquire) == slot.voiceGeneration))
+    // after the new generation, checked here after the take).
+    const PackedControls& controls = slot.controls.take();
+    if (live || slot.generation.load(std::memory_order_acquire) == slot.voiceGeneration)
       slot.heardControls = unpacked(controls);
     // Sound in flight: a direct voice whose source stops playing (its input
     // NULL, or the source released) runs on silence until what it played
@@ -1561,13 +1559,14 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
         continue;
       // A released source's sound in flight stays where it was: a new
       // source's pose in its slot (addSource() sets it after the new
-      // generation, so a pose read before the generation is checked is
+      // generation, so a pose taken before the generation is checked is
       // the new source's only if the check sees the new generation).
-      std::array<double, 3> read{}, facing{};
-      const bool gotPosition = slot.position.tryLoad(read), gotFacing = slot.forward.tryLoad(facing);
-      const bool ownPose = slot.live || slot.generation.load(std::memory_order_acquire) == slot.voiceGeneration;
-      if (ownPose && gotPosition) slot.heardPosition = vecOf(read);
-      if (ownPose && gotFacing) slot.heardForward = vecOf(facing);
+      const std::array<double, 3>& read = slot.position.take();
+      const std::array<double, 3>& facing = slot.forward.take();
+      if (slot.live || slot.generation.load(std::memory_order_acquire) == slot.voiceGeneration) {
+        slot.heardPosition = vecOf(read);
+        slot.heardForward = vecOf(facing);
+      }
       target.source = slot.heardPosition;
       if (mSettings.glideGameUpdates) target.source = slot.glide.next(target.source, m, maxGlide, maxGlideSpeed);
       // The direct gain and the distance curve, relative to the voice's own

@@ -28,7 +28,7 @@
 #include "earshot/ir/ir_pipeline.h"
 #include "earshot/runtime/direct_voice.h"
 #include "earshot/runtime/engine.h"
-#include "earshot/runtime/seq_values.h"
+#include "earshot/runtime/latest_values.h"
 #include "earshot/scene/ray_tracer.h"
 #include "../support/sine_frequency.h"
 #include "runtime_fixture.h"
@@ -891,18 +891,25 @@ TEST(Engine, ASourceAddedWhereItIsPlaysFromThereFromItsFirstBlock) {
 
 // A pose is set whole and read whole: two game threads store poses (each
 // of nine equal numbers: 1 or 2 from one thread, 3 or 4 from the other) as
-// fast as they can while a reader reads them; every read it keeps is one
-// store's nine numbers. The same stores into nine separate atomics (how
-// the engine kept poses) are read mixed, printed for scale: that depends
-// on the scheduling, so it is not asserted.
-TEST(SeqValues, AReaderGetsOneStoreWholeWhileOtherThreadsStore) {
+// fast as they can while the taker (the audio thread's part) takes them
+// and a third reads them with load(): every take and load is one store's
+// nine numbers, and the take after the writers stop is the last store.
+// The same stores into nine separate atomics (how the engine kept poses)
+// are read mixed, printed for scale: that depends on the scheduling, so it
+// is not asserted.
+TEST(LatestValues, ATakerGetsOneStoreWholeWhileOtherThreadsStore) {
   using Pose = std::array<double, 9>;
   auto filled = [](double x) {
     Pose p;
     p.fill(x);
     return p;
   };
-  SeqValues<9> pose(filled(1.0));
+  auto whole = [](const Pose& p) {
+    bool ok = p[0] == 1.0 || p[0] == 2.0 || p[0] == 3.0 || p[0] == 4.0;
+    for (double x : p) ok = ok && x == p[0];
+    return ok;
+  };
+  LatestValues<9> pose(filled(1.0));
   std::atomic<double> separate[9];
   for (auto& x : separate) x.store(1.0);
   std::atomic<bool> stop{false};
@@ -913,20 +920,23 @@ TEST(SeqValues, AReaderGetsOneStoreWholeWhileOtherThreadsStore) {
       for (auto& v : separate) v.store(x, std::memory_order_relaxed);
     }
   };
-  std::thread w1(writer, 1.0, 2.0), w2(writer, 3.0, 4.0);
-  uint64_t kept = 0, mixed = 0, gaveUp = 0, separateMixed = 0, reads = 0;
+  std::atomic<uint64_t> loads{0}, loadsMixed{0};
+  auto loader = [&] {
+    while (!stop.load(std::memory_order_relaxed)) {
+      loadsMixed.fetch_add(whole(pose.load()) ? 0 : 1, std::memory_order_relaxed);
+      loads.fetch_add(1, std::memory_order_relaxed);
+    }
+  };
+  std::thread w1(writer, 1.0, 2.0), w2(writer, 3.0, 4.0), l(loader);
+  uint64_t mixed = 0, changed = 0, separateMixed = 0, takes = 0;
   const auto until = std::chrono::steady_clock::now() + std::chrono::milliseconds(400);
-  Pose p = filled(0.0);
+  double last = 1.0;
   while (std::chrono::steady_clock::now() < until) {
-    for (int k = 0; k < 256; ++k, ++reads) {
-      if (pose.tryLoad(p)) {
-        ++kept;
-        bool whole = p[0] == 1.0 || p[0] == 2.0 || p[0] == 3.0 || p[0] == 4.0;
-        for (double x : p) whole = whole && x == p[0];
-        mixed += whole ? 0 : 1;
-      } else {
-        ++gaveUp;
-      }
+    for (int k = 0; k < 256; ++k, ++takes) {
+      const Pose& p = pose.take();
+      mixed += whole(p) ? 0 : 1;
+      changed += p[0] != last ? 1 : 0;
+      last = p[0];
       double first = separate[0].load(std::memory_order_relaxed);
       for (int i = 1; i < 9; ++i) separateMixed += separate[i].load(std::memory_order_relaxed) != first ? 1 : 0;
     }
@@ -934,21 +944,27 @@ TEST(SeqValues, AReaderGetsOneStoreWholeWhileOtherThreadsStore) {
   stop = true;
   w1.join();
   w2.join();
-  std::printf("%llu reads: %llu kept, %llu gave up (each of %d tries overlapped a store), %llu mixed; nine "
-              "separate atomics: %llu mixed numbers\n",
-              (unsigned long long)reads, (unsigned long long)kept, (unsigned long long)gaveUp, SeqValues<9>::kTries,
-              (unsigned long long)mixed, (unsigned long long)separateMixed);
-  EXPECT_GT(kept, 0u);
-  EXPECT_EQ(mixed, 0u) << "a read kept is one store's";
-  const Pose last = pose.load();  // (waits for a consistent read: no writer now)
-  for (double x : last) EXPECT_EQ(x, last[0]);
+  l.join();
+  std::printf("%llu takes (%llu of a newer store), %llu mixed; %llu loads, %llu mixed; nine separate atomics: "
+              "%llu mixed numbers\n",
+              (unsigned long long)takes, (unsigned long long)changed, (unsigned long long)mixed,
+              (unsigned long long)loads.load(), (unsigned long long)loadsMixed.load(),
+              (unsigned long long)separateMixed);
+  EXPECT_GT(changed, 0u) << "the taker saw the stores";
+  EXPECT_EQ(mixed, 0u) << "a take is one store's";
+  EXPECT_GT(loads.load(), 0u);
+  EXPECT_EQ(loadsMixed.load(), 0u) << "a load is one store's";
+  EXPECT_EQ(pose.take(), pose.load()) << "the take after the last store is that store";
+  pose.store(filled(7.0));
+  EXPECT_EQ(pose.take(), filled(7.0));
+  EXPECT_EQ(pose.take(), filled(7.0)) << "taken again, unchanged";
 }
 
 // update() changes numbers in place under the writers' lock: two threads
-// each adding 1 to both of two numbers 1,000,000 times leave 2,000,000 in each
-// (none lost), and a reader meanwhile sees the two equal.
-TEST(SeqValues, UpdatesFromTwoThreadsAreNotLost) {
-  SeqValues<2> counts({0.0, 0.0});
+// each adding 1 to both of two numbers 1,000,000 times leave 2,000,000 in
+// each (none lost), and the taker meanwhile sees the two equal.
+TEST(LatestValues, UpdatesFromTwoThreadsAreNotLost) {
+  LatestValues<2> counts({0.0, 0.0});
   constexpr int kEach = 1000000;
   std::atomic<bool> go{false}, done{false};
   auto add = [&] {
@@ -959,14 +975,12 @@ TEST(SeqValues, UpdatesFromTwoThreadsAreNotLost) {
         v[1] += 1;
       });
   };
-  uint64_t unequal = 0, reads = 0;
-  std::thread reader([&] {
-    std::array<double, 2> v{};
+  uint64_t unequal = 0, takes = 0;
+  std::thread taker([&] {
     while (!done.load()) {
-      if (counts.tryLoad(v)) {
-        ++reads;
-        unequal += v[0] != v[1] ? 1 : 0;
-      }
+      const auto& v = counts.take();
+      ++takes;
+      unequal += v[0] != v[1] ? 1 : 0;
     }
   });
   std::thread a(add), b(add);
@@ -974,12 +988,13 @@ TEST(SeqValues, UpdatesFromTwoThreadsAreNotLost) {
   a.join();
   b.join();
   done = true;
-  reader.join();
+  taker.join();
   const auto last = counts.load();
-  std::printf("%llu reads while two threads updated\n", (unsigned long long)reads);
+  std::printf("%llu takes while two threads updated\n", (unsigned long long)takes);
   EXPECT_EQ(last[0], 2.0 * kEach);
   EXPECT_EQ(last[1], 2.0 * kEach);
   EXPECT_EQ(unequal, 0u);
+  EXPECT_EQ(counts.take(), last);
 }
 
 // A source played 10 m from the listener (free field: the direct sound

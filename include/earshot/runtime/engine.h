@@ -22,7 +22,7 @@
  *  set, add and remove calls), one simulation thread at a time (simulate()),
  *  and the audio thread (process()). A pose, and a source's controls
  *  (gains, distance curve, directivity), cross to the audio thread whole
- *  (seq_values.h: never some of one call and the rest of another); IRs
+ *  (latest_values.h: never some of one call and the rest of another); IRs
  *  through the mixer's lock-free mailbox. process() never allocates, locks,
  *  logs or throws. */
 #include <array>
@@ -43,7 +43,7 @@
 #include "earshot/ir/spherical_harmonics.h"
 #include "earshot/materials/material.h"
 #include "earshot/runtime/glide.h"
-#include "earshot/runtime/seq_values.h"
+#include "earshot/runtime/latest_values.h"
 
 namespace earshot {
 class RayTracer;
@@ -465,8 +465,8 @@ class Engine {
   std::vector<float> mLastRotation;   // audio thread: the bus's rotation at the end of the last chunk
   bool mHaveRotation = false;         // audio thread
   std::vector<std::unique_ptr<Slot>> mSlots;
-  SeqValues<9> mListener;                // position, forward, up: set and read whole
-  std::array<double, 9> mHeardListener{};  // audio thread: the pose it read last
+  LatestValues<9> mListener;               // position, forward, up: set and read whole
+  std::array<double, 9> mHeardListener{};  // audio thread: the pose it took in this process() call
   PoseGlide mListenerGlide;          // audio thread: the listener position the direct sound follows
 
   std::mutex mSceneMutex;  // game and simulation threads only
