@@ -711,7 +711,9 @@ EARSHOT_API earshot_status earshot_source_set_gain_db(earshot_source* source, fl
  *  next simulation. Game thread. */
 EARSHOT_API earshot_status earshot_source_set_orientation(earshot_source* source, earshot_vec3 forward);
 /** Replaces the source's controls with `settings` (all fields but `direct`,
- *  which must equal the source's: it is fixed at creation). Gains glide as
+ *  which must equal the source's: it is fixed at creation), all at once:
+ *  the audio thread never hears some of one call's controls with the rest
+ *  of another's (nor with another thread's set_gain_db). Gains glide as
  *  earshot_source_set_gain_db's does; the distance curve ramps over the
  *  next audio block (no clicks); EARSHOT_OCCLUSION_OFF applies from the
  *  next block, the other occlusion modes, `radius` and `transmission` at
