@@ -9,7 +9,6 @@
 #include <limits>
 #include <optional>
 #include <string>
-#include <type_traits>
 #include <utility>
 
 #include "earshot/core/denormals.h"
@@ -51,7 +50,7 @@ constexpr size_t kProcessChunk = 1024;
 // +-0.7 ms of the head centre's; the rest is the fit's spread).
 size_t ambisonicDecoderDelayFrames(double rateHz) { return size_t(std::ceil(0.002 * rateHz)); }
 
-// A vector of three of a LatestValues' numbers, from `first`.
+// A vector of three of an array's numbers, from `first`.
 template <size_t N>
 Vec3d vecOf(const std::array<double, N>& v, size_t first = 0) {
   return {v[first], v[first + 1], v[first + 2]};
@@ -72,10 +71,9 @@ Status validForward(const Vec3d& forward) {
 // addSource()), as the audio thread and the simulation use them.
 // setSourceControls() and addSource() store them whole, setSourceGain()
 // changes the gain among them, and readers read them whole (a
-// LatestValues of their numbers): each number in an atomic of its own, a
-// read that overlapped a store could mix two calls' distance curves (a
-// linear curve with the other's rolloff is silent where both are at full
-// gain), one
+// LatestValues). Each number in an atomic of its own, a read that
+// overlapped a store could mix two calls' distance curves (a linear curve
+// with the other's rolloff is silent where both are at full gain), one
 // call's source gain with the other's direct gain (a source faded from
 // its direct sound to its whole at -120 dB both ways heard at 0 dB), a
 // pattern with the other's normalisation, and two game threads' tables
@@ -98,58 +96,6 @@ struct Controls {
   double directivityBandAlpha[kNumBands] = {};
   double directivityMeanSquare[kNumBands] = {};  // the pattern's, once per store, not per audio block
 };
-
-// Calls f on each of c's numbers, in one fixed order (packed, unpacked).
-template <class C, class F>
-constexpr void eachNumber(C& c, F&& f) {
-  f(c.gain);
-  f(c.directGain);
-  f(c.reflectionsGain);
-  f(c.gainDb);
-  f(c.directGainDb);
-  f(c.reflectionsGainDb);
-  f(c.distanceModel);
-  f(c.distanceMin);
-  f(c.distanceMax);
-  f(c.rolloff);
-  f(c.tableCount);
-  for (auto& point : c.table) {
-    f(point.first);
-    f(point.second);
-  }
-  f(c.occlusion);
-  f(c.radius);
-  f(c.transmissionOn);
-  f(c.priority);
-  f(c.directivityAlpha);
-  f(c.directivitySharpness);
-  f(c.directivityPerBand);
-  for (auto& a : c.directivityBandAlpha) f(a);
-  for (auto& m : c.directivityMeanSquare) f(m);
-}
-
-constexpr size_t countControlNumbers() {
-  Controls c;
-  size_t n = 0;
-  eachNumber(c, [&n](auto&) { ++n; });
-  return n;
-}
-constexpr size_t kControlNumbers = countControlNumbers();
-using PackedControls = std::array<double, kControlNumbers>;
-
-PackedControls packed(Controls c) {
-  PackedControls v{};
-  size_t k = 0;
-  eachNumber(c, [&](auto& x) { v[k++] = double(x); });  // ints and bools are exact in a double
-  return v;
-}
-
-Controls unpacked(const PackedControls& v) {
-  Controls c;
-  size_t k = 0;
-  eachNumber(c, [&](auto& x) { x = std::remove_reference_t<decltype(x)>(v[k++]); });
-  return c;
-}
 
 Controls controlsOf(const SourceSettings& s);
 }  // namespace
@@ -189,13 +135,13 @@ struct Engine::Slot {
   // The pose, set whole by the game thread and read whole (latest_values.h);
   // the audio thread keeps its source's (heardPosition, heardForward): a
   // voice running out keeps its own while a new source takes the slot.
-  LatestValues<3> position{{0.0, 0.0, 0.0}};
+  LatestValues<std::array<double, 3>> position{{0.0, 0.0, 0.0}};
   // The controls (gains, distance curve, occlusion, directivity), set whole
   // by the game thread and read whole (Controls); the audio thread keeps
   // its source's (heardControls), as the pose.
-  LatestValues<kControlNumbers> controls{packed(controlsOf(SourceSettings{}))};
+  LatestValues<Controls> controls{controlsOf(SourceSettings{})};
   Controls heardControls = controlsOf(SourceSettings{});  // audio thread
-  LatestValues<3> forward{{0.0, 0.0, -1.0}};
+  LatestValues<std::array<double, 3>> forward{{0.0, 0.0, -1.0}};
   Vec3d heardPosition{0, 0, 0}, heardForward{0, 0, -1};  // audio thread
   std::atomic<double> transmission[kNumBands];
   std::atomic<bool> audible{true};
@@ -495,7 +441,7 @@ Status Engine::setSourceControls(uint32_t s, const SourceSettings& settings) {
   if (!validSource(s)) return invalidArgument("source " + std::to_string(s) + " does not exist");
   EARSHOT_RETURN_IF_ERROR(validate(settings));
   Slot& slot = *mSlots[s];
-  slot.controls.store(packed(controlsOf(settings)));
+  slot.controls.store(controlsOf(settings));
   return Status::ok();
 }
 
@@ -504,7 +450,7 @@ Result<SourceSettings> Engine::sourceControls(uint32_t s) const {
   const Slot& slot = *mSlots[s];
   SourceSettings out;
   out.direct = DirectMode(slot.direct.load());
-  const Controls c = unpacked(slot.controls.load());
+  const Controls c = slot.controls.load();
   out.gainDb = c.gainDb;
   out.directGainDb = c.directGainDb;
   out.reflectionsGainDb = c.reflectionsGainDb;
@@ -808,7 +754,7 @@ Result<uint32_t> Engine::addSourceAt(const SourceSettings& settings, const Vec3d
     ++lateCount;
   }
   slot.direct.store(int(settings.direct));
-  const PackedControls controls = packed(controlsOf(settings));  // (the pattern's quadrature, before the lock)
+  const Controls controls = controlsOf(settings);  // (the pattern's quadrature, before the lock)
   const Vec3d f = normalize(forward);
   {
     // A slot used before still holds its last source's IR: silence takes
@@ -923,11 +869,9 @@ Status Engine::setSourceGainDb(uint32_t s, double gainDb) {
   if (!validSource(s)) return invalidArgument("source " + std::to_string(s) + " does not exist");
   if (!(gainDb >= -120.0 && gainDb <= 60.0))
     return invalidArgument("source gain " + std::to_string(gainDb) + " dB is outside [-120, 60]");
-  mSlots[s]->controls.update([gainDb](PackedControls& v) {
-    Controls c = unpacked(v);
+  mSlots[s]->controls.update([gainDb](Controls& c) {
     c.gain = dbToGain(gainDb);
     c.gainDb = gainDb;
-    v = packed(c);
   });
   return Status::ok();
 }
@@ -1018,7 +962,7 @@ Status Engine::simulate(uint32_t count) {
   std::vector<int> priority(n, 0);
   for (uint32_t i : order) {
     const Slot& slot = *mSlots[i];
-    priority[i] = unpacked(slot.controls.load()).priority;
+    priority[i] = slot.controls.load().priority;
     fresh[i] = slot.simulatedGeneration.load() != slot.generation.load() || slot.owedFirstIr.load() >= 0;
     waiting[i] = mSimulations - slot.simulatedStep >= patience;
     const Vec3d p = vecOf(slot.position.load());
@@ -1183,7 +1127,7 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& requested, bool takeN
       slot.simulatedListener = listener;
       slot.simulatedStep = mSimulations;
       j.settings.includeDirect = DirectMode(slot.direct.load()) == DirectMode::kInImpulseResponse;
-      j.controls = unpacked(slot.controls.load());
+      j.controls = slot.controls.load();
       j.settings.directivity = directivityOf(j.controls);
       j.settings.directivity.forward = vecOf(slot.forward.load());
       jobs.push_back(std::move(j));
@@ -1423,9 +1367,9 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
     // a voice running out its sound in flight keeps its source's if a new
     // source takes the slot meanwhile (addSource() stores the new ones
     // after the new generation, checked here after the take).
-    const PackedControls& controls = slot.controls.take();
+    const Controls& controls = slot.controls.take();
     if (live || slot.generation.load(std::memory_order_acquire) == slot.voiceGeneration)
-      slot.heardControls = unpacked(controls);
+      slot.heardControls = controls;
     // Sound in flight: a direct voice whose source stops playing (its input
     // NULL, or the source released) runs on silence until what it played
     // has arrived (DirectVoice::ringOutFrames), unless a new source takes

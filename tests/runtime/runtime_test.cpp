@@ -909,7 +909,7 @@ TEST(LatestValues, ATakerGetsOneStoreWholeWhileOtherThreadsStore) {
     for (double x : p) ok = ok && x == p[0];
     return ok;
   };
-  LatestValues<9> pose(filled(1.0));
+  LatestValues<Pose> pose(filled(1.0));
   std::atomic<double> separate[9];
   for (auto& x : separate) x.store(1.0);
   std::atomic<bool> stop{false};
@@ -964,7 +964,7 @@ TEST(LatestValues, ATakerGetsOneStoreWholeWhileOtherThreadsStore) {
 // each adding 1 to both of two numbers 1,000,000 times leave 2,000,000 in
 // each (none lost), and the taker meanwhile sees the two equal.
 TEST(LatestValues, UpdatesFromTwoThreadsAreNotLost) {
-  LatestValues<2> counts({0.0, 0.0});
+  LatestValues<std::array<double, 2>> counts({0.0, 0.0});
   constexpr int kEach = 1000000;
   std::atomic<bool> go{false}, done{false};
   auto add = [&] {

@@ -465,7 +465,7 @@ class Engine {
   std::vector<float> mLastRotation;   // audio thread: the bus's rotation at the end of the last chunk
   bool mHaveRotation = false;         // audio thread
   std::vector<std::unique_ptr<Slot>> mSlots;
-  LatestValues<9> mListener;               // position, forward, up: set and read whole
+  LatestValues<std::array<double, 9>> mListener;  // position, forward, up: set and read whole
   std::array<double, 9> mHeardListener{};  // audio thread: the pose it took in this process() call
   PoseGlide mListenerGlide;          // audio thread: the listener position the direct sound follows
 

@@ -1,7 +1,6 @@
 #pragma once
-/** @file A few numbers a game thread sets together (a position, the
- *  listener's pose, a source's controls) and other threads read together,
- *  never mixed.
+/** @file A value a game thread sets whole (a position, the listener's
+ *  pose, a source's controls) and other threads read whole, never mixed.
  *
  *  Each number in an atomic of its own let a reader (the audio thread, a
  *  simulation) take some from one update and the rest from the next: a
@@ -21,26 +20,29 @@
  *  read last: the previous source's controls for a new source's first
  *  block). Other readers (any thread but the audio thread) copy the kept
  *  values under the mutex. */
-#include <array>
 #include <atomic>
-#include <cstddef>
 #include <cstdint>
 #include <mutex>
+#include <type_traits>
 
 namespace earshot::runtime {
 
-template <size_t N>
+template <class T>
 class LatestValues {
  public:
-  using Values = std::array<double, N>;
+  // Plain values, owning no memory: a copy of what the taker takes must
+  // not allocate.
+  static_assert(std::is_trivially_destructible_v<T> && std::is_copy_assignable_v<T>,
+                "LatestValues holds plain values");
+  using Values = T;
 
-  explicit LatestValues(const Values& initial = {}) : mKept(initial) {
+  explicit LatestValues(const Values& initial = Values{}) : mKept(initial) {
     for (auto& b : mBuffers) b = initial;
   }
   LatestValues(const LatestValues&) = delete;
   LatestValues& operator=(const LatestValues&) = delete;
 
-  /** Sets all N at once. Thread: any but the audio thread (it may wait for
+  /** Sets the whole value. Thread: any but the audio thread (it may wait for
    *  another writer). */
   void store(const Values& v) {
     std::lock_guard<std::mutex> lock(mWriters);
@@ -48,9 +50,9 @@ class LatestValues {
     publishLocked();
   }
 
-  /** Changes some of the N, the rest as the last store left them: `f` gets
-   *  them and changes them in place, then they are stored whole. Two
-   *  writers' update() and store() never lose each other's numbers.
+  /** Changes part of the value, the rest as the last store left it: `f`
+   *  gets it and changes it in place, then it is stored whole. Two
+   *  writers' update() and store() never lose each other's changes.
    *  Thread: as store(). */
   template <class F>
   void update(F&& f) {
@@ -59,14 +61,14 @@ class LatestValues {
     publishLocked();
   }
 
-  /** The N of the last store (or the initial ones). Thread: any but the
+  /** The value of the last store (or the initial one). Thread: any but the
    *  audio thread (it may wait for a writer). */
   Values load() const {
     std::lock_guard<std::mutex> lock(mWriters);
     return mKept;
   }
 
-  /** The N of the latest store published (or the initial ones), whole.
+  /** The value of the latest store published (or the initial one), whole.
    *  Thread: one taker only, the audio thread; valid until its next take().
    *  Real-time safe (no lock, no wait, no retry). */
   const Values& take() {
