@@ -143,8 +143,14 @@ struct Engine::Slot {
   Controls heardControls = controlsOf(SourceSettings{});  // audio thread
   LatestValues<std::array<double, 3>> forward{{0.0, 0.0, -1.0}};
   Vec3d heardPosition{0, 0, 0}, heardForward{0, 0, -1};  // audio thread
-  std::atomic<double> transmission[kNumBands];
-  std::atomic<bool> audible{true};
+  // The direct path's occlusion as the last simulation found it, written
+  // whole by the simulation (reset by addSource()) and taken whole by the
+  // audio thread, which keeps its source's (heardOcclusion), as the pose:
+  // each band and the blocked flag in an atomic of its own, a block could
+  // take some bands of one simulation with the rest of the next's, or one's
+  // "blocked" with the other's open bands (silent where both are heard).
+  LatestValues<SourceOcclusion> occlusion{SourceOcclusion{}};
+  SourceOcclusion heardOcclusion;  // audio thread
   std::unique_ptr<DirectVoice> voiceOwner;   // allocated by the slot's first addSource()
   std::atomic<DirectVoice*> voice{nullptr};  // the audio thread's view of voiceOwner
   uint32_t voiceGeneration = ~0u;      // audio thread
@@ -212,9 +218,6 @@ struct Engine::Slot {
   std::shared_ptr<const WholeIr> lastIrInputs;
   bool lastIrIncludesDirect = false;
   uint64_t irCount = 0;
-  Slot() {
-    for (auto& t : transmission) t.store(1.0);
-  }
 };
 
 namespace {
@@ -443,6 +446,11 @@ Status Engine::setSourceControls(uint32_t s, const SourceSettings& settings) {
   Slot& slot = *mSlots[s];
   slot.controls.store(controlsOf(settings));
   return Status::ok();
+}
+
+Result<SourceOcclusion> Engine::sourceOcclusion(uint32_t s) const {
+  if (!validSource(s)) return invalidArgument("source " + std::to_string(s) + " does not exist");
+  return mSlots[s]->occlusion.load();
 }
 
 Result<SourceSettings> Engine::sourceControls(uint32_t s) const {
@@ -785,8 +793,7 @@ Result<uint32_t> Engine::addSourceAt(const SourceSettings& settings, const Vec3d
       slot.tailGainSimulated.store(false);
       slot.tailGainEstimate.store(lateCount > 0 ? std::sqrt(lateEnergy / lateCount) : 0.0);
       if (placed) estimateLateLevel(slot, position);
-      for (auto& t : slot.transmission) t.store(1.0);
-      slot.audible.store(true);
+      slot.occlusion.store(SourceOcclusion{});
     }
     replaced.reset();
     // (Also when no simulation runs: the audio thread takes no IR while
@@ -1284,10 +1291,11 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& requested, bool takeN
                                               transmissionOn);
       } else {
         const BandArrayD air = j.settings.air.enabled ? airAttenuationDbPerMeter(j.settings.air) : filledBands(0.0);
-        for (int b = 0; b < kNumBands; ++b) {
+        // (Nothing crossed: 1, exactly; the path's gain over its air is
+        // 1 within a rounding.)
+        for (int b = 0; d.surfacesCrossed > 0 && b < kNumBands; ++b) {
           const double airGain = std::pow(10.0, -air[b] * d.distanceMeters / 20.0);
-          transmission[b] = airGain > 0 ? d.bandGain[b] / airGain : 0.0;
-          if (!transmissionOn && d.surfacesCrossed > 0) transmission[b] = 0.0;
+          transmission[b] = airGain > 0 && transmissionOn ? d.bandGain[b] / airGain : 0.0;
         }
       }
       // (Not into a source that took the slot meanwhile: it is unoccluded
@@ -1295,12 +1303,12 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& requested, bool takeN
       // resets the slot under.)
       std::lock_guard<std::mutex> lock(mIrMutex);
       if (slot.generation.load() == j.generation) {
-        bool audible = false;
-        for (int b = 0; b < kNumBands; ++b) {
-          slot.transmission[b].store(transmission[b]);
-          audible = audible || transmission[b] > 0;
-        }
-        slot.audible.store(audible);
+        SourceOcclusion found;
+        found.transmission = transmission;
+        found.audible = false;
+        for (double t : transmission) found.audible = found.audible || t > 0;
+        found.simulated = true;
+        slot.occlusion.store(found);
       }
       slot.simulatedGeneration.store(j.generation);
       stats.prepareMs += msSince(tPrepare);
@@ -1507,9 +1515,11 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
       // the new source's only if the check sees the new generation).
       const std::array<double, 3>& read = slot.position.take();
       const std::array<double, 3>& facing = slot.forward.take();
+      const SourceOcclusion& occlusion = slot.occlusion.take();
       if (slot.live || slot.generation.load(std::memory_order_acquire) == slot.voiceGeneration) {
         slot.heardPosition = vecOf(read);
         slot.heardForward = vecOf(facing);
+        slot.heardOcclusion = occlusion;
       }
       target.source = slot.heardPosition;
       if (mSettings.glideGameUpdates) target.source = slot.glide.next(target.source, m, maxGlide, maxGlideSpeed);
@@ -1537,9 +1547,8 @@ void Engine::process(const float* const* inputs, float* const* outputs, size_t f
         target.transmission = filledBands(1.0);
         target.audible = true;
       } else {
-        for (int b = 0; b < kNumBands; ++b)
-          target.transmission[b] = slot.transmission[b].load(std::memory_order_relaxed);
-        target.audible = slot.audible.load(std::memory_order_relaxed);
+        target.transmission = slot.heardOcclusion.transmission;
+        target.audible = slot.heardOcclusion.audible;
       }
       // The way the source faces, glided along the chord and brought back
       // to unit length (a half turn within one update, whose chord passes

@@ -1180,6 +1180,132 @@ TEST(Engine, GainsSetOnGameThreadsAreHeardWhole) {
   EXPECT_EQ(raced.mixed, 0u) << "sourceControls() read a mix of two calls' gains";
 }
 
+// The direct path's occlusion, as simulations write it and the game reads
+// it (and the audio thread takes it): whole. A 4 x 4 m gauze in the plane
+// z = -1 lets sqrt(t_b) = 0.1 .. 0.7 of each band's pressure through; a
+// simulation thread moves the source from behind it (0, 0, -3) to the clear
+// side (0, 0, 3) and back and simulates each time, while the audio thread
+// plays and a game thread reads the occlusion back: every read is one of
+// the two states (or the initial clear one), never some bands of one with
+// the rest of the other. Known answers along the way: the gauze's values
+// (air excluded), clear is all 1, without transmission nothing gets
+// through, and a new source in the slot is clear and not simulated until
+// its first simulation.
+TEST(Engine, OcclusionIsReportedWholeAsSimulated) {
+  auto model = test::ku100();
+  ASSERT_TRUE(model);
+  auto materials = std::make_shared<MaterialTable>();
+  Material gauze;
+  gauze.name = "gauze";
+  gauze.absorption = filledBands(0.6f);
+  gauze.transmission = {0.01f, 0.04f, 0.09f, 0.16f, 0.25f, 0.36f, 0.49f};
+  TriangleMesh quad;
+  quad.positions = {{-2, -2, -1}, {2, -2, -1}, {2, 2, -1}, {-2, 2, -1}};
+  quad.triangles = {{0, 1, 2}, {0, 2, 3}};
+  quad.materialIds.assign(2, materials->add(gauze));
+  auto tracer = RayTracer::create(quad);
+  ASSERT_TRUE(tracer.isOk());
+  EngineSettings es = test::fastSettings();
+  es.simulation.rays = 64;
+  es.simulation.bounces = 2;
+  es.simulation.imageSourceOrder = 1;
+  es.maxIrSeconds = 0.1;
+  es.maxSources = 1;
+  es.threads = 1;
+  es.blockFrames = 64;
+  auto engine = Engine::create(es, model);
+  ASSERT_TRUE(engine.isOk());
+  Engine& e = **engine;
+  e.setScene(std::move(tracer.value()), materials);
+  ASSERT_TRUE(e.setListener({0, 0, 0}, {{0, 0, -1}, {0, 1, 0}}).isOk());
+  SourceSettings ss;
+  ss.transmission = true;
+  auto id = e.addSource(ss, {0, 0, -3}, {0, 0, 1});
+  ASSERT_TRUE(id.isOk());
+  auto occlusion = [&] {
+    auto got = e.sourceOcclusion(*id);
+    EXPECT_TRUE(got.isOk());
+    return got.isOk() ? *got : SourceOcclusion{};
+  };
+  const SourceOcclusion before = occlusion();
+  EXPECT_FALSE(before.simulated);
+  EXPECT_TRUE(before.audible);
+  for (double t : before.transmission) EXPECT_EQ(t, 1.0);
+  EXPECT_FALSE(e.sourceOcclusion(*id + 1).isOk());
+
+  ASSERT_TRUE(e.simulate().isOk());
+  const SourceOcclusion behind = occlusion();
+  EXPECT_TRUE(behind.simulated);
+  EXPECT_TRUE(behind.audible);
+  for (int b = 0; b < kNumBands; ++b)
+    EXPECT_NEAR(behind.transmission[b], std::sqrt(double(gauze.transmission[b])), 1e-12) << "band " << b;
+  ASSERT_TRUE(e.setSourcePosition(*id, {0, 0, 3}).isOk());
+  ASSERT_TRUE(e.simulate().isOk());
+  const SourceOcclusion clear = occlusion();
+  EXPECT_TRUE(clear.simulated && clear.audible);
+  for (double t : clear.transmission) EXPECT_EQ(t, 1.0);
+  ss.transmission = false;
+  ASSERT_TRUE(e.setSourceControls(*id, ss).isOk());
+  ASSERT_TRUE(e.setSourcePosition(*id, {0, 0, -3}).isOk());
+  ASSERT_TRUE(e.simulate().isOk());
+  const SourceOcclusion blocked = occlusion();
+  EXPECT_TRUE(blocked.simulated);
+  EXPECT_FALSE(blocked.audible);
+  for (double t : blocked.transmission) EXPECT_EQ(t, 0.0);
+  ss.transmission = true;
+  ASSERT_TRUE(e.setSourceControls(*id, ss).isOk());
+
+  auto sameAs = [](const SourceOcclusion& a, const SourceOcclusion& b) {
+    return a.transmission == b.transmission && a.audible == b.audible && a.simulated == b.simulated;
+  };
+  std::atomic<bool> stop{false};
+  std::atomic<uint64_t> simulations{0}, reads{0}, mixed{0};
+  std::thread simulation([&] {
+    for (int k = 0; !stop.load(std::memory_order_relaxed); ++k) {
+      EXPECT_TRUE(e.setSourcePosition(*id, {0, 0, k % 2 ? 3.0 : -3.0}).isOk());
+      EXPECT_TRUE(e.simulate().isOk());
+      simulations.fetch_add(1, std::memory_order_relaxed);
+    }
+  });
+  std::thread reader([&] {
+    while (!stop.load(std::memory_order_relaxed)) {
+      const SourceOcclusion got = occlusion();
+      mixed.fetch_add(sameAs(got, behind) || sameAs(got, clear) || sameAs(got, blocked) ? 0 : 1,
+                      std::memory_order_relaxed);
+      reads.fetch_add(1, std::memory_order_relaxed);
+    }
+  });
+  std::vector<float> in(es.blockFrames), l(es.blockFrames), r(es.blockFrames);
+  Pcg32 rng(5, 9);
+  const float* inputs[1] = {in.data()};
+  bool finite = true;
+  const auto until = std::chrono::steady_clock::now() + std::chrono::milliseconds(1500);
+  while (simulations.load() < 200 && std::chrono::steady_clock::now() < until) {
+    for (auto& x : in) x = rng.uniform() - 0.5f;
+    e.process(inputs, l.data(), r.data(), in.size());
+    for (size_t k = 0; k < in.size(); ++k) finite = finite && std::isfinite(l[k]) && std::isfinite(r[k]);
+  }
+  stop = true;
+  simulation.join();
+  reader.join();
+  std::printf("%llu simulations, %llu reads (%llu mixed)\n", (unsigned long long)simulations.load(),
+              (unsigned long long)reads.load(), (unsigned long long)mixed.load());
+  EXPECT_TRUE(finite);
+  EXPECT_GT(simulations.load(), 10u);
+  EXPECT_GT(reads.load(), 0u);
+  EXPECT_EQ(mixed.load(), 0u) << "a read took some bands of one simulation and the rest of another's";
+
+  // A new source in the slot: clear, not simulated, until its own simulation.
+  ASSERT_TRUE(e.removeSource(*id).isOk());
+  auto next = e.addSource(ss, {0, 0, -3}, {0, 0, 1});
+  ASSERT_TRUE(next.isOk());
+  ASSERT_EQ(*next, *id);  // the one slot
+  const SourceOcclusion fresh = occlusion();
+  EXPECT_TRUE(sameAs(fresh, before));
+  ASSERT_TRUE(e.simulate().isOk());
+  EXPECT_TRUE(sameAs(occlusion(), behind));
+}
+
 // A game fades a source by setting its gain once a frame (60 Hz) while the
 // audio thread runs blocks of 256: each step was ramped over the next block
 // and held for the two after it, a 60 Hz staircase in level (a 1 kHz

@@ -273,6 +273,19 @@ struct SourceIr {
   std::chrono::steady_clock::time_point posed{};
 };
 
+/** A source's direct path as its last simulation found it: how much of
+ *  each band gets through the geometry between it and the listener
+ *  (pressure factor, air absorption not included: 1 clear, 0 blocked), by
+ *  the source's occlusion mode (kRay: the one ray; kVolumetric: the energy
+ *  average over rays across its radius; kOff: as kRay, not applied to its
+ *  sound). What the direct sound is filtered with, for a game's own use
+ *  (an AI's hearing, a muffled voice chat). */
+struct SourceOcclusion {
+  BandArrayD transmission = filledBands(1.0);  ///< per band, 125 Hz .. 8 kHz
+  bool audible = true;    ///< false: no band gets through (or transmission off and a surface in the way)
+  bool simulated = false; ///< false: not simulated since the source was added (then clear: all 1)
+};
+
 /** An HRTF model that may still be loading (e.g. std::async of
  *  loadBinauralModel): the engine waits for it only when a source is added or
  *  an IR is computed, never on the audio thread. */
@@ -379,6 +392,10 @@ class Engine {
    *  gliding as positions do; the reflections at the next simulation. */
   Status setSourceOrientation(uint32_t source, const Vec3d& forward);
   Result<SourceSettings> sourceControls(uint32_t source) const;
+  /** The direct path's occlusion of the source's last simulation, whole
+   *  (never some bands of one simulation and the rest of another's).
+   *  Game or simulation thread; never the audio thread (takes a lock). */
+  Result<SourceOcclusion> sourceOcclusion(uint32_t source) const;
   Status setListener(const Vec3d& position, const ListenerOrientation& orientation);
 
   // ---- one simulation thread at a time (never the audio thread) ----
