@@ -725,6 +725,28 @@ EARSHOT_API earshot_status earshot_source_set_settings(earshot_source* source,
  *  Game thread. */
 EARSHOT_API earshot_status earshot_source_get_settings(earshot_source* source, earshot_source_settings* settings);
 
+/** The source's direct path as its last simulation found it: how much of
+ *  each band gets through the geometry between source and listener, what
+ *  the direct sound is filtered with (EARSHOT_OCCLUSION_OFF: found the way
+ *  EARSHOT_OCCLUSION_RAY finds it, not applied). For a game's own use: an
+ *  AI's hearing, a voice chat muffled through a wall. */
+typedef struct earshot_source_occlusion {
+  uint32_t struct_size; /**< sizeof(earshot_source_occlusion), set by the caller */
+  /** Pressure factor per band (EARSHOT_BAND_COUNT, 125 Hz .. 8 kHz) through
+   *  occluders, air absorption not included: 1 clear, 0 blocked
+   *  (EARSHOT_OCCLUSION_VOLUMETRIC: the energy average over rays spread
+   *  across the source's radius). */
+  float transmission[EARSHOT_BAND_COUNT];
+  uint32_t audible;   /**< 0: no band gets through (or transmission off and a surface in the way) */
+  uint32_t simulated; /**< 0: not simulated since the source was created (then transmission all 1) */
+} earshot_source_occlusion;
+
+/** The occlusion of the source's last simulation (occlusion->struct_size
+ *  set by the caller), whole: never some bands of one simulation with the
+ *  rest of another's. Game thread or any thread but the audio thread (takes
+ *  a lock a simulation's write takes, briefly). */
+EARSHOT_API earshot_status earshot_source_get_occlusion(earshot_source* source, earshot_source_occlusion* occlusion);
+
 /* ---------------------------------------------------------------------- IR */
 
 /* An impulse response, for baking, editor previews or a game's own

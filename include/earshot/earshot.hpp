@@ -351,6 +351,14 @@ class Source : public detail::Handle<earshot_source, earshot_source_retain, ears
   void setSettings(const earshot_source_settings& settings) {
     check(earshot_source_set_settings(checked(), &settings));
   }
+  /** earshot_source_get_occlusion: the direct path's occlusion of the
+   *  source's last simulation. */
+  earshot_source_occlusion occlusion() const {
+    earshot_source_occlusion o{};
+    o.struct_size = sizeof(o);
+    check(earshot_source_get_occlusion(checked(), &o));
+    return o;
+  }
   /** earshot_source_get_ir: the IR of the source's last simulation. */
   Ir ir() const {
     earshot_ir* ir = nullptr;

@@ -714,6 +714,22 @@ earshot_status earshot_source_get_settings(earshot_source* src, earshot_source_s
   });
 }
 
+earshot_status earshot_source_get_occlusion(earshot_source* src, earshot_source_occlusion* out) {
+  static const char* kFn = "earshot_source_get_occlusion";
+  if (!alive(src)) return argError(nullptr, kFn, "source is not a live earshot_source");
+  if (!out) return argError(&src->env, kFn, "occlusion is NULL");
+  return guard(&src->env, kFn, [&]() -> earshot_status {
+    const std::string badSize = checkStructSize(out->struct_size, sizeof(earshot_source_occlusion), "occlusion");
+    if (!badSize.empty()) return argError(&src->env, kFn, badSize);
+    auto ro = src->context->engine->sourceOcclusion(src->slot);
+    if (!ro.isOk()) return fromStatus(&src->env, kFn, ro.status());
+    for (int b = 0; b < EARSHOT_BAND_COUNT; ++b) out->transmission[b] = float(ro->transmission[size_t(b)]);
+    out->audible = ro->audible ? 1 : 0;
+    out->simulated = ro->simulated ? 1 : 0;
+    return EARSHOT_OK;
+  });
+}
+
 earshot_status earshot_source_set_orientation(earshot_source* src, earshot_vec3 forward) {
   static const char* kFn = "earshot_source_set_orientation";
   if (!alive(src)) return argError(nullptr, kFn, "source is not a live earshot_source");

@@ -234,6 +234,69 @@ TEST(CapiControls, OcclusionModesDifferAsDocumented) {
   EXPECT_LT(edgeVolume, 0.95 * edgeOpen);
 }
 
+// earshot_source_get_occlusion reports the direct path the last simulation
+// found: the light curtain's transmission per band (pressure: the square
+// root of its energy fraction, air excluded), nothing without
+// transmission, all clear on the open side, and "not simulated" (clear)
+// before the first simulation. EARSHOT_OCCLUSION_OFF reports what a ray
+// finds though the sound is not filtered. Bad arguments are refused.
+TEST(CapiControls, OcclusionReportsTheLastSimulation) {
+  World w(true);
+  ASSERT_EQ(earshot_source_set_position(w.src, {0, 0, -3}), EARSHOT_OK);  // behind the curtain, on axis
+  auto occlusion = [&] {
+    earshot_source_occlusion o;
+    std::memset(&o, 0xff, sizeof(o));
+    o.struct_size = sizeof(o);
+    EXPECT_EQ(earshot_source_get_occlusion(w.src, &o), EARSHOT_OK) << earshot_last_error_message();
+    return o;
+  };
+  earshot_source_occlusion o = occlusion();
+  EXPECT_EQ(o.simulated, 0u);
+  EXPECT_EQ(o.audible, 1u);
+  for (float t : o.transmission) EXPECT_EQ(t, 1.0f);
+
+  earshot_source_settings s = defaults();
+  s.transmission = 1;
+  w.set(s);
+  ASSERT_EQ(earshot_simulate(w.c, 0), EARSHOT_OK);
+  o = occlusion();
+  EXPECT_EQ(o.simulated, 1u);
+  EXPECT_EQ(o.audible, 1u);
+  // The light curtain of materials/default.json.
+  const float curtain[EARSHOT_BAND_COUNT] = {0.025f, 0.03f, 0.195f, 0.315f, 0.35f, 0.365f, 0.365f};
+  for (int b = 0; b < EARSHOT_BAND_COUNT; ++b)
+    EXPECT_NEAR(o.transmission[b], std::sqrt(curtain[b]), 1e-6) << "band " << b;
+  const earshot_source_occlusion through = o;
+
+  s.occlusion = EARSHOT_OCCLUSION_OFF;
+  w.set(s);
+  ASSERT_EQ(earshot_simulate(w.c, 0), EARSHOT_OK);
+  o = occlusion();
+  EXPECT_EQ(std::memcmp(o.transmission, through.transmission, sizeof(o.transmission)), 0);
+
+  s.occlusion = EARSHOT_OCCLUSION_RAY;
+  s.transmission = 0;
+  w.set(s);
+  ASSERT_EQ(earshot_simulate(w.c, 0), EARSHOT_OK);
+  o = occlusion();
+  EXPECT_EQ(o.simulated, 1u);
+  EXPECT_EQ(o.audible, 0u);
+  for (float t : o.transmission) EXPECT_EQ(t, 0.0f);
+
+  ASSERT_EQ(earshot_source_set_position(w.src, {0, 0, 3}), EARSHOT_OK);  // behind the listener: clear
+  ASSERT_EQ(earshot_simulate(w.c, 0), EARSHOT_OK);
+  o = occlusion();
+  EXPECT_EQ(o.audible, 1u);
+  for (float t : o.transmission) EXPECT_EQ(t, 1.0f);
+
+  EXPECT_EQ(earshot_source_get_occlusion(w.src, nullptr), EARSHOT_ERROR_INVALID_ARGUMENT);
+  earshot_source_occlusion bad;
+  bad.struct_size = sizeof(bad) - 4;
+  EXPECT_EQ(earshot_source_get_occlusion(w.src, &bad), EARSHOT_ERROR_INVALID_ARGUMENT);
+  EXPECT_NE(std::string(earshot_last_error_message()).find("struct_size"), std::string::npos);
+  EXPECT_EQ(earshot_source_get_occlusion(nullptr, &o), EARSHOT_ERROR_INVALID_ARGUMENT);
+}
+
 TEST(CapiControls, PriorityOrdersSimulation) {
   earshot_context_settings cs = fastSettings();
   earshot_context* c = nullptr;

@@ -48,6 +48,11 @@ TEST(CppApi, SmokeTestFromGeometryToBinauralAudio) {
   source.setPosition(vec3(6, 3, 1.5f));  // to the listener's right (forward -z, up +y)
   source.setGainDb(-6.0f);
   context.simulate();
+  // Nothing between it and the listener (the door hangs above): clear.
+  const earshot_source_occlusion occlusion = source.occlusion();
+  EXPECT_EQ(occlusion.simulated, 1u);
+  EXPECT_EQ(occlusion.audible, 1u);
+  for (float t : occlusion.transmission) EXPECT_EQ(t, 1.0f);
 
   // One click: the direct sound (2 m, the strongest arrival; the first
   // reflection comes 4.5 ms later) is louder in the near ear. (The whole

@@ -570,6 +570,20 @@ struct Program {
       case 16: {
         earshot_context* c = context();
         checked(earshot_simulate(c, in.count()));
+        // Every source's occlusion: whole and in range, simulated or not.
+        for (const Source& held : sources) {
+          earshot_source_occlusion o;
+          o.struct_size = sizeof(o);
+          CAPI_CHECK(checked(earshot_source_get_occlusion(held.handle, &o)) == EARSHOT_OK);
+          bool any = false;
+          for (float t : o.transmission) {
+            CAPI_CHECK(t >= 0.0f && t <= 1.0f + 1e-6f);
+            any = any || t > 0.0f;
+          }
+          // (A band of 1e-50 through many surfaces is 0 as a float.)
+          CAPI_CHECK(o.audible <= 1u && (!any || o.audible == 1u));
+          CAPI_CHECK(o.simulated <= 1u);
+        }
         break;
       }
       case 17:
