@@ -1,6 +1,7 @@
 #pragma once
-/** @file A value a game thread sets whole (a position, the listener's
- *  pose, a source's controls) and other threads read whole, never mixed.
+/** @file A value a game or simulation thread sets whole (a position, the
+ *  listener's pose, a source's controls, its direct path's occlusion) and
+ *  other threads read whole, never mixed.
  *
  *  Each number in an atomic of its own let a reader (the audio thread, a
  *  simulation) take some from one update and the rest from the next: a
@@ -17,9 +18,9 @@
  *  waits, never retries and always gets one store whole, the latest
  *  published (a sequence lock, which this replaced, gave up after a few
  *  reads that overlapped stores, and the audio thread then kept what it had
- *  read last: the previous source's controls for a new source's first
- *  block). Other readers (any thread but the audio thread) copy the kept
- *  values under the mutex. */
+ *  read last: the slot's earlier controls for a new source's first block).
+ *  Other readers (any thread but the audio thread) copy the kept values
+ *  under the mutex. */
 #include <atomic>
 #include <cstdint>
 #include <mutex>
