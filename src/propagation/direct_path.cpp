@@ -21,6 +21,7 @@ DirectPath computeDirectPath(const RayTracer* tracer, const MaterialTable& mater
   const BandArrayD airDb = airAttenuationDbPerMeter(settings.air);
   BandArrayD energy{};
   for (int b = 0; b < kNumBands; ++b) energy[b] = std::pow(10.0, -airDb[b] * d.distanceMeters / 10.0);
+  BandArrayD through = filledBands(1.0);  // the occluders' alone
 
   if (tracer && !tracer->empty() && d.distanceMeters > 0 && !tracer->nothingBetween(listener, source)) {
     d.occlusionTested = true;
@@ -34,8 +35,11 @@ DirectPath computeDirectPath(const RayTracer* tracer, const MaterialTable& mater
     for (int guard = 0; guard < 1024 && tracer->intersect(ray, hit); ++guard) {
       const Material& m = materials[tracer->materialOf(hit.triangle)];
       ++d.surfacesCrossed;
-      for (int b = 0; b < kNumBands; ++b) energy[b] *= m.transmission[b];
-      if (*std::max_element(energy.begin(), energy.end()) <= 0.0) break;
+      for (int b = 0; b < kNumBands; ++b) {
+        energy[b] *= m.transmission[b];
+        through[b] *= m.transmission[b];
+      }
+      if (*std::max_element(through.begin(), through.end()) <= 0.0) break;
       ray.tNear = hit.t + eps;
       if (ray.tNear >= ray.tFar) break;
     }
@@ -43,6 +47,7 @@ DirectPath computeDirectPath(const RayTracer* tracer, const MaterialTable& mater
   d.audible = false;
   for (int b = 0; b < kNumBands; ++b) {
     d.bandGain[b] = std::sqrt(energy[b]);
+    d.transmissionGain[b] = std::sqrt(through[b]);
     d.audible |= d.bandGain[b] > 0.0;
   }
   return d;

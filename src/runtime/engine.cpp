@@ -506,7 +506,7 @@ BandArrayD volumetricTransmission(const RayTracer& tracer, const MaterialTable& 
                   source.z + radius * z};
     const DirectPath path = computeDirectPath(&tracer, materials, p, listener, ds);
     for (int b = 0; b < kNumBands; ++b) {
-      const double g = path.surfacesCrossed > 0 && !transmissionOn ? 0.0 : path.bandGain[b];
+      const double g = path.surfacesCrossed > 0 && !transmissionOn ? 0.0 : path.transmissionGain[b];
       energy[b] += g * g / kRays;
     }
   }
@@ -1289,14 +1289,10 @@ Status Engine::simulateLocked(const std::vector<uint32_t>& requested, bool takeN
       if (OcclusionMode(j.controls.occlusion) == OcclusionMode::kVolumetric) {
         transmission = volumetricTransmission(*tracer, *materials, j.source, listener, j.controls.radius,
                                               transmissionOn);
+      } else if (transmissionOn || d.surfacesCrossed == 0) {
+        transmission = d.transmissionGain;
       } else {
-        const BandArrayD air = j.settings.air.enabled ? airAttenuationDbPerMeter(j.settings.air) : filledBands(0.0);
-        // (Nothing crossed: 1, exactly; the path's gain over its air is
-        // 1 within a rounding.)
-        for (int b = 0; d.surfacesCrossed > 0 && b < kNumBands; ++b) {
-          const double airGain = std::pow(10.0, -air[b] * d.distanceMeters / 20.0);
-          transmission[b] = airGain > 0 && transmissionOn ? d.bandGain[b] / airGain : 0.0;
-        }
+        transmission = filledBands(0.0);
       }
       // (Not into a source that took the slot meanwhile: it is unoccluded
       // until its own first simulation. Checked under the lock addSource()

@@ -54,6 +54,9 @@ struct DirectPath {
   double delaySeconds = 0.0;        ///< r / c
   double spreadingGain = 1.0;       ///< pressure: 1 / max(r, minDistance) (1.0 at 1 m)
   BandArrayD bandGain{};            ///< pressure factor per band: air x transmission (spreading excluded)
+  /** Pressure factor per band through the occluders alone (air excluded):
+   *  the square root of the product of their transmissions; 1 with none. */
+  BandArrayD transmissionGain = filledBands(1.0);
   int surfacesCrossed = 0;          ///< occluders between source and listener
   bool occlusionTested = false;     ///< false: no geometry, or provably nothing between (RayTracer::nothingBetween)
   bool audible = true;              ///< false when fully blocked (some band gain > 0 otherwise)
