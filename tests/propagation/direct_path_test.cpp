@@ -67,6 +67,50 @@ TEST(DirectPath, EachWallCrossedMultipliesEnergyByItsTransmission) {
   EXPECT_FALSE(computeDirectPath(rt2->get(), materials, {3, 0.3, 0.2}, {0, 0.1, 0}, s).audible);
 }
 
+// The occluders' own factor, without the air: what the runtime filters a
+// source's direct sound with and reports (Engine::sourceOcclusion). Two
+// walls of transmission t_b: t_b exactly (sqrt(t_b^2)), with the air on
+// and off, while bandGain carries the air's loss besides; 1 with nothing
+// in the way.
+TEST(DirectPath, TransmissionGainIsTheOccludersAlone) {
+  MaterialTable materials;
+  Material wall;
+  wall.name = "thin";
+  wall.absorption = filledBands(0.5f);
+  wall.transmission = {0.1f, 0.1f, 0.05f, 0.05f, 0.01f, 0.01f, 0.002f};
+  const uint32_t id = materials.add(wall);
+  TriangleMesh mesh;
+  for (float x : {1.0f, 2.0f}) {
+    const uint32_t base = uint32_t(mesh.positions.size());
+    mesh.positions.push_back({x, -5, -5});
+    mesh.positions.push_back({x, 5, -5});
+    mesh.positions.push_back({x, 5, 5});
+    mesh.positions.push_back({x, -5, 5});
+    mesh.triangles.push_back({base, base + 1, base + 2});
+    mesh.triangles.push_back({base, base + 2, base + 3});
+    mesh.materialIds.push_back(id);
+    mesh.materialIds.push_back(id);
+  }
+  auto rt = RayTracer::create(mesh);
+  ASSERT_TRUE(rt.isOk()) << rt.status().message();
+  for (bool air : {false, true}) {
+    DirectPathSettings s;
+    s.air.enabled = air;
+    const DirectPath d = computeDirectPath(rt->get(), materials, {30, 0.3, 0.2}, {0, 0.1, 0}, s);
+    ASSERT_EQ(d.surfacesCrossed, 2);
+    for (int b = 0; b < kNumBands; ++b) {
+      EXPECT_EQ(d.transmissionGain[b], double(wall.transmission[b])) << "band " << b << (air ? ", air on" : "");
+      if (air)
+        EXPECT_LT(d.bandGain[b], d.transmissionGain[b]) << "band " << b;
+      else
+        EXPECT_NEAR(d.bandGain[b], d.transmissionGain[b], 1e-15) << "band " << b;
+    }
+    const DirectPath clear = computeDirectPath(rt->get(), materials, {0.5, 0.3, 0.2}, {0, 0.1, 0}, s);
+    EXPECT_EQ(clear.surfacesCrossed, 0);
+    for (double g : clear.transmissionGain) EXPECT_EQ(g, 1.0);
+  }
+}
+
 // The occlusion test is made only where a surface could be in the way: not
 // between two points inside a box (no plane separates them), but between
 // two points on either side of a wall.
