@@ -28,26 +28,35 @@ TEST(DirectPath, SpreadingIsClampedAtTheMinimumDistance) {
   EXPECT_TRUE(std::isfinite(d.directionFromListener.x));
 }
 
-TEST(DirectPath, EachWallCrossedMultipliesEnergyByItsTransmission) {
-  MaterialTable materials;
-  Material wall;
-  wall.name = "thin";
-  wall.absorption = filledBands(0.5f);
-  wall.transmission = {0.1f, 0.1f, 0.05f, 0.05f, 0.01f, 0.01f, 0.0f};
-  uint32_t id = materials.add(wall);
-  // Two parallel walls (each a box face would be two crossings; use quads).
+namespace {
+
+// Two parallel 10 x 10 m walls at x = 1 and x = 2 (each a box face would be
+// two crossings; so quads).
+TriangleMesh twoWalls(uint32_t materialId) {
   TriangleMesh mesh;
   for (float x : {1.0f, 2.0f}) {
-    uint32_t base = uint32_t(mesh.positions.size());
+    const uint32_t base = uint32_t(mesh.positions.size());
     mesh.positions.push_back({x, -5, -5});
     mesh.positions.push_back({x, 5, -5});
     mesh.positions.push_back({x, 5, 5});
     mesh.positions.push_back({x, -5, 5});
     mesh.triangles.push_back({base, base + 1, base + 2});
     mesh.triangles.push_back({base, base + 2, base + 3});
-    mesh.materialIds.push_back(id);
-    mesh.materialIds.push_back(id);
+    mesh.materialIds.push_back(materialId);
+    mesh.materialIds.push_back(materialId);
   }
+  return mesh;
+}
+
+}  // namespace
+
+TEST(DirectPath, EachWallCrossedMultipliesEnergyByItsTransmission) {
+  MaterialTable materials;
+  Material wall;
+  wall.name = "thin";
+  wall.absorption = filledBands(0.5f);
+  wall.transmission = {0.1f, 0.1f, 0.05f, 0.05f, 0.01f, 0.01f, 0.0f};
+  TriangleMesh mesh = twoWalls(materials.add(wall));
   auto rt = RayTracer::create(mesh);
   ASSERT_TRUE(rt.isOk()) << rt.status().message();
   DirectPathSettings s;
@@ -78,20 +87,7 @@ TEST(DirectPath, TransmissionGainIsTheOccludersAlone) {
   wall.name = "thin";
   wall.absorption = filledBands(0.5f);
   wall.transmission = {0.1f, 0.1f, 0.05f, 0.05f, 0.01f, 0.01f, 0.002f};
-  const uint32_t id = materials.add(wall);
-  TriangleMesh mesh;
-  for (float x : {1.0f, 2.0f}) {
-    const uint32_t base = uint32_t(mesh.positions.size());
-    mesh.positions.push_back({x, -5, -5});
-    mesh.positions.push_back({x, 5, -5});
-    mesh.positions.push_back({x, 5, 5});
-    mesh.positions.push_back({x, -5, 5});
-    mesh.triangles.push_back({base, base + 1, base + 2});
-    mesh.triangles.push_back({base, base + 2, base + 3});
-    mesh.materialIds.push_back(id);
-    mesh.materialIds.push_back(id);
-  }
-  auto rt = RayTracer::create(mesh);
+  auto rt = RayTracer::create(twoWalls(materials.add(wall)));
   ASSERT_TRUE(rt.isOk()) << rt.status().message();
   for (bool air : {false, true}) {
     DirectPathSettings s;
