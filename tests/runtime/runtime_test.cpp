@@ -1186,8 +1186,9 @@ TEST(Engine, GainsSetOnGameThreadsAreHeardWhole) {
 // simulation thread moves the source from behind it (0, 0, -3) to the clear
 // side (0, 0, 3) and back and simulates each time, while the audio thread
 // plays and a game thread reads the occlusion back: every read is one of
-// the two states (or the initial clear one), never some bands of one with
-// the rest of the other. Known answers along the way: the gauze's values
+// the two states (or the blocked one the known answers below leave until
+// the race's first simulation), never some bands of one with the rest of
+// another's. Known answers along the way: the gauze's values
 // (air excluded), clear is all 1, without transmission nothing gets
 // through, and a new source in the slot is clear and not simulated until
 // its first simulation.
