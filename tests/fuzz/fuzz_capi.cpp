@@ -577,7 +577,7 @@ struct Program {
           CAPI_CHECK(checked(earshot_source_get_occlusion(held.handle, &o)) == EARSHOT_OK);
           bool any = false;
           for (float t : o.transmission) {
-            CAPI_CHECK(t >= 0.0f && t <= 1.0f);  // sqrt of transmissions' product (or mean), each <= 1
+            CAPI_CHECK(t >= 0.0f && t <= 1.0f);  // sqrt of a product of transmissions <= 1, or of a mean of such
             any = any || t > 0.0f;
           }
           // (A band of 1e-50 through many surfaces is 0 as a float.)
